@@ -1,0 +1,221 @@
+//! One error type for every fallible operation in this crate.
+//!
+//! Each variant names the offending quantity, carries the value that was refused and, through
+//! [`core::fmt::Display`], explains why in words a machine operator can act on.
+
+use core::fmt;
+
+/// The physical or configuration quantity an [`Error`] refers to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Quantity {
+    PeriodS,
+    FrequencyHz,
+    Duty,
+    StrokeM,
+    AccelMps2,
+    ClockHz,
+    FrictionCoefficient,
+    GravityMps2,
+    MassKg,
+    ForceN,
+    FeedRateMps,
+    MinFrequencyLimitHz,
+    MaxFrequencyLimitHz,
+    AccelLimitMps2,
+    StrokeLimitM,
+}
+
+impl Quantity {
+    /// Name with unit, as used in messages.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Quantity::PeriodS => "period (s)",
+            Quantity::FrequencyHz => "frequency (Hz)",
+            Quantity::Duty => "duty cycle",
+            Quantity::StrokeM => "stroke x_max (m)",
+            Quantity::AccelMps2 => "peak acceleration a_max (m/s²)",
+            Quantity::ClockHz => "timer clock (Hz)",
+            Quantity::FrictionCoefficient => "friction coefficient μ",
+            Quantity::GravityMps2 => "gravity (m/s²)",
+            Quantity::MassKg => "part mass (kg)",
+            Quantity::ForceN => "external force (N)",
+            Quantity::FeedRateMps => "feed rate (m/s)",
+            Quantity::MinFrequencyLimitHz => "minimum frequency limit (Hz)",
+            Quantity::MaxFrequencyLimitHz => "maximum frequency limit (Hz)",
+            Quantity::AccelLimitMps2 => "motor acceleration limit (m/s²)",
+            Quantity::StrokeLimitM => "stroke travel limit (m)",
+        }
+    }
+}
+
+/// A segment of the three-level acceleration waveform, in the order it is output within a cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SegmentKind {
+    /// `+a` on `[0, t1)`: the plate speeds up forward.
+    Accelerate,
+    /// `0` on `[t1, t2)`: the plateau `P` at `v_max`.
+    Plateau,
+    /// `−a` on `[t2, t3)`: the plate brakes and swings backward.
+    Reverse,
+    /// `+a` on `[t3, T)`: the plate returns to rest at the cycle boundary.
+    Return,
+    /// `0` for a whole period while the scheduler is stopped.
+    Idle,
+}
+
+impl SegmentKind {
+    pub const fn name(self) -> &'static str {
+        match self {
+            SegmentKind::Accelerate => "accelerate",
+            SegmentKind::Plateau => "plateau",
+            SegmentKind::Reverse => "reverse",
+            SegmentKind::Return => "return",
+            SegmentKind::Idle => "idle",
+        }
+    }
+}
+
+/// Everything that can be refused.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Error {
+    /// The value is NaN or infinite.
+    NotFinite { quantity: Quantity },
+    /// The value must be strictly positive.
+    NotPositive { quantity: Quantity, value: f64 },
+    /// `d ≤ 0.5`: the velocity profile is symmetric or backward-biased, so the part does not feed
+    /// forward (Eq. 9 gives `v_eq ≤ 0`, Eq. 2 has no real plateau below 0.5).
+    DutyTooLow { duty: f64 },
+    /// `d ≥ 1`: no time is left for the backward swing `B = T(1 − d)`.
+    DutyTooHigh { duty: f64 },
+    /// The frequency lies outside the band the caller allows.
+    FrequencyOutOfBand { frequency_hz: f64, min_hz: f64, max_hz: f64 },
+    /// The derived or requested peak acceleration exceeds the motor's limit.
+    AccelAboveLimit { accel_mps2: f64, limit_mps2: f64 },
+    /// The derived or requested stroke exceeds the plate's travel.
+    StrokeAboveLimit { stroke_m: f64, limit_m: f64 },
+    /// A caller-supplied limit is NaN or negative, so nothing could be checked against it.
+    InvalidLimit { quantity: Quantity, value: f64 },
+    /// At this clock a segment of the waveform is shorter than half a tick and would vanish.
+    SegmentTooShort { segment: SegmentKind, exact_ticks: f64 },
+    /// The period or a segment needs more ticks than the timer can count.
+    TicksOverflow { segment: SegmentKind, exact_ticks: f64, max_ticks: u32 },
+    /// A new plan was requested with a timer clock other than the running one.
+    ClockMismatch { running_hz: u32, requested_hz: u32 },
+    /// `a_max ≤ μg`: the part sticks to the plate and never feeds.
+    NoSlip { accel_mps2: f64, friction_accel_mps2: f64 },
+    /// The external force overcomes friction or makes the part stick, so the linear viscous law
+    /// (Eq. 10) does not apply.
+    OutsideViscousRange { force_n: f64 },
+    /// No duty within the limits reaches the target feed rate while the part keeps sliding.
+    FeedRateAboveReach { target_mps: f64, max_mps: f64 },
+    /// Every admissible duty within the limits feeds faster than the target.
+    FeedRateBelowReach { target_mps: f64, min_mps: f64 },
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Error::NotFinite { quantity } => write!(f, "{} must be a finite number", quantity.name()),
+            Error::NotPositive { quantity, value } => {
+                write!(f, "{} must be greater than zero, got {}", quantity.name(), value)
+            }
+            Error::DutyTooLow { duty } => write!(
+                f,
+                "duty cycle {} must be above 0.5: at or below 0.5 the plate's velocity profile is \
+                 not forward-biased and the part does not feed",
+                duty
+            ),
+            Error::DutyTooHigh { duty } => write!(
+                f,
+                "duty cycle {} must be below 1: at 1 there is no time left for the backward swing",
+                duty
+            ),
+            Error::FrequencyOutOfBand { frequency_hz, min_hz, max_hz } => write!(
+                f,
+                "frequency {} Hz is outside the allowed band {}..={} Hz",
+                frequency_hz, min_hz, max_hz
+            ),
+            Error::AccelAboveLimit { accel_mps2, limit_mps2 } => write!(
+                f,
+                "peak acceleration {} m/s² exceeds the motor limit of {} m/s²",
+                accel_mps2, limit_mps2
+            ),
+            Error::StrokeAboveLimit { stroke_m, limit_m } => write!(
+                f,
+                "stroke {} m exceeds the plate travel limit of {} m",
+                stroke_m, limit_m
+            ),
+            Error::InvalidLimit { quantity, value } => {
+                write!(f, "{} must be a non-negative number, got {}", quantity.name(), value)
+            }
+            Error::SegmentTooShort { segment, exact_ticks } => write!(
+                f,
+                "the {} segment lasts {} timer ticks and would round to zero: use a faster clock \
+                 or a duty further from its limits",
+                segment.name(),
+                exact_ticks
+            ),
+            Error::TicksOverflow { segment, exact_ticks, max_ticks } => write!(
+                f,
+                "the {} segment needs {} timer ticks but the timer counts at most {}: use a slower \
+                 clock or a higher frequency",
+                segment.name(),
+                exact_ticks,
+                max_ticks
+            ),
+            Error::ClockMismatch { running_hz, requested_hz } => write!(
+                f,
+                "the new plan is for a {} Hz clock but the scheduler runs on {} Hz",
+                requested_hz, running_hz
+            ),
+            Error::NoSlip { accel_mps2, friction_accel_mps2 } => write!(
+                f,
+                "peak acceleration {} m/s² does not exceed μg = {} m/s²: the part sticks to the \
+                 plate and does not feed",
+                accel_mps2, friction_accel_mps2
+            ),
+            Error::OutsideViscousRange { force_n } => write!(
+                f,
+                "external force {} N makes the part stick or overcomes friction: the linear viscous \
+                 law does not hold there",
+                force_n
+            ),
+            Error::FeedRateAboveReach { target_mps, max_mps } => write!(
+                f,
+                "feed rate {} m/s cannot be reached within the limits while the part slides; the \
+                 most is {} m/s",
+                target_mps, max_mps
+            ),
+            Error::FeedRateBelowReach { target_mps, min_mps } => write!(
+                f,
+                "feed rate {} m/s is below what the limits allow; the least is {} m/s",
+                target_mps, min_mps
+            ),
+        }
+    }
+}
+
+impl core::error::Error for Error {}
+
+/// Checks that `value` is finite and strictly positive.
+pub(crate) fn positive(quantity: Quantity, value: f64) -> Result<f64, Error> {
+    if !value.is_finite() {
+        Err(Error::NotFinite { quantity })
+    } else if value <= 0.0 {
+        Err(Error::NotPositive { quantity, value })
+    } else {
+        Ok(value)
+    }
+}
+
+/// Checks that `value` is finite (any sign).
+pub(crate) fn finite(quantity: Quantity, value: f64) -> Result<f64, Error> {
+    if value.is_finite() {
+        Ok(value)
+    } else {
+        Err(Error::NotFinite { quantity })
+    }
+}

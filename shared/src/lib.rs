@@ -1,0 +1,25 @@
+//! The one source of truth of the feeder: waveform, integer-tick plan, scheduler and models.
+//!
+//! From the period `T`, the duty cycle `d` and the stroke `x_max` (or peak acceleration `a_max`)
+//! of a longitudinally vibrating plate this crate derives the three-level acceleration waveform
+//! (paper Eq. 1–5, [`waveform`]), turns it into whole ticks of a timer clock without letting the
+//! plate drift ([`plan`]), schedules it with soft start and stop and boundary-only changes
+//! ([`scheduler`]), and predicts the part's feed rate ([`model`]). The firmware and the host
+//! simulator both run this code; neither has a waveform of its own.
+//!
+//! `no_std`, no allocation, no `unsafe`; every fallible call returns a typed [`Error`].
+#![no_std]
+#![forbid(unsafe_code)]
+#![warn(missing_debug_implementations)]
+
+pub mod error;
+pub mod model;
+pub mod plan;
+pub mod scheduler;
+pub mod waveform;
+
+pub use error::{Error, Quantity, SegmentKind};
+pub use model::{Friction, Regime, SteadyState};
+pub use plan::{CycleTicks, TickClock, TickPlan};
+pub use scheduler::{Amplitude, Phase, Scheduler, Segment};
+pub use waveform::{Drive, ExactSegment, Level, Limits, Waveform, WaveformSpec};

@@ -1,0 +1,288 @@
+//! The waveform scheduler: which level, for how many ticks, forever.
+//!
+//! The scheduler is a deterministic state machine over a [`TickPlan`]. Each call to
+//! [`Scheduler::next_segment`] returns the next segment to output with its absolute start tick.
+//! Requests (start, stop, a new plan, a new ramp length) are only recorded when made; they take
+//! effect at the next cycle boundary, where the plate is at rest. While stopped the scheduler emits
+//! idle periods of level `0`, so time and the cycle count advance uniformly.
+//!
+//! Soft start and soft stop scale the amplitude by `step / steps` with `steps = max(ramp_cycles, 1)`:
+//! starting runs cycles at `1/steps, 2/steps, …, 1`; stopping runs `(steps−1)/steps, …, 1/steps`
+//! and then idles. Every cycle, scaled or not, ends at rest, and its displacement residual (see
+//! [`crate::plan`]) is fed back through the choice of the next cycle's variant.
+
+use crate::error::{Error, SegmentKind};
+use crate::plan::TickPlan;
+use crate::waveform::Level;
+use libm::round;
+
+/// Amplitude of a segment as the fraction `step / steps` of the plan's `a_max`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Amplitude {
+    pub step: u16,
+    pub steps: u16,
+}
+
+impl Amplitude {
+    pub fn fraction(self) -> f64 {
+        f64::from(self.step) / f64::from(self.steps)
+    }
+}
+
+/// What the scheduler is doing in a cycle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Phase {
+    Stopped,
+    Starting,
+    Running,
+    Stopping,
+}
+
+/// One segment of output: hold `level` at `amplitude` for `ticks`, from `start_tick`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Segment {
+    /// Absolute tick (since the scheduler was created) at which the level is applied.
+    pub start_tick: u64,
+    pub ticks: u32,
+    /// Index of the cycle (or idle period) this segment belongs to.
+    pub cycle: u64,
+    pub kind: SegmentKind,
+    pub level: Level,
+    pub amplitude: Amplitude,
+    /// `a_max` of the plan in force, before the amplitude fraction.
+    pub peak_accel_mps2: f64,
+    pub phase: Phase,
+    /// True on the first segment of the first cycle that runs a newly requested plan.
+    pub plan_applied: bool,
+}
+
+impl Segment {
+    /// Commanded plate acceleration during this segment.
+    pub fn accel_mps2(&self) -> f64 {
+        f64::from(self.level.sign()) * self.peak_accel_mps2 * self.amplitude.fraction()
+    }
+
+    /// True for the first segment of a cycle or idle period.
+    pub fn starts_cycle(&self) -> bool {
+        matches!(self.kind, SegmentKind::Accelerate | SegmentKind::Idle)
+    }
+
+    pub fn end_tick(&self) -> u64 {
+        self.start_tick + u64::from(self.ticks)
+    }
+}
+
+/// The one waveform scheduler, shared by the firmware and the simulator.
+#[derive(Debug, Clone)]
+pub struct Scheduler {
+    plan: TickPlan,
+    pending_plan: Option<TickPlan>,
+    ramp_steps: u16,
+    pending_ramp_steps: Option<u16>,
+    run_requested: bool,
+    step: u16,
+    phase: Phase,
+    cycle: u64,
+    /// Index of the next segment within the cycle (0 at a boundary).
+    segment_index: usize,
+    variant: usize,
+    next_tick: u64,
+    /// Accumulated displacement at the last boundary, in units of `(a/steps)·tick²`.
+    residual: i64,
+}
+
+impl Scheduler {
+    /// A stopped scheduler at tick 0 that will ramp over `ramp_cycles` cycles.
+    pub fn new(plan: TickPlan, ramp_cycles: u16) -> Self {
+        Scheduler {
+            plan,
+            pending_plan: None,
+            ramp_steps: ramp_cycles.max(1),
+            pending_ramp_steps: None,
+            run_requested: false,
+            step: 0,
+            phase: Phase::Stopped,
+            cycle: 0,
+            segment_index: 0,
+            variant: 0,
+            next_tick: 0,
+            residual: 0,
+        }
+    }
+
+    /// Request motion; it begins (or a soft stop reverses) at the next cycle boundary.
+    pub fn start(&mut self) {
+        self.run_requested = true;
+    }
+
+    /// Request a soft stop; it begins at the next cycle boundary.
+    pub fn stop(&mut self) {
+        self.run_requested = false;
+    }
+
+    /// Replace the plan at the next cycle boundary. The clock must be the running one.
+    pub fn set_plan(&mut self, plan: TickPlan) -> Result<(), Error> {
+        if plan.clock_hz != self.plan.clock_hz {
+            return Err(Error::ClockMismatch {
+                running_hz: self.plan.clock_hz,
+                requested_hz: plan.clock_hz,
+            });
+        }
+        self.pending_plan = Some(plan);
+        Ok(())
+    }
+
+    /// Change the soft start/stop length at the next cycle boundary.
+    pub fn set_ramp_cycles(&mut self, ramp_cycles: u16) {
+        self.pending_ramp_steps = Some(ramp_cycles.max(1));
+    }
+
+    /// Fault stop: drop to idle immediately, abandoning the rest of the cycle. The caller must
+    /// already have driven the output to zero; the next segment is an idle period starting where
+    /// the last emitted segment ended. Not for normal stops, which use [`Self::stop`].
+    pub fn halt(&mut self) {
+        self.run_requested = false;
+        self.step = 0;
+        self.phase = Phase::Stopped;
+        self.residual = 0;
+        if self.segment_index != 0 {
+            self.segment_index = 0;
+            self.cycle += 1;
+        }
+    }
+
+    /// The next segment to output.
+    pub fn next_segment(&mut self) -> Segment {
+        let mut plan_applied = false;
+        if self.segment_index == 0 {
+            plan_applied = self.begin_cycle();
+        }
+        let (kind, level, ticks) = if self.step == 0 {
+            (SegmentKind::Idle, Level::Zero, self.plan.period_ticks)
+        } else {
+            let cycle = &self.plan.variants[self.variant];
+            let (kind, level) = CYCLE[self.segment_index];
+            (kind, level, cycle.segment_ticks(self.segment_index))
+        };
+        let segment = Segment {
+            start_tick: self.next_tick,
+            ticks,
+            cycle: self.cycle,
+            kind,
+            level,
+            amplitude: Amplitude { step: self.step, steps: self.ramp_steps },
+            peak_accel_mps2: self.plan.waveform.accel_mps2,
+            phase: self.phase,
+            plan_applied,
+        };
+        self.next_tick = self.next_tick.saturating_add(u64::from(ticks));
+        if self.step == 0 || self.segment_index == CYCLE.len() - 1 {
+            let residual = self.plan.variants[self.variant].residual;
+            if self.step > 0 {
+                self.residual = self
+                    .residual
+                    .saturating_add(residual.saturating_mul(i64::from(self.step)));
+            }
+            self.segment_index = 0;
+            self.cycle += 1;
+        } else {
+            self.segment_index += 1;
+        }
+        segment
+    }
+
+    /// Applies pending requests at a cycle boundary and chooses the cycle's amplitude and variant.
+    /// Returns whether a new plan took effect.
+    fn begin_cycle(&mut self) -> bool {
+        let residual_m = self.residual_m();
+        let plan_applied = match self.pending_plan.take() {
+            Some(plan) => {
+                self.plan = plan;
+                true
+            }
+            None => false,
+        };
+        let ramp_changed = self.pending_ramp_steps.is_some();
+        if let Some(steps) = self.pending_ramp_steps.take() {
+            let old_steps = u32::from(self.ramp_steps);
+            let scaled = (u32::from(self.step) * u32::from(steps) + old_steps / 2) / old_steps;
+            self.step = if self.step > 0 { scaled.max(1) as u16 } else { 0 };
+            self.ramp_steps = steps;
+        }
+        if plan_applied || ramp_changed {
+            self.residual = round(residual_m / self.residual_unit_m()) as i64;
+        }
+        self.step = if self.run_requested {
+            (self.step + 1).min(self.ramp_steps)
+        } else {
+            self.step.saturating_sub(1)
+        };
+        self.phase = match (self.run_requested, self.step) {
+            (_, 0) => Phase::Stopped,
+            (true, step) if step == self.ramp_steps => Phase::Running,
+            (true, _) => Phase::Starting,
+            (false, _) => Phase::Stopping,
+        };
+        self.variant = if self.residual <= 0 { 0 } else { 1 };
+        plan_applied
+    }
+
+    fn residual_unit_m(&self) -> f64 {
+        self.plan.residual_unit_m() / f64::from(self.ramp_steps)
+    }
+
+    /// Accumulated plate displacement at the last cycle boundary, from whole-tick integration.
+    pub fn residual_m(&self) -> f64 {
+        self.residual as f64 * self.residual_unit_m()
+    }
+
+    /// The plan in force.
+    pub fn plan(&self) -> &TickPlan {
+        &self.plan
+    }
+
+    /// The plan that will take effect at the next boundary, if any.
+    pub fn pending_plan(&self) -> Option<&TickPlan> {
+        self.pending_plan.as_ref()
+    }
+
+    /// Phase of the current (last begun) cycle.
+    pub fn phase(&self) -> Phase {
+        self.phase
+    }
+
+    /// Whether motion is requested (the state soft start/stop converges to).
+    pub fn run_requested(&self) -> bool {
+        self.run_requested
+    }
+
+    pub fn ramp_cycles(&self) -> u16 {
+        self.ramp_steps
+    }
+
+    /// Number of cycles (including idle periods) begun so far.
+    pub fn cycle(&self) -> u64 {
+        self.cycle
+    }
+
+    /// Tick at which the next segment starts.
+    pub fn next_tick(&self) -> u64 {
+        self.next_tick
+    }
+
+    /// True when the next segment starts a cycle.
+    pub fn at_boundary(&self) -> bool {
+        self.segment_index == 0
+    }
+}
+
+/// The segments of one cycle in output order (Fig. 2a).
+const CYCLE: [(SegmentKind, Level); 4] = [
+    (SegmentKind::Accelerate, Level::Positive),
+    (SegmentKind::Plateau, Level::Zero),
+    (SegmentKind::Reverse, Level::Negative),
+    (SegmentKind::Return, Level::Positive),
+];
