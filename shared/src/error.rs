@@ -91,7 +91,11 @@ pub enum Error {
     /// `d ≥ 1`: no time is left for the backward swing `B = T(1 − d)`.
     DutyTooHigh { duty: f64 },
     /// The frequency lies outside the band the caller allows.
-    FrequencyOutOfBand { frequency_hz: f64, min_hz: f64, max_hz: f64 },
+    FrequencyOutOfBand {
+        frequency_hz: f64,
+        min_hz: f64,
+        max_hz: f64,
+    },
     /// The derived or requested peak acceleration exceeds the motor's limit.
     AccelAboveLimit { accel_mps2: f64, limit_mps2: f64 },
     /// The derived or requested stroke exceeds the plate's travel.
@@ -99,13 +103,23 @@ pub enum Error {
     /// A caller-supplied limit is NaN or negative, so nothing could be checked against it.
     InvalidLimit { quantity: Quantity, value: f64 },
     /// At this clock a segment of the waveform is shorter than half a tick and would vanish.
-    SegmentTooShort { segment: SegmentKind, exact_ticks: f64 },
+    SegmentTooShort {
+        segment: SegmentKind,
+        exact_ticks: f64,
+    },
     /// The period or a segment needs more ticks than the timer can count.
-    TicksOverflow { segment: SegmentKind, exact_ticks: f64, max_ticks: u32 },
+    TicksOverflow {
+        segment: SegmentKind,
+        exact_ticks: f64,
+        max_ticks: u32,
+    },
     /// A new plan was requested with a timer clock other than the running one.
     ClockMismatch { running_hz: u32, requested_hz: u32 },
     /// `a_max ≤ μg`: the part sticks to the plate and never feeds.
-    NoSlip { accel_mps2: f64, friction_accel_mps2: f64 },
+    NoSlip {
+        accel_mps2: f64,
+        friction_accel_mps2: f64,
+    },
     /// The external force overcomes friction or makes the part stick, so the linear viscous law
     /// (Eq. 10) does not apply.
     OutsideViscousRange { force_n: f64 },

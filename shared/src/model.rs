@@ -165,7 +165,8 @@ pub fn viscosity_ns_per_m(
     mass_kg: f64,
 ) -> Result<f64, Error> {
     let mass_kg = positive(Quantity::MassKg, mass_kg)?;
-    Ok(4.0 * friction.mu * mass_kg * friction.gravity_mps2 / (waveform.accel_mps2 * waveform.period_s))
+    Ok(4.0 * friction.mu * mass_kg * friction.gravity_mps2
+        / (waveform.accel_mps2 * waveform.period_s))
 }
 
 /// Steady velocity under a constant external force, `v′ = v_eq + f_ext/K` (Eq. 10 with the
@@ -185,7 +186,10 @@ pub fn feed_rate_under_force_mps(
     let viscosity = viscosity_ns_per_m(waveform, friction, mass_kg)?;
     let mu_g = friction.accel_mps2();
     if waveform.accel_mps2 <= mu_g {
-        return Err(Error::NoSlip { accel_mps2: waveform.accel_mps2, friction_accel_mps2: mu_g });
+        return Err(Error::NoSlip {
+            accel_mps2: waveform.accel_mps2,
+            friction_accel_mps2: mu_g,
+        });
     }
     let force_accel = force_n / mass_kg;
     let outside = Error::OutsideViscousRange { force_n };
@@ -221,9 +225,24 @@ pub fn duty_for_feed_rate(
 ) -> Result<Waveform, Error> {
     let target_mps = positive(Quantity::FeedRateMps, target_mps)?;
     // Reports parameter errors (period, drive, limits) as they are, using a valid mid duty.
-    Waveform::new(WaveformSpec { period_s, duty: DUTY_OPT, drive }, &Limits::NONE)?;
+    Waveform::new(
+        WaveformSpec {
+            period_s,
+            duty: DUTY_OPT,
+            drive,
+        },
+        &Limits::NONE,
+    )?;
     let evaluate = |duty: f64| -> Option<(Waveform, f64)> {
-        let waveform = Waveform::new(WaveformSpec { period_s, duty, drive }, limits).ok()?;
+        let waveform = Waveform::new(
+            WaveformSpec {
+                period_s,
+                duty,
+                drive,
+            },
+            limits,
+        )
+        .ok()?;
         let state = steady_state(&waveform, friction);
         (state.regime == Regime::Sliding).then_some((waveform, state.feed_rate_mps))
     };
@@ -241,10 +260,15 @@ pub fn duty_for_feed_rate(
                     return if min_mps <= target_mps {
                         Ok(slowest)
                     } else {
-                        Err(Error::FeedRateBelowReach { target_mps, min_mps })
+                        Err(Error::FeedRateBelowReach {
+                            target_mps,
+                            min_mps,
+                        })
                     };
                 };
-                let crossing = bisect(low, duty, |d| evaluate(d).is_some_and(|(_, v)| v < target_mps));
+                let crossing = bisect(low, duty, |d| {
+                    evaluate(d).is_some_and(|(_, v)| v < target_mps)
+                });
                 return Ok(evaluate(crossing).map_or(waveform, |(w, _)| w));
             }
             Some((_, feed)) => {
@@ -268,7 +292,10 @@ pub fn duty_for_feed_rate(
             }
         }
     }
-    Err(Error::FeedRateAboveReach { target_mps, max_mps: best_reach.unwrap_or(0.0) })
+    Err(Error::FeedRateAboveReach {
+        target_mps,
+        max_mps: best_reach.unwrap_or(0.0),
+    })
 }
 
 /// Bisects `[low, high]` where `holds(low)` and not `holds(high)`; returns the last point found

@@ -34,11 +34,17 @@ pub struct TickClock {
 impl TickClock {
     /// A clock limited only by the 32-bit tick counts of the plan.
     pub const fn new(hz: u32) -> Self {
-        Self { hz, max_segment_ticks: u32::MAX }
+        Self {
+            hz,
+            max_segment_ticks: u32::MAX,
+        }
     }
 
     pub const fn with_max_segment_ticks(self, max_segment_ticks: u32) -> Self {
-        Self { max_segment_ticks, ..self }
+        Self {
+            max_segment_ticks,
+            ..self
+        }
     }
 }
 
@@ -108,7 +114,7 @@ impl TickPlan {
         let clock_hz = f64::from(clock.hz);
         let max_ticks = clock.max_segment_ticks;
         let exact_period = waveform.period_s * clock_hz;
-        // While stopped, the scheduler idles one period at a time.
+        // While stopped, the scheduler idles one period at a time; every other segment is shorter.
         if exact_period > f64::from(max_ticks) {
             return Err(Error::TicksOverflow {
                 segment: SegmentKind::Idle,
@@ -133,10 +139,10 @@ impl TickPlan {
         ];
         for (segment, exact_ticks) in lengths {
             if exact_ticks < 0.5 {
-                return Err(Error::SegmentTooShort { segment, exact_ticks });
-            }
-            if exact_ticks > f64::from(max_ticks) {
-                return Err(Error::TicksOverflow { segment, exact_ticks, max_ticks });
+                return Err(Error::SegmentTooShort {
+                    segment,
+                    exact_ticks,
+                });
             }
         }
 
@@ -150,7 +156,6 @@ impl TickPlan {
                     i64::from(period_ticks),
                     centre_accelerate + accelerate_offset,
                     centre_return + return_offset,
-                    max_ticks,
                     &exact,
                 ) else {
                     continue;
@@ -164,16 +169,20 @@ impl TickPlan {
             }
         }
         let (Some(up), Some(down)) = (best_non_negative, best_non_positive) else {
-            let (segment, exact_ticks) = lengths
-                .into_iter()
-                .fold((SegmentKind::Accelerate, f64::INFINITY), |shortest, (kind, ticks)| {
+            let (segment, exact_ticks) = lengths.into_iter().fold(
+                (SegmentKind::Accelerate, f64::INFINITY),
+                |shortest, (kind, ticks)| {
                     if ticks < shortest.1 {
                         (kind, ticks)
                     } else {
                         shortest
                     }
-                });
-            return Err(Error::SegmentTooShort { segment, exact_ticks });
+                },
+            );
+            return Err(Error::SegmentTooShort {
+                segment,
+                exact_ticks,
+            });
         };
         let worst_residual = up.cycle.residual.max(-down.cycle.residual);
         Ok(TickPlan {
@@ -227,19 +236,11 @@ struct Candidate {
 }
 
 impl Candidate {
-    /// The cycle with `s0 = accelerate` and `s3 = return_`, if every segment is at least one tick
-    /// and fits the timer.
-    fn new(
-        period: i64,
-        accelerate: i64,
-        return_: i64,
-        max_ticks: u32,
-        exact: &ExactTicks,
-    ) -> Option<Self> {
+    /// The cycle with `s0 = accelerate` and `s3 = return_`, if every segment is at least one tick.
+    fn new(period: i64, accelerate: i64, return_: i64, exact: &ExactTicks) -> Option<Self> {
         let plateau = period - 2 * accelerate - 2 * return_;
         let reverse = accelerate + return_;
-        let fits = |ticks: i64| ticks >= 1 && ticks <= i64::from(max_ticks);
-        if !(fits(accelerate) && fits(plateau) && fits(reverse) && fits(return_)) {
+        if accelerate < 1 || plateau < 1 || return_ < 1 {
             return None;
         }
         let residual = i128::from(accelerate) * i128::from(accelerate + plateau)

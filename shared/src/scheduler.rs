@@ -173,7 +173,10 @@ impl Scheduler {
             cycle: self.cycle,
             kind,
             level,
-            amplitude: Amplitude { step: self.step, steps: self.ramp_steps },
+            amplitude: Amplitude {
+                step: self.step,
+                steps: self.ramp_steps,
+            },
             peak_accel_mps2: self.plan.waveform.accel_mps2,
             phase: self.phase,
             plan_applied,
@@ -209,7 +212,11 @@ impl Scheduler {
         if let Some(steps) = self.pending_ramp_steps.take() {
             let old_steps = u32::from(self.ramp_steps);
             let scaled = (u32::from(self.step) * u32::from(steps) + old_steps / 2) / old_steps;
-            self.step = if self.step > 0 { scaled.max(1) as u16 } else { 0 };
+            self.step = if self.step > 0 {
+                scaled.max(1) as u16
+            } else {
+                0
+            };
             self.ramp_steps = steps;
         }
         if plan_applied || ramp_changed {

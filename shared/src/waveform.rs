@@ -31,7 +31,11 @@ impl WaveformSpec {
     /// A spec given by frequency instead of period. A non-positive or non-finite frequency is
     /// reported as such by [`Waveform::new`].
     pub fn from_frequency(frequency_hz: f64, duty: f64, drive: Drive) -> Self {
-        Self { period_s: 1.0 / frequency_hz, duty, drive }
+        Self {
+            period_s: 1.0 / frequency_hz,
+            duty,
+            drive,
+        }
     }
 }
 
@@ -133,16 +137,27 @@ impl Waveform {
             }
         };
         if !accel_mps2.is_finite() {
-            return Err(Error::NotFinite { quantity: Quantity::AccelMps2 });
+            return Err(Error::NotFinite {
+                quantity: Quantity::AccelMps2,
+            });
         }
         if !stroke_m.is_finite() || stroke_m <= 0.0 {
-            return Err(Error::NotPositive { quantity: Quantity::StrokeM, value: stroke_m });
+            return Err(Error::NotPositive {
+                quantity: Quantity::StrokeM,
+                value: stroke_m,
+            });
         }
         if accel_mps2 > limits.max_accel_mps2 {
-            return Err(Error::AccelAboveLimit { accel_mps2, limit_mps2: limits.max_accel_mps2 });
+            return Err(Error::AccelAboveLimit {
+                accel_mps2,
+                limit_mps2: limits.max_accel_mps2,
+            });
         }
         if stroke_m > limits.max_stroke_m {
-            return Err(Error::StrokeAboveLimit { stroke_m, limit_m: limits.max_stroke_m });
+            return Err(Error::StrokeAboveLimit {
+                stroke_m,
+                limit_m: limits.max_stroke_m,
+            });
         }
         Ok(Self::derive(period_s, duty, accel_mps2, stroke_m))
     }
@@ -181,8 +196,16 @@ impl Waveform {
     /// `+a` segments last as long together as the `−a` segment, so the plate ends at rest.
     pub fn segments(&self) -> [ExactSegment; 4] {
         [
-            ExactSegment { kind: SegmentKind::Accelerate, level: Level::Positive, duration_s: self.t1_s },
-            ExactSegment { kind: SegmentKind::Plateau, level: Level::Zero, duration_s: self.plateau_s },
+            ExactSegment {
+                kind: SegmentKind::Accelerate,
+                level: Level::Positive,
+                duration_s: self.t1_s,
+            },
+            ExactSegment {
+                kind: SegmentKind::Plateau,
+                level: Level::Zero,
+                duration_s: self.plateau_s,
+            },
             ExactSegment {
                 kind: SegmentKind::Reverse,
                 level: Level::Negative,

@@ -1,0 +1,280 @@
+//! The scheduler: boundary-only changes, ramps, and the drift bound over a million cycles,
+//! checked by integrating the emitted segments independently in integers.
+
+use feeder_shared::{
+    Drive, Error, Level, Limits, Phase, Scheduler, Segment, SegmentKind, TickClock, TickPlan,
+    Waveform, WaveformSpec,
+};
+use proptest::prelude::*;
+
+fn plan(frequency_hz: f64, duty: f64, stroke_m: f64, clock_hz: u32) -> TickPlan {
+    let spec = WaveformSpec::from_frequency(frequency_hz, duty, Drive::Stroke { stroke_m });
+    TickPlan::new(
+        &Waveform::new(spec, &Limits::NONE).unwrap(),
+        TickClock::new(clock_hz),
+    )
+    .unwrap()
+}
+
+/// Exact plate state from the emitted segments: velocity in `(a/steps)·tick`, twice the position
+/// in `(a/steps)·tick²`. The plan must not change while it is used.
+#[derive(Default)]
+struct Plate {
+    velocity: i128,
+    twice_position: i128,
+}
+
+impl Plate {
+    fn apply(&mut self, segment: &Segment) {
+        let accel = i128::from(segment.level.sign()) * i128::from(segment.amplitude.step);
+        let ticks = i128::from(segment.ticks);
+        self.twice_position += 2 * self.velocity * ticks + accel * ticks * ticks;
+        self.velocity += accel * ticks;
+    }
+}
+
+#[test]
+fn soft_start_and_soft_stop_ramp_the_amplitude_cycle_by_cycle() {
+    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 4);
+    // Stopped: idle periods of level 0.
+    let idle = scheduler.next_segment();
+    assert_eq!(
+        (idle.kind, idle.level, idle.ticks, idle.phase),
+        (SegmentKind::Idle, Level::Zero, 20_000, Phase::Stopped)
+    );
+    scheduler.start();
+    let mut steps = Vec::new();
+    for _ in 0..6 {
+        let first = scheduler.next_segment();
+        assert_eq!(first.kind, SegmentKind::Accelerate);
+        steps.push((first.amplitude.step, first.phase));
+        for _ in 0..3 {
+            assert_eq!(scheduler.next_segment().amplitude, first.amplitude);
+        }
+    }
+    use Phase::*;
+    assert_eq!(
+        steps,
+        [
+            (1, Starting),
+            (2, Starting),
+            (3, Starting),
+            (4, Running),
+            (4, Running),
+            (4, Running)
+        ]
+    );
+    scheduler.stop();
+    let mut stopping = Vec::new();
+    loop {
+        let first = scheduler.next_segment();
+        if first.kind == SegmentKind::Idle {
+            assert_eq!(first.phase, Stopped);
+            break;
+        }
+        stopping.push((first.amplitude.step, first.phase));
+        for _ in 0..3 {
+            scheduler.next_segment();
+        }
+    }
+    assert_eq!(stopping, [(3, Stopping), (2, Stopping), (1, Stopping)]);
+}
+
+#[test]
+fn requests_wait_for_the_cycle_boundary() {
+    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 1);
+    scheduler.start();
+    let first = scheduler.next_segment();
+    assert_eq!(
+        (first.kind, first.amplitude.step, first.phase),
+        (SegmentKind::Accelerate, 1, Phase::Running)
+    );
+    scheduler.stop();
+    scheduler
+        .set_plan(plan(100.0, 0.6, 0.001, 1_000_000))
+        .unwrap();
+    for kind in [
+        SegmentKind::Plateau,
+        SegmentKind::Reverse,
+        SegmentKind::Return,
+    ] {
+        let segment = scheduler.next_segment();
+        assert_eq!(
+            (segment.kind, segment.phase, segment.plan_applied),
+            (kind, Phase::Running, false)
+        );
+        assert_eq!(segment.peak_accel_mps2, first.peak_accel_mps2);
+    }
+    let boundary = scheduler.next_segment();
+    assert_eq!(boundary.start_tick, 20_000);
+    assert_eq!(
+        (boundary.kind, boundary.ticks, boundary.plan_applied),
+        (SegmentKind::Idle, 10_000, true)
+    );
+}
+
+#[test]
+fn halt_drops_to_idle_at_once() {
+    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 1);
+    scheduler.start();
+    let first = scheduler.next_segment();
+    scheduler.halt();
+    let next = scheduler.next_segment();
+    assert_eq!(
+        (next.kind, next.level, next.start_tick),
+        (SegmentKind::Idle, Level::Zero, first.end_tick())
+    );
+    assert_eq!(next.cycle, first.cycle + 1);
+    assert!(!scheduler.run_requested());
+}
+
+#[test]
+fn a_plan_for_another_clock_is_refused() {
+    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 1);
+    let other = plan(50.0, 0.586, 0.0025, 2_000_000);
+    assert_eq!(
+        scheduler.set_plan(other),
+        Err(Error::ClockMismatch {
+            running_hz: 1_000_000,
+            requested_hz: 2_000_000
+        })
+    );
+    assert!(scheduler.pending_plan().is_none());
+}
+
+/// Runs `cycles` cycles and checks velocity is exactly 0 at every boundary and the boundary
+/// position stays within the plan's drift bound. Returns the largest |position| seen in metres.
+fn run_cycles(scheduler: &mut Scheduler, cycles: u64) -> f64 {
+    let plan = *scheduler.plan();
+    let unit_m = plan.residual_unit_m() / f64::from(scheduler.ramp_cycles());
+    let mut plate = Plate::default();
+    let mut worst_m: f64 = 0.0;
+    let mut segments_in_cycle = 0;
+    for _ in 0..cycles * 4 {
+        let segment = scheduler.next_segment();
+        plate.apply(&segment);
+        segments_in_cycle += 1;
+        if segment.kind == SegmentKind::Return || segment.kind == SegmentKind::Idle {
+            assert_eq!(
+                plate.velocity, 0,
+                "plate not at rest after {segments_in_cycle} segments"
+            );
+            segments_in_cycle = 0;
+            let position_m = plate.twice_position as f64 / 2.0 * unit_m;
+            worst_m = worst_m.max(position_m.abs());
+            assert!(
+                position_m.abs() <= plan.drift_bound_m * (1.0 + 1e-12),
+                "{position_m} > {}",
+                plan.drift_bound_m
+            );
+        }
+    }
+    worst_m
+}
+
+#[test]
+fn naive_rounding_would_walk_but_the_feedback_holds_the_paper_point() {
+    let plan = plan(50.0, 0.586, 0.0025, 1_000_000);
+    // Naive rounding of the edges walks X·a/f² per cycle: about 3.5e-7 m, 1 mm per minute at 50 Hz.
+    let naive = plan
+        .variants
+        .iter()
+        .find(|c| c.accelerate_ticks == 1713 && c.return_ticks == 4140);
+    let naive_walk_m = naive.map_or(2391.0, |c| c.residual as f64) * plan.residual_unit_m();
+    assert!(naive_walk_m * 50.0 * 60.0 > 1e-3);
+    let mut scheduler = Scheduler::new(plan, 1);
+    scheduler.start();
+    let worst_m = run_cycles(&mut scheduler, 1_000_000);
+    assert!(worst_m <= plan.drift_bound_m);
+    assert!(worst_m < 1e-6);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(12))]
+    #[test]
+    fn drift_stays_within_the_bound_over_a_million_cycles(
+        frequency_hz in 20.0f64..200.0,
+        duty in 0.51f64..0.95,
+        stroke_m in 1e-4f64..0.005,
+        clock_hz in prop_oneof![Just(1_000_000u32), Just(170_000_000), 100_000u32..100_000_000],
+        ramp_cycles in 1u16..20,
+    ) {
+        let plan = plan(frequency_hz, duty, stroke_m, clock_hz);
+        let mut scheduler = Scheduler::new(plan, ramp_cycles);
+        scheduler.start();
+        run_cycles(&mut scheduler, 1_000_000);
+    }
+}
+
+#[derive(Debug, Clone)]
+enum Request {
+    Start,
+    Stop,
+    Halt,
+    Plan(f64, f64),
+    Ramp(u16),
+    Advance(u8),
+}
+
+fn request() -> impl Strategy<Value = Request> {
+    prop_oneof![
+        3 => Just(Request::Start),
+        2 => Just(Request::Stop),
+        1 => Just(Request::Halt),
+        2 => (50.0f64..100.0, 0.51f64..0.9).prop_map(|(f, d)| Request::Plan(f, d)),
+        1 => (0u16..10).prop_map(Request::Ramp),
+        6 => (1u8..12).prop_map(Request::Advance),
+    ]
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(1000))]
+    #[test]
+    fn any_request_sequence_changes_the_output_only_at_cycle_boundaries(
+        requests in proptest::collection::vec(request(), 1..60),
+    ) {
+        let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 3);
+        let mut previous: Option<Segment> = None;
+        let mut halted = false;
+        for request in requests {
+            match request {
+                Request::Start => scheduler.start(),
+                Request::Stop => scheduler.stop(),
+                Request::Halt => { scheduler.halt(); halted = true; }
+                Request::Plan(f, d) => scheduler.set_plan(plan(f, d, 0.002, 1_000_000)).unwrap(),
+                Request::Ramp(cycles) => scheduler.set_ramp_cycles(cycles),
+                Request::Advance(count) => {
+                    for _ in 0..count {
+                        let segment = scheduler.next_segment();
+                        prop_assert!(segment.ticks > 0);
+                        prop_assert!(segment.amplitude.step <= segment.amplitude.steps);
+                        prop_assert_eq!(segment.kind == SegmentKind::Idle, segment.amplitude.step == 0);
+                        if let Some(last) = previous {
+                            prop_assert_eq!(segment.start_tick, last.end_tick());
+                            let boundary = last.kind == SegmentKind::Return || last.kind == SegmentKind::Idle || halted;
+                            if boundary {
+                                prop_assert!(segment.starts_cycle());
+                                prop_assert_eq!(segment.cycle, last.cycle + 1);
+                            } else {
+                                // Mid-cycle: same cycle, amplitude, plan and phase; the next kind in order.
+                                let expected_kind = match last.kind {
+                                    SegmentKind::Accelerate => SegmentKind::Plateau,
+                                    SegmentKind::Plateau => SegmentKind::Reverse,
+                                    _ => SegmentKind::Return,
+                                };
+                                prop_assert_eq!(segment.kind, expected_kind);
+                                prop_assert_eq!(segment.cycle, last.cycle);
+                                prop_assert_eq!(segment.amplitude, last.amplitude);
+                                prop_assert_eq!(segment.peak_accel_mps2, last.peak_accel_mps2);
+                                prop_assert_eq!(segment.phase, last.phase);
+                                prop_assert!(!segment.plan_applied);
+                            }
+                        }
+                        halted = false;
+                        previous = Some(segment);
+                    }
+                }
+            }
+        }
+    }
+}
