@@ -39,10 +39,8 @@ pub fn measure(elf: &Path) -> Result<SizeReport, String> {
                     report.ram_bytes += section.size();
                 }
             }
-            SectionKind::UninitializedData | SectionKind::UninitializedTls => {
-                if in_ram {
-                    report.ram_bytes += section.size();
-                }
+            SectionKind::UninitializedData | SectionKind::UninitializedTls if in_ram => {
+                report.ram_bytes += section.size();
             }
             _ => {}
         }
