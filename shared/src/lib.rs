@@ -15,11 +15,17 @@
 pub mod error;
 pub mod model;
 pub mod plan;
+pub mod protocol;
+pub mod recipe;
 pub mod scheduler;
 pub mod waveform;
 
 pub use error::{Error, Quantity, SegmentKind};
 pub use model::{Friction, Regime, SteadyState};
 pub use plan::{CycleTicks, TickClock, TickPlan};
+pub use protocol::{
+    Applied, Command, LineAssembler, Machine, Param, Reply, ReplyError, Setting, Settings, Status,
+};
+pub use recipe::{Loaded, RecipeSlot, RecordError};
 pub use scheduler::{Amplitude, Phase, Scheduler, Segment};
 pub use waveform::{Drive, ExactSegment, Level, Limits, Waveform, WaveformSpec};
