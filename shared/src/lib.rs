@@ -12,14 +12,19 @@
 #![forbid(unsafe_code)]
 #![warn(missing_debug_implementations)]
 
+pub mod drive;
 pub mod error;
 pub mod model;
 pub mod plan;
 pub mod protocol;
 pub mod recipe;
 pub mod scheduler;
+pub mod supervisor;
 pub mod waveform;
 
+pub use drive::{
+    DacCalibration, DacLevels, Direction, DriveError, PwmCalibration, PwmCommand, PwmLevels,
+};
 pub use error::{Error, Quantity, SegmentKind};
 pub use model::{Friction, Regime, SteadyState};
 pub use plan::{CycleTicks, TickClock, TickPlan};
@@ -28,4 +33,5 @@ pub use protocol::{
 };
 pub use recipe::{Loaded, RecipeSlot, RecordError};
 pub use scheduler::{Amplitude, Phase, Scheduler, Segment};
+pub use supervisor::{Fault, Led, MotionRequest, RunState, Supervisor, SupervisorEvent};
 pub use waveform::{Drive, ExactSegment, Level, Limits, Waveform, WaveformSpec};

@@ -1,0 +1,293 @@
+//! From a segment's level and amplitude to the value the motor driver's input receives.
+//!
+//! Two output stages are supported: an analog command from a DAC (a calibrated zero code plus or
+//! minus an amplitude code) and, for H-bridge drivers, a PWM magnitude with a direction line. The
+//! full-scale amplitude is converted once per plan (floating point, checked against the stage's
+//! range); every segment is then mapped in integers, with the soft-start fraction `step / steps`
+//! applied by rounding half up. `+a` and `−a` use the same magnitude, so the two are exactly
+//! symmetric about zero and the command carries no DC acceleration bias.
+
+use crate::scheduler::Amplitude;
+use crate::waveform::Level;
+use core::fmt;
+use libm::round;
+
+/// Why an output stage refused a calibration or a peak acceleration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum DriveError {
+    /// The scale factor (counts per m/s² or m/s² at full duty) is NaN, infinite or not positive.
+    InvalidScale { value: f64 },
+    /// The peak acceleration is NaN, infinite or negative.
+    InvalidAccel { accel_mps2: f64 },
+    /// The DAC zero code lies outside the converter's range.
+    ZeroOutOfRange { zero_code: u16, max_code: u16 },
+    /// The amplitude in counts does not fit on both sides of zero within the converter's range.
+    AmplitudeOutOfRange {
+        accel_mps2: f64,
+        amplitude_counts: f64,
+        headroom_counts: u16,
+    },
+    /// The PWM period has no counts, so no duty can be expressed.
+    EmptyPwmPeriod,
+}
+
+impl fmt::Display for DriveError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            DriveError::InvalidScale { value } => {
+                write!(
+                    f,
+                    "output scale {} must be a finite number greater than zero",
+                    value
+                )
+            }
+            DriveError::InvalidAccel { accel_mps2 } => {
+                write!(
+                    f,
+                    "peak acceleration {} m/s² must be finite and non-negative",
+                    accel_mps2
+                )
+            }
+            DriveError::ZeroOutOfRange {
+                zero_code,
+                max_code,
+            } => {
+                write!(
+                    f,
+                    "DAC zero code {} is above the largest code {}",
+                    zero_code, max_code
+                )
+            }
+            DriveError::AmplitudeOutOfRange {
+                accel_mps2,
+                amplitude_counts,
+                headroom_counts,
+            } => {
+                write!(
+                    f,
+                    "peak acceleration {} m/s² needs {} counts but the output has {} counts of \
+                     headroom on each side of zero",
+                    accel_mps2, amplitude_counts, headroom_counts
+                )
+            }
+            DriveError::EmptyPwmPeriod => write!(f, "the PWM period must be at least one count"),
+        }
+    }
+}
+
+impl core::error::Error for DriveError {}
+
+/// `counts · step / steps`, rounded half up, in integers. `step` above `steps` counts as full
+/// amplitude; `steps = 0` gives zero.
+pub const fn scale_counts(counts: u16, amplitude: Amplitude) -> u16 {
+    if amplitude.steps == 0 {
+        return 0;
+    }
+    let steps = amplitude.steps as u32;
+    let step = if amplitude.step > amplitude.steps {
+        steps
+    } else {
+        amplitude.step as u32
+    };
+    ((counts as u32 * step + steps / 2) / steps) as u16
+}
+
+/// Converts `accel_mps2 · per_mps2` to whole counts no larger than `headroom_counts`.
+fn amplitude_counts(
+    accel_mps2: f64,
+    per_mps2: f64,
+    headroom_counts: u16,
+) -> Result<u16, DriveError> {
+    if !per_mps2.is_finite() || per_mps2 <= 0.0 {
+        return Err(DriveError::InvalidScale { value: per_mps2 });
+    }
+    if !accel_mps2.is_finite() || accel_mps2 < 0.0 {
+        return Err(DriveError::InvalidAccel { accel_mps2 });
+    }
+    let counts = round(accel_mps2 * per_mps2);
+    if counts > f64::from(headroom_counts) {
+        return Err(DriveError::AmplitudeOutOfRange {
+            accel_mps2,
+            amplitude_counts: counts,
+            headroom_counts,
+        });
+    }
+    Ok(counts as u16)
+}
+
+/// Calibration of an analog driver input fed by a DAC.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DacCalibration {
+    /// Code at which the driver commands zero acceleration, in counts. Default 2048, mid-scale of
+    /// a 12-bit converter; measure the driver's offset and enter it here.
+    pub zero_code: u16,
+    /// DAC counts per m/s² of commanded plate acceleration. Default 10, so ±200 m/s² spans
+    /// ±2000 counts around the zero code.
+    pub counts_per_mps2: f64,
+    /// Largest code of the converter, in counts. Default 4095 (12 bits).
+    pub max_code: u16,
+}
+
+impl DacCalibration {
+    /// The documented defaults (see the fields).
+    pub const DEFAULT: Self = Self {
+        zero_code: 2048,
+        counts_per_mps2: 10.0,
+        max_code: 4095,
+    };
+
+    /// The codes of a plan with peak acceleration `peak_accel_mps2`, or why it does not fit.
+    pub fn levels(&self, peak_accel_mps2: f64) -> Result<DacLevels, DriveError> {
+        if self.zero_code > self.max_code {
+            return Err(DriveError::ZeroOutOfRange {
+                zero_code: self.zero_code,
+                max_code: self.max_code,
+            });
+        }
+        let headroom_counts = self.zero_code.min(self.max_code - self.zero_code);
+        let amplitude_counts =
+            amplitude_counts(peak_accel_mps2, self.counts_per_mps2, headroom_counts)?;
+        Ok(DacLevels {
+            zero_code: self.zero_code,
+            amplitude_counts,
+        })
+    }
+}
+
+impl Default for DacCalibration {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// DAC codes of one plan: zero code and full amplitude in counts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DacLevels {
+    zero_code: u16,
+    amplitude_counts: u16,
+}
+
+impl DacLevels {
+    /// The code for `level` at `amplitude`: `zero ± amplitude_counts · step / steps`.
+    pub const fn code(&self, level: Level, amplitude: Amplitude) -> u16 {
+        let offset = scale_counts(self.amplitude_counts, amplitude);
+        match level {
+            Level::Positive => self.zero_code + offset,
+            Level::Zero => self.zero_code,
+            Level::Negative => self.zero_code - offset,
+        }
+    }
+
+    /// The code that commands zero acceleration.
+    pub const fn zero_code(&self) -> u16 {
+        self.zero_code
+    }
+
+    /// Offset of the `±a` codes from the zero code at full amplitude, in counts.
+    pub const fn amplitude_counts(&self) -> u16 {
+        self.amplitude_counts
+    }
+}
+
+/// Calibration of a PWM-plus-direction driver input.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PwmCalibration {
+    /// Plate acceleration commanded at 100 % duty, in m/s². Default 250 m/s².
+    pub full_duty_accel_mps2: f64,
+}
+
+impl PwmCalibration {
+    /// The documented defaults (see the fields).
+    pub const DEFAULT: Self = Self {
+        full_duty_accel_mps2: 250.0,
+    };
+
+    /// The duties of a plan with peak acceleration `peak_accel_mps2` on a PWM timer whose period
+    /// is `period_counts` counts (100 % duty), or why it does not fit.
+    pub fn levels(
+        &self,
+        peak_accel_mps2: f64,
+        period_counts: u16,
+    ) -> Result<PwmLevels, DriveError> {
+        if period_counts == 0 {
+            return Err(DriveError::EmptyPwmPeriod);
+        }
+        let full = self.full_duty_accel_mps2;
+        if !full.is_finite() || full <= 0.0 {
+            return Err(DriveError::InvalidScale { value: full });
+        }
+        let per_mps2 = f64::from(period_counts) / full;
+        let peak_duty_counts = amplitude_counts(peak_accel_mps2, per_mps2, period_counts)?;
+        Ok(PwmLevels {
+            peak_duty_counts,
+            period_counts,
+        })
+    }
+}
+
+impl Default for PwmCalibration {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// Sign of the commanded acceleration on the direction line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Direction {
+    /// `+a` (and zero, where the duty is 0 and the direction does not matter).
+    Forward,
+    /// `−a`.
+    Reverse,
+}
+
+/// Duty (in timer counts) and direction for one segment.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PwmCommand {
+    pub duty_counts: u16,
+    pub direction: Direction,
+}
+
+/// PWM duties of one plan.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PwmLevels {
+    peak_duty_counts: u16,
+    period_counts: u16,
+}
+
+impl PwmLevels {
+    /// The duty and direction for `level` at `amplitude`.
+    pub const fn command(&self, level: Level, amplitude: Amplitude) -> PwmCommand {
+        let duty_counts = scale_counts(self.peak_duty_counts, amplitude);
+        match level {
+            Level::Positive => PwmCommand {
+                duty_counts,
+                direction: Direction::Forward,
+            },
+            Level::Zero => PwmCommand {
+                duty_counts: 0,
+                direction: Direction::Forward,
+            },
+            Level::Negative => PwmCommand {
+                duty_counts,
+                direction: Direction::Reverse,
+            },
+        }
+    }
+
+    /// Duty at full amplitude, in counts.
+    pub const fn peak_duty_counts(&self) -> u16 {
+        self.peak_duty_counts
+    }
+
+    /// Counts of one PWM period (100 % duty).
+    pub const fn period_counts(&self) -> u16 {
+        self.period_counts
+    }
+}

@@ -1,0 +1,120 @@
+//! Run, stop and fault supervision: what the start/stop button does, what the status LED shows
+//! and when the motor driver may be enabled.
+//!
+//! The supervisor comes up [`RunState::Stopped`] after every reset (or [`RunState::Faulted`] when
+//! the reset was the watchdog's), with the driver disabled: the feeder never resumes motion by
+//! itself. A press starts; a press while running begins a soft stop, and the driver stays enabled
+//! until the output has reached idle. A fault halts at once and is latched: the next press only
+//! acknowledges it (back to stopped) and a further press starts again.
+
+/// Why the output was halted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Fault {
+    /// A segment was prepared after the edge it belonged to: the output timing was lost.
+    EdgeMissed,
+    /// The previous run ended in a watchdog reset.
+    WatchdogReset,
+    /// The configured waveform or output calibration was refused.
+    InvalidSettings,
+}
+
+/// What the feeder is doing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum RunState {
+    Stopped,
+    Running,
+    /// Soft stop in progress: the amplitude ramps down to idle.
+    Stopping,
+    /// Halted, with the first fault's cause, until acknowledged.
+    Faulted(Fault),
+}
+
+/// What the status LED shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Led {
+    Off,
+    On,
+    Blink,
+}
+
+/// Something the supervisor reacts to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum SupervisorEvent {
+    /// The start/stop button was pressed (debounced).
+    ButtonPressed,
+    /// An idle period has begun on the output: no motion is being commanded.
+    OutputIdle,
+    Fault(Fault),
+}
+
+/// What the scheduler must be told after an event.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum MotionRequest {
+    /// Nothing changes.
+    Keep,
+    /// Soft start (or reverse a soft stop) at the next cycle boundary.
+    Start,
+    /// Soft stop from the next cycle boundary.
+    Stop,
+    /// Zero the output now and drop to idle (fault stop).
+    Halt,
+}
+
+/// The run/stop/fault state machine.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Supervisor {
+    state: RunState,
+}
+
+impl Supervisor {
+    /// The state after a reset: stopped, or faulted when the watchdog caused the reset.
+    pub const fn new(after_watchdog_reset: bool) -> Self {
+        let state = if after_watchdog_reset {
+            RunState::Faulted(Fault::WatchdogReset)
+        } else {
+            RunState::Stopped
+        };
+        Self { state }
+    }
+
+    /// Applies `event` and says what the scheduler must do.
+    pub fn handle(&mut self, event: SupervisorEvent) -> MotionRequest {
+        use MotionRequest::{Halt, Keep, Start, Stop};
+        use RunState::{Faulted, Running, Stopped, Stopping};
+        let (state, request) = match (self.state, event) {
+            (Faulted(first), SupervisorEvent::Fault(_)) => (Faulted(first), Halt),
+            (_, SupervisorEvent::Fault(fault)) => (Faulted(fault), Halt),
+            (Stopped, SupervisorEvent::ButtonPressed) => (Running, Start),
+            (Running, SupervisorEvent::ButtonPressed) => (Stopping, Stop),
+            (Stopping, SupervisorEvent::ButtonPressed) => (Running, Start),
+            (Faulted(_), SupervisorEvent::ButtonPressed) => (Stopped, Keep),
+            (Stopping, SupervisorEvent::OutputIdle) => (Stopped, Keep),
+            (state, SupervisorEvent::OutputIdle) => (state, Keep),
+        };
+        self.state = state;
+        request
+    }
+
+    pub const fn state(&self) -> RunState {
+        self.state
+    }
+
+    /// Whether the motor driver may be enabled: only while running or ramping down.
+    pub const fn driver_enabled(&self) -> bool {
+        matches!(self.state, RunState::Running | RunState::Stopping)
+    }
+
+    /// Off when stopped, on while running or ramping down, blinking when faulted.
+    pub const fn led(&self) -> Led {
+        match self.state {
+            RunState::Stopped => Led::Off,
+            RunState::Running | RunState::Stopping => Led::On,
+            RunState::Faulted(_) => Led::Blink,
+        }
+    }
+}

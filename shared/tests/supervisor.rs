@@ -1,0 +1,153 @@
+//! Run/stop/fault supervision: hand-written sequences and invariants over all short sequences.
+
+use feeder_shared::{Fault, Led, MotionRequest, RunState, Supervisor, SupervisorEvent};
+
+use SupervisorEvent::{ButtonPressed as Press, OutputIdle as Idle};
+
+#[test]
+fn comes_up_stopped_with_the_driver_disabled() {
+    let supervisor = Supervisor::new(false);
+    assert_eq!(supervisor.state(), RunState::Stopped);
+    assert!(!supervisor.driver_enabled());
+    assert_eq!(supervisor.led(), Led::Off);
+}
+
+#[test]
+fn comes_up_faulted_after_a_watchdog_reset() {
+    let mut supervisor = Supervisor::new(true);
+    assert_eq!(supervisor.state(), RunState::Faulted(Fault::WatchdogReset));
+    assert!(!supervisor.driver_enabled());
+    assert_eq!(supervisor.led(), Led::Blink);
+    assert_eq!(supervisor.handle(Press), MotionRequest::Keep);
+    assert_eq!(supervisor.state(), RunState::Stopped);
+}
+
+#[test]
+fn start_soft_stop_and_idle() {
+    let mut supervisor = Supervisor::new(false);
+    assert_eq!(supervisor.handle(Press), MotionRequest::Start);
+    assert_eq!(supervisor.state(), RunState::Running);
+    assert!(supervisor.driver_enabled());
+    assert_eq!(supervisor.led(), Led::On);
+    // The first idle period after a start request is still playing: keep running.
+    assert_eq!(supervisor.handle(Idle), MotionRequest::Keep);
+    assert_eq!(supervisor.state(), RunState::Running);
+
+    assert_eq!(supervisor.handle(Press), MotionRequest::Stop);
+    assert_eq!(supervisor.state(), RunState::Stopping);
+    assert!(
+        supervisor.driver_enabled(),
+        "the driver carries the ramp down"
+    );
+    assert_eq!(supervisor.led(), Led::On);
+
+    assert_eq!(supervisor.handle(Idle), MotionRequest::Keep);
+    assert_eq!(supervisor.state(), RunState::Stopped);
+    assert!(!supervisor.driver_enabled());
+    assert_eq!(supervisor.led(), Led::Off);
+}
+
+#[test]
+fn a_press_during_the_soft_stop_starts_again() {
+    let mut supervisor = Supervisor::new(false);
+    supervisor.handle(Press);
+    supervisor.handle(Press);
+    assert_eq!(supervisor.handle(Press), MotionRequest::Start);
+    assert_eq!(supervisor.state(), RunState::Running);
+}
+
+#[test]
+fn faults_halt_at_once_and_latch_the_first_cause() {
+    let mut supervisor = Supervisor::new(false);
+    supervisor.handle(Press);
+    let edge = SupervisorEvent::Fault(Fault::EdgeMissed);
+    assert_eq!(supervisor.handle(edge), MotionRequest::Halt);
+    assert_eq!(supervisor.state(), RunState::Faulted(Fault::EdgeMissed));
+    assert!(!supervisor.driver_enabled());
+    assert_eq!(supervisor.led(), Led::Blink);
+
+    let settings = SupervisorEvent::Fault(Fault::InvalidSettings);
+    assert_eq!(supervisor.handle(settings), MotionRequest::Halt);
+    assert_eq!(supervisor.handle(Idle), MotionRequest::Keep);
+    assert_eq!(supervisor.state(), RunState::Faulted(Fault::EdgeMissed));
+
+    // The first press acknowledges only; the second starts.
+    assert_eq!(supervisor.handle(Press), MotionRequest::Keep);
+    assert_eq!(supervisor.state(), RunState::Stopped);
+    assert!(!supervisor.driver_enabled());
+    assert_eq!(supervisor.handle(Press), MotionRequest::Start);
+}
+
+const EVENTS: [SupervisorEvent; 5] = [
+    Press,
+    Idle,
+    SupervisorEvent::Fault(Fault::EdgeMissed),
+    SupervisorEvent::Fault(Fault::WatchdogReset),
+    SupervisorEvent::Fault(Fault::InvalidSettings),
+];
+
+/// Every sequence of up to six events from both power-up states.
+fn for_all_sequences(
+    mut check: impl FnMut(&Supervisor, SupervisorEvent, MotionRequest, &Supervisor),
+) {
+    const LENGTH: u32 = 6;
+    for after_watchdog_reset in [false, true] {
+        for code in 0..EVENTS.len().pow(LENGTH) {
+            let mut supervisor = Supervisor::new(after_watchdog_reset);
+            let mut rest = code;
+            for _ in 0..LENGTH {
+                let event = EVENTS[rest % EVENTS.len()];
+                rest /= EVENTS.len();
+                let before = supervisor;
+                let request = supervisor.handle(event);
+                check(&before, event, request, &supervisor);
+            }
+        }
+    }
+}
+
+#[test]
+fn the_driver_is_enabled_only_while_running_or_ramping_down() {
+    for_all_sequences(|_, _, _, after| {
+        let moving = matches!(after.state(), RunState::Running | RunState::Stopping);
+        assert_eq!(after.driver_enabled(), moving);
+        assert_eq!(after.led() == Led::On, moving);
+        assert_eq!(
+            after.led() == Led::Blink,
+            matches!(after.state(), RunState::Faulted(_))
+        );
+    });
+}
+
+#[test]
+fn every_fault_halts_and_only_a_press_starts() {
+    for_all_sequences(|before, event, request, after| {
+        if let SupervisorEvent::Fault(_) = event {
+            assert_eq!(request, MotionRequest::Halt);
+            assert!(!after.driver_enabled());
+        }
+        if request == MotionRequest::Start {
+            assert_eq!(event, Press);
+            assert!(
+                !matches!(before.state(), RunState::Faulted(_)),
+                "a fault needs acknowledging"
+            );
+        }
+        if request == MotionRequest::Halt {
+            assert!(matches!(after.state(), RunState::Faulted(_)));
+        }
+    });
+}
+
+#[test]
+fn a_fault_is_left_only_by_a_press_and_only_to_stopped() {
+    for_all_sequences(|before, event, _, after| {
+        if let RunState::Faulted(first) = before.state() {
+            match after.state() {
+                RunState::Faulted(latched) => assert_eq!(latched, first),
+                RunState::Stopped => assert_eq!(event, Press),
+                other => panic!("left a fault to {other:?}"),
+            }
+        }
+    });
+}
