@@ -1,0 +1,19 @@
+//! Host simulator of the vibrating-plate parts feeder.
+//!
+//! [`plant`] is the exact event-driven stick–slip model of a point-mass part on the plate;
+//! [`sim`] runs it over any stream of plate segments with steady-state detection; [`scenario`]
+//! builds those streams from the shared crate (scheduler tick plan or exact waveform times) and
+//! holds the analytic predictions; [`reference`] is a fixed-step integrator for validation;
+//! [`figures`] reproduces the paper's figures' data.
+
+pub mod error;
+pub mod figures;
+pub mod plant;
+pub mod reference;
+pub mod scenario;
+pub mod sim;
+
+pub use error::SimError;
+pub use plant::{Contact, PlateSegment};
+pub use scenario::{OperatingPoint, Prediction, Timing};
+pub use sim::{run_segments, run_table, Criteria, CycleTable, RunOptions, RunResult};

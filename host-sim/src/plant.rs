@@ -1,0 +1,246 @@
+//! The plant: a point-mass part under Coulomb friction on a plate of piecewise-constant
+//! acceleration (paper, Section III, with the errata's stick–slip corrections).
+//!
+//! The state is the part's velocity relative to the plate, `w = v_part − v_plate`. Within one
+//! segment of constant plate acceleration `a_p` the part's acceleration is constant too:
+//! `+μg + φ` while it is slower than the plate, `−μg + φ` while it is faster (`φ = f_ext/m`), and
+//! `a_p` while it sticks. So `w` is linear in time between events and every event is solved in
+//! closed form:
+//!
+//! * **Meeting** (`w` reaches 0): the part sticks if static friction can hold it,
+//!   `|a_p − φ| ≤ μ_s·g`, and otherwise slips through to the other side (slip reversal).
+//! * **Breakaway**: a stuck part starts to slip as soon as a segment asks more than `μ_s·g` of
+//!   friction; it then slides at the kinetic rate, behind the plate if `a_p − φ > μ_s·g`, ahead of
+//!   it if `a_p − φ < −μ_s·g`.
+//!
+//! A stuck part is represented exactly by `w = 0`.
+
+use feeder_shared::model::STANDARD_GRAVITY_MPS2;
+use feeder_shared::{Error, Friction, Quantity};
+
+use crate::error::SimError;
+
+/// Coulomb contact between part and plate, and the constant external force on the part.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Contact {
+    /// Kinetic friction coefficient `μ`, used while the part slides.
+    pub mu: f64,
+    /// Static friction coefficient `μ_s ≥ μ`, which decides sticking and breakaway.
+    pub mu_static: f64,
+    pub gravity_mps2: f64,
+    pub mass_kg: f64,
+    /// Constant external force on the part along the feed direction.
+    pub force_n: f64,
+}
+
+impl Contact {
+    /// Validates every coefficient; `μ_s` below `μ` is refused because a part could then neither
+    /// stick nor slip consistently.
+    pub fn new(
+        mu: f64,
+        mu_static: f64,
+        gravity_mps2: f64,
+        mass_kg: f64,
+        force_n: f64,
+    ) -> Result<Self, SimError> {
+        let friction = Friction::new(mu, gravity_mps2)?;
+        let mu_static = Friction::new(mu_static, gravity_mps2)?.mu;
+        if mu_static < friction.mu {
+            return Err(SimError::StaticBelowKinetic { mu, mu_static });
+        }
+        if !mass_kg.is_finite() {
+            return Err(Error::NotFinite {
+                quantity: Quantity::MassKg,
+            }
+            .into());
+        }
+        if mass_kg <= 0.0 {
+            return Err(Error::NotPositive {
+                quantity: Quantity::MassKg,
+                value: mass_kg,
+            }
+            .into());
+        }
+        if !force_n.is_finite() {
+            return Err(Error::NotFinite {
+                quantity: Quantity::ForceN,
+            }
+            .into());
+        }
+        Ok(Contact {
+            mu,
+            mu_static,
+            gravity_mps2,
+            mass_kg,
+            force_n,
+        })
+    }
+
+    /// Equal static and kinetic friction, standard gravity, no external force.
+    pub fn kinetic(mu: f64, mass_kg: f64) -> Result<Self, SimError> {
+        Self::new(mu, mu, STANDARD_GRAVITY_MPS2, mass_kg, 0.0)
+    }
+
+    /// The kinetic friction as the shared crate's model sees it.
+    pub fn friction(&self) -> Friction {
+        Friction {
+            mu: self.mu,
+            gravity_mps2: self.gravity_mps2,
+        }
+    }
+
+    /// `μg`.
+    pub fn kinetic_accel_mps2(&self) -> f64 {
+        self.mu * self.gravity_mps2
+    }
+
+    /// `μ_s·g`.
+    pub fn static_accel_mps2(&self) -> f64 {
+        self.mu_static * self.gravity_mps2
+    }
+
+    /// `φ = f_ext / m`.
+    pub fn force_accel_mps2(&self) -> f64 {
+        self.force_n / self.mass_kg
+    }
+}
+
+/// A stretch of constant plate acceleration, as the plant consumes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlateSegment {
+    pub duration_s: f64,
+    pub accel_mps2: f64,
+    /// True for the first segment of a waveform cycle (or of an idle period); per-cycle
+    /// statistics are closed here.
+    pub starts_cycle: bool,
+}
+
+/// The part's relative accelerations during a segment of plate acceleration `a_p`, and their
+/// reciprocals, so that stepping never divides.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rates {
+    /// `dw/dt = μg + φ − a_p` while the part is behind the plate (`w < 0`).
+    pub behind_mps2: f64,
+    pub inv_behind_s2pm: f64,
+    /// `dw/dt = −μg + φ − a_p` while the part is ahead of the plate (`w > 0`).
+    pub ahead_mps2: f64,
+    pub inv_ahead_s2pm: f64,
+    /// `dw/dt` of a stuck part: 0 if static friction holds it, else the kinetic rate of the side
+    /// it breaks away to.
+    pub release_mps2: f64,
+}
+
+impl Rates {
+    pub fn new(contact: &Contact, accel_mps2: f64) -> Self {
+        let mu_g = contact.kinetic_accel_mps2();
+        let need = accel_mps2 - contact.force_accel_mps2();
+        let behind = mu_g - need;
+        let ahead = -mu_g - need;
+        let hold = contact.static_accel_mps2();
+        let release = if need > hold {
+            behind
+        } else if need < -hold {
+            ahead
+        } else {
+            0.0
+        };
+        Rates {
+            behind_mps2: behind,
+            inv_behind_s2pm: 1.0 / behind,
+            ahead_mps2: ahead,
+            inv_ahead_s2pm: 1.0 / ahead,
+            release_mps2: release,
+        }
+    }
+}
+
+/// What happened inside a segment, for traces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum EventKind {
+    /// A segment (a switch of the plate's acceleration) begins.
+    Edge,
+    /// The part reaches the plate's velocity and sticks.
+    Stick,
+    /// The part reaches the plate's velocity and slips through to the other side.
+    Reversal,
+    /// A stuck part starts to slip.
+    Breakaway,
+}
+
+/// Receives the events of [`advance`], at `offset_s` into the segment with relative velocity
+/// `w_mps`. The no-op implementation on `()` compiles away.
+pub trait Observer {
+    const ACTIVE: bool;
+    fn event(&mut self, kind: EventKind, offset_s: f64, w_mps: f64);
+}
+
+impl Observer for () {
+    const ACTIVE: bool = false;
+    #[inline(always)]
+    fn event(&mut self, _: EventKind, _: f64, _: f64) {}
+}
+
+/// Integrals of one segment: `∫w dt` and the time spent stuck.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Step {
+    pub rel_displacement_m: f64,
+    pub stick_s: f64,
+}
+
+/// Advances the relative velocity `w` through a segment of `duration_s` with `rates`, solving the
+/// meeting time in closed form, and returns the segment's integrals.
+#[inline(always)]
+pub fn advance<O: Observer>(w: &mut f64, duration_s: f64, rates: &Rates, observer: &mut O) -> Step {
+    let w0 = *w;
+    if w0 == 0.0 {
+        return release(w, 0.0, duration_s, rates, observer);
+    }
+    let (rate, inv_rate) = if w0 < 0.0 {
+        (rates.behind_mps2, rates.inv_behind_s2pm)
+    } else {
+        (rates.ahead_mps2, rates.inv_ahead_s2pm)
+    };
+    let w1 = w0 + rate * duration_s;
+    if w1 * w0 > 0.0 {
+        *w = w1;
+        return Step {
+            rel_displacement_m: 0.5 * (w0 + w1) * duration_s,
+            stick_s: 0.0,
+        };
+    }
+    let meet_s = (-w0 * inv_rate).min(duration_s);
+    let before = 0.5 * w0 * meet_s;
+    let mut step = release(w, meet_s, duration_s - meet_s, rates, observer);
+    step.rel_displacement_m += before;
+    step
+}
+
+/// A part at the plate's velocity `offset_s` into the segment, for the remaining `rest_s`: it
+/// sticks if static friction holds, otherwise it slides away at the kinetic rate.
+#[inline(always)]
+fn release<O: Observer>(
+    w: &mut f64,
+    offset_s: f64,
+    rest_s: f64,
+    rates: &Rates,
+    observer: &mut O,
+) -> Step {
+    let rate = rates.release_mps2;
+    *w = rate * rest_s;
+    if O::ACTIVE {
+        let kind = match (offset_s > 0.0, rate == 0.0) {
+            (true, true) => Some(EventKind::Stick),
+            (true, false) => Some(EventKind::Reversal),
+            (false, false) => Some(EventKind::Breakaway),
+            (false, true) => None,
+        };
+        if let Some(kind) = kind {
+            observer.event(kind, offset_s, 0.0);
+        }
+    }
+    Step {
+        rel_displacement_m: 0.5 * rate * rest_s * rest_s,
+        stick_s: if rate == 0.0 { rest_s } else { 0.0 },
+    }
+}
