@@ -1,0 +1,91 @@
+//! Arbitrary bytes through the line assembler, the parser, `set` validation and every reply
+//! formatter: nothing panics, and every reply is one printable-ASCII `OK`/`ERR <code>` line.
+#![no_main]
+
+use feeder_shared::protocol::REPLY_CAPACITY;
+use feeder_shared::recipe::{self, RECIPE_SLOTS, RECORD_LEN};
+use feeder_shared::{
+    Command, Friction, LineAssembler, Limits, Machine, Phase, RecipeSlot, Reply, Settings, Status,
+    TickClock,
+};
+use libfuzzer_sys::fuzz_target;
+
+fn machine() -> Machine {
+    Machine {
+        limits: Limits {
+            min_frequency_hz: 20.0,
+            max_frequency_hz: 200.0,
+            max_accel_mps2: 500.0,
+            max_stroke_m: 0.005,
+        },
+        friction: Friction::new(1.0, 9.80665).expect("valid friction"),
+        clock: TickClock::new(1_000_000).with_max_segment_ticks(u32::from(u16::MAX)),
+    }
+}
+
+fn check(reply: &Reply) {
+    let text = reply.as_str();
+    assert!(text.len() <= REPLY_CAPACITY);
+    assert!(text.bytes().all(|b| (b' '..=b'~').contains(&b)), "{text:?}");
+    let well_formed = text == "OK"
+        || text.starts_with("OK ")
+        || text.strip_prefix("ERR ").is_some_and(|rest| {
+            let digits = rest.bytes().take_while(u8::is_ascii_digit).count();
+            digits > 0 && rest[digits..].starts_with(' ')
+        });
+    assert!(well_formed, "{text:?}");
+}
+
+fuzz_target!(|input: &[u8]| {
+    let machine = machine();
+    let mut settings = Settings::DEFAULT;
+    let mut applied = settings.validate(&machine).expect("defaults are valid");
+    let mut flash = [[0xff_u8; RECORD_LEN]; RECIPE_SLOTS];
+    let mut assembler = LineAssembler::new();
+    for &byte in input {
+        let Some(request) = assembler.push(byte) else { continue };
+        assert!(matches!(byte, b'\r' | b'\n'), "a reply only at a line end");
+        let status = Status {
+            phase: Phase::Running,
+            fault: Some("fuzz"),
+            waveform: applied.plan.waveform,
+            ramp_cycles: settings.ramp_cycles,
+            feed_rate_mps: applied.feed_rate_mps,
+            uptime_ms: u64::MAX,
+            cycles: u64::MAX,
+        };
+        let reply = match request {
+            Err(error) => Reply::error(&error),
+            Ok(Command::Set(setting)) => match settings.apply(setting, &machine) {
+                Ok(candidate) => {
+                    settings = candidate.settings;
+                    applied = candidate;
+                    Reply::applied(&candidate)
+                }
+                Err(error) => Reply::error(&error.into()),
+            },
+            Ok(Command::Get(param)) => Reply::get(param, &status),
+            Ok(Command::RecipeSave(slot)) => {
+                flash[slot.index()] = recipe::encode(slot, &settings);
+                Reply::recipe_saved(slot)
+            }
+            Ok(Command::RecipeLoad(slot)) => {
+                let loaded =
+                    recipe::load(&flash[slot.index()], slot, &machine).expect("defaults are valid");
+                settings = loaded.applied.settings;
+                applied = loaded.applied;
+                Reply::recipe_loaded(slot, &loaded)
+            }
+            Ok(Command::RecipeList) => {
+                let entries = core::array::from_fn(|index| {
+                    let slot = RecipeSlot::new(index as u8).expect("index below RECIPE_SLOTS");
+                    recipe::decode(&flash[index], slot)
+                });
+                Reply::recipe_list(&entries)
+            }
+            Ok(Command::Help) => Reply::help(),
+            Ok(_) => Reply::status(&status),
+        };
+        check(&reply);
+    }
+});
