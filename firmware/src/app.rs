@@ -1,0 +1,332 @@
+//! The application: control loop, button, status LED and watchdog monitor. Board-independent;
+//! the board module supplies the output stage, pins and executors.
+
+use core::sync::atomic::{AtomicU32, AtomicU8, Ordering};
+
+use defmt::{error, info, unwrap, warn};
+use embassy_executor::Spawner;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::signal::Signal;
+use embassy_time::{Duration, Ticker, Timer};
+use embedded_hal::digital::{InputPin, OutputPin};
+use embedded_hal_async::digital::Wait;
+use feeder_shared::{
+    Fault, Led, MotionRequest, Phase, RunState, Scheduler, Segment, SegmentKind, Supervisor,
+    SupervisorEvent, TickPlan, Waveform,
+};
+
+use crate::board::{self, Board};
+use crate::config;
+use crate::output::SegmentOutput;
+
+/// A watchdog the monitor feeds while the control loop makes progress.
+pub trait Watchdog {
+    fn feed(&mut self);
+}
+
+/// Set by the button, taken by the control loop at the next edge.
+static START_STOP: Signal<CriticalSectionRawMutex, ()> = Signal::new();
+/// What the status LED shows ([`Led`] as `u8`), published by the control loop.
+static LED: AtomicU8 = AtomicU8::new(LED_OFF);
+/// Counts the control loop's progress (segment starts, or parking ticks).
+static HEARTBEAT: AtomicU32 = AtomicU32::new(0);
+/// CPU cost of the work per edge since the last report.
+static COST: EdgeCost = EdgeCost::new();
+
+const LED_OFF: u8 = 0;
+const LED_ON: u8 = 1;
+const LED_BLINK: u8 = 2;
+
+/// Spawns the tasks: the control loop on the board's high-priority executor, the rest here.
+pub fn start(spawner: Spawner, board: Board) {
+    let control = ControlLoop {
+        output: board.output,
+        driver_enable: board.driver_enable,
+        supervisor: Supervisor::new(board.after_watchdog_reset),
+        last_phase: Phase::Stopped,
+    };
+    board.control_spawner.spawn(unwrap!(control_task(control)));
+    spawner.spawn(unwrap!(button_task(board.button)));
+    spawner.spawn(unwrap!(led_task(board.led)));
+    spawner.spawn(unwrap!(monitor_task(board.watchdog)));
+}
+
+#[embassy_executor::task]
+async fn control_task(control: ControlLoop<board::Output, board::DriverEnable>) {
+    control.run().await
+}
+
+/// Turns debounced presses of the start/stop button into requests for the control loop.
+#[embassy_executor::task]
+async fn button_task(mut button: board::Button) {
+    loop {
+        if Wait::wait_for_rising_edge(&mut button).await.is_err() {
+            continue;
+        }
+        Timer::after_millis(config::DEBOUNCE_MS).await;
+        if InputPin::is_high(&mut button) == Ok(true) {
+            START_STOP.signal(());
+            while Wait::wait_for_low(&mut button).await.is_err() {}
+            Timer::after_millis(config::DEBOUNCE_MS).await;
+        }
+    }
+}
+
+/// Off when stopped, on while moving, blinking on a fault.
+#[embassy_executor::task]
+async fn led_task(mut led: board::Led) {
+    let mut lit = false;
+    loop {
+        lit = match LED.load(Ordering::Relaxed) {
+            LED_ON => true,
+            LED_BLINK => !lit,
+            _ => false,
+        };
+        // Board pins are infallible; a failed write only leaves the LED as it was.
+        let _ = if lit { led.set_high() } else { led.set_low() };
+        Timer::after_millis(config::BLINK_HALF_PERIOD_MS).await;
+    }
+}
+
+/// Feeds the watchdog while the control loop makes progress and logs the CPU cost of the edges.
+#[embassy_executor::task]
+async fn monitor_task(mut watchdog: board::Watchdog) {
+    let mut ticker = Ticker::every(Duration::from_millis(config::MONITOR_PERIOD_MS));
+    let mut last_beat = HEARTBEAT.load(Ordering::Relaxed);
+    let mut periods = 0u32;
+    let mut report_start = cycles();
+    loop {
+        ticker.next().await;
+        let beat = HEARTBEAT.load(Ordering::Relaxed);
+        if beat != last_beat {
+            watchdog.feed();
+            last_beat = beat;
+        } else {
+            warn!("control loop made no progress for {=u64} ms", config::MONITOR_PERIOD_MS);
+        }
+        periods += 1;
+        if periods == config::REPORT_EVERY_MONITOR_PERIODS {
+            periods = 0;
+            let now = cycles();
+            COST.report(now.wrapping_sub(report_start));
+            report_start = now;
+        }
+    }
+}
+
+/// Reads the DWT cycle counter (enabled by [`enable_cycle_counter`]).
+fn cycles() -> u32 {
+    cortex_m::peripheral::DWT::cycle_count()
+}
+
+/// Starts the DWT cycle counter used to measure the work per edge.
+pub fn enable_cycle_counter() {
+    match cortex_m::Peripherals::take() {
+        Some(mut core) => {
+            core.DCB.enable_trace();
+            core.DWT.enable_cycle_counter();
+        }
+        None => warn!("core peripherals taken: edge cost is not measured"),
+    }
+}
+
+/// Sums of the CPU cycles spent per edge, reset at every report.
+struct EdgeCost {
+    edges: AtomicU32,
+    cycles: AtomicU32,
+    max_cycles: AtomicU32,
+}
+
+impl EdgeCost {
+    const fn new() -> Self {
+        Self { edges: AtomicU32::new(0), cycles: AtomicU32::new(0), max_cycles: AtomicU32::new(0) }
+    }
+
+    fn record(&self, cycles: u32) {
+        self.edges.fetch_add(1, Ordering::Relaxed);
+        self.cycles.fetch_add(cycles, Ordering::Relaxed);
+        self.max_cycles.fetch_max(cycles, Ordering::Relaxed);
+    }
+
+    /// Logs and clears the sums; `elapsed_cycles` is the CPU time since the last report.
+    fn report(&self, elapsed_cycles: u32) {
+        let edges = self.edges.swap(0, Ordering::Relaxed);
+        let cycles = self.cycles.swap(0, Ordering::Relaxed);
+        let max_cycles = self.max_cycles.swap(0, Ordering::Relaxed);
+        let mean_cycles = cycles.checked_div(edges).unwrap_or(0);
+        let load_ppm =
+            (u64::from(cycles) * 1_000_000).checked_div(u64::from(elapsed_cycles)).unwrap_or(0);
+        info!(
+            "edges: {=u32}, cycles per edge: mean {=u32} max {=u32}, CPU load {=u64} ppm",
+            edges, mean_cycles, max_cycles, load_ppm
+        );
+    }
+}
+
+/// Runs the scheduler into the output stage and applies the supervisor's decisions.
+struct ControlLoop<O, E> {
+    output: O,
+    driver_enable: E,
+    supervisor: Supervisor,
+    last_phase: Phase,
+}
+
+impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
+    async fn run(mut self) -> ! {
+        self.publish();
+        match self.plan() {
+            Some(plan) => self.run_plan(plan).await,
+            None => self.park().await,
+        }
+    }
+
+    /// The configured waveform planned on the output's clock, or `None` if it is refused.
+    fn plan(&mut self) -> Option<TickPlan> {
+        let waveform = match Waveform::new(config::WAVEFORM, &config::LIMITS) {
+            Ok(waveform) => waveform,
+            Err(err) => {
+                error!("waveform refused: {}", err);
+                return None;
+            }
+        };
+        let plan = match TickPlan::new(&waveform, self.output.clock()) {
+            Ok(plan) => plan,
+            Err(err) => {
+                error!("tick plan refused: {}", err);
+                return None;
+            }
+        };
+        if let Err(err) = self.output.set_peak_accel(waveform.accel_mps2) {
+            error!("output calibration refused: {}", err);
+            return None;
+        }
+        info!(
+            "plan: {=f64} Hz ({=u32} ticks of {=u32} Hz), d = {=f64}, a_max = {=f64} m/s², \
+             x_max = {=f64} m, drift bound {=f64} m",
+            plan.realized_frequency_hz(),
+            plan.period_ticks,
+            plan.clock_hz,
+            waveform.duty,
+            waveform.accel_mps2,
+            waveform.stroke_m,
+            plan.drift_bound_m
+        );
+        Some(plan)
+    }
+
+    /// Invalid settings: stay at zero with the driver disabled; only a reset helps.
+    async fn park(mut self) -> ! {
+        self.handle(SupervisorEvent::Fault(Fault::InvalidSettings), None);
+        loop {
+            HEARTBEAT.fetch_add(1, Ordering::Relaxed);
+            Timer::after_millis(config::MONITOR_PERIOD_MS).await;
+        }
+    }
+
+    async fn run_plan(mut self, plan: TickPlan) -> ! {
+        let mut scheduler = Scheduler::new(plan, config::RAMP_CYCLES);
+        let mut queued = self.resync(&mut scheduler);
+        loop {
+            let edge = self.output.wait_edge().await;
+            let work_start = cycles();
+            if edge.is_err() {
+                queued = self.fail(Fault::EdgeMissed, &mut scheduler);
+                continue;
+            }
+            self.begin(&queued, &mut scheduler);
+            queued = scheduler.next_segment();
+            if let Err(fault) = self.prepare(&queued) {
+                queued = self.fail(fault, &mut scheduler);
+                continue;
+            }
+            COST.record(cycles().wrapping_sub(work_start));
+        }
+    }
+
+    /// Preloads `segment`, switching the output levels first when it starts a new plan.
+    fn prepare(&mut self, segment: &Segment) -> Result<(), Fault> {
+        if segment.plan_applied {
+            if let Err(err) = self.output.set_peak_accel(segment.peak_accel_mps2) {
+                error!("output calibration refused: {}", err);
+                return Err(Fault::InvalidSettings);
+            }
+        }
+        self.output.preload(segment).map_err(|_| Fault::EdgeMissed)
+    }
+
+    /// Restarts the output with the scheduler's next segment and preloads the one after it.
+    /// Returns the preloaded segment.
+    fn resync(&mut self, scheduler: &mut Scheduler) -> Segment {
+        let playing = scheduler.next_segment();
+        self.output.restart(&playing);
+        self.begin(&playing, scheduler);
+        let queued = scheduler.next_segment();
+        if self.prepare(&queued).is_err() {
+            // Nothing can be timed: stop here and let the watchdog reset the board.
+            self.output.halt();
+            error!("output cannot be restarted; waiting for the watchdog");
+        }
+        queued
+    }
+
+    /// Fault stop: zero output, driver off, fault latched, then idle output from a fresh start.
+    fn fail(&mut self, fault: Fault, scheduler: &mut Scheduler) -> Segment {
+        self.output.halt();
+        self.set_driver(false);
+        error!("fault: {}", fault);
+        self.handle(SupervisorEvent::Fault(fault), Some(scheduler));
+        self.resync(scheduler)
+    }
+
+    /// Work at the start of every segment: supervision and pending requests.
+    fn begin(&mut self, playing: &Segment, scheduler: &mut Scheduler) {
+        HEARTBEAT.fetch_add(1, Ordering::Relaxed);
+        if playing.phase != self.last_phase {
+            info!("cycle {=u64}: {}", playing.cycle, playing.phase);
+            self.last_phase = playing.phase;
+        }
+        if playing.kind == SegmentKind::Idle {
+            self.handle(SupervisorEvent::OutputIdle, Some(scheduler));
+        }
+        if START_STOP.try_take().is_some() {
+            self.handle(SupervisorEvent::ButtonPressed, Some(scheduler));
+        }
+    }
+
+    /// Feeds `event` to the supervisor and carries out its decision.
+    fn handle(&mut self, event: SupervisorEvent, scheduler: Option<&mut Scheduler>) {
+        let before = self.supervisor.state();
+        let request = self.supervisor.handle(event);
+        if let Some(scheduler) = scheduler {
+            match request {
+                MotionRequest::Keep => {}
+                MotionRequest::Start => scheduler.start(),
+                MotionRequest::Stop => scheduler.stop(),
+                MotionRequest::Halt => scheduler.halt(),
+            }
+        }
+        self.set_driver(self.supervisor.driver_enabled());
+        let after = self.supervisor.state();
+        if after != before {
+            info!("{} -> {}", before, after);
+            self.publish();
+        }
+    }
+
+    fn set_driver(&mut self, enabled: bool) {
+        // Board pins are infallible; the fault path also drops the enable through the registers.
+        let _ = if enabled { self.driver_enable.set_high() } else { self.driver_enable.set_low() };
+    }
+
+    fn publish(&self) {
+        let led = match self.supervisor.led() {
+            Led::Off => LED_OFF,
+            Led::On => LED_ON,
+            Led::Blink => LED_BLINK,
+        };
+        LED.store(led, Ordering::Relaxed);
+        if let RunState::Faulted(fault) = self.supervisor.state() {
+            warn!("fault latched: {}", fault);
+        }
+    }
+}

@@ -1,0 +1,392 @@
+//! NUCLEO-G474RE: clocks, pins, the two output stages, watchdog and the emergency stop.
+//!
+//! | Signal                    | Pin  | Nucleo header |
+//! |---------------------------|------|---------------|
+//! | analog command (DAC1 ch1) | PA4  | A2            |
+//! | PWM magnitude (TIM1 CH1)  | PA8  | D7            |
+//! | direction (TIM1 CH2)      | PA9  | D8            |
+//! | driver enable (high = on) | PA10 | D2            |
+//! | start/stop button B1      | PC13 | —             |
+//! | status LED LD2            | PA5  | D13           |
+//!
+//! Both output stages time every edge in hardware. DAC: TIM2 (32 bits, 170 MHz) counts one
+//! segment; its update event loads the preloaded auto-reload (the next length) and, through TRGO,
+//! makes the DAC latch the preloaded holding register (the next code). PWM: TIM1 runs the carrier
+//! and its repetition counter counts the segment in carrier periods; the update event at the end
+//! of the repetitions loads the preloaded compare values (duty and direction) and repetition count.
+//! In both, the update interrupt only tells the control loop that the preload slot is free.
+
+use embassy_executor::{InterruptExecutor, SendSpawner};
+use embassy_stm32::dac::{ChannelTrigger, DacChannel, Value};
+use embassy_stm32::exti::{self, ExtiInput};
+use embassy_stm32::gpio::{self, Level, OutputType, Pull, Speed};
+use embassy_stm32::interrupt::typelevel::{self, Handler};
+use embassy_stm32::interrupt::{self, InterruptExt, Priority};
+use embassy_stm32::mode::{Async, Blocking};
+use embassy_stm32::pac::timer::vals::{Ossi, Urs};
+use embassy_stm32::peripherals::{DAC1, IWDG, PA4, PA8, PA9, TIM1, TIM2};
+use embassy_stm32::timer::low_level::{MasterMode, OutputCompareMode, Timer};
+use embassy_stm32::timer::simple_pwm::PwmPin;
+use embassy_stm32::timer::{Ch1, Ch2, Channel};
+use embassy_stm32::wdg::IndependentWatchdog;
+use embassy_stm32::{bind_interrupts, pac, rcc, triggers, Config, Peri};
+use feeder_shared::{DacLevels, Direction, DriveError, PwmLevels, Segment, TickClock};
+
+use crate::app;
+use crate::config::{self, OutputStage};
+use crate::output::{EdgeMissed, EdgeSignal, SegmentOutput};
+
+pub type Output = G474Output;
+pub type DriverEnable = gpio::Output<'static>;
+pub type Led = gpio::Output<'static>;
+pub type Button = ExtiInput<'static, Async>;
+pub type Watchdog = IndependentWatchdog<'static, IWDG>;
+
+/// Pin number of the driver enable on GPIOA (PA10), for the emergency stop.
+const DRIVER_ENABLE_PIN: usize = 10;
+
+/// Everything the application needs from the board.
+pub struct Board {
+    pub output: Output,
+    pub driver_enable: DriverEnable,
+    pub led: Led,
+    pub button: Button,
+    pub watchdog: Watchdog,
+    /// The last reset was the independent watchdog's.
+    pub after_watchdog_reset: bool,
+    /// Spawner of the executor that runs the control loop above the other tasks.
+    pub control_spawner: SendSpawner,
+}
+
+static EDGES: EdgeSignal = EdgeSignal::new();
+static CONTROL_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
+
+bind_interrupts!(struct Irqs {
+    EXTI15_10 => exti::InterruptHandler<typelevel::EXTI15_10>;
+    TIM2 => SegmentEdge;
+    TIM1_UP_TIM16 => SegmentEdge;
+    UART4 => ControlExecutor;
+});
+
+/// Update interrupt of the segment timer: one edge has passed.
+struct SegmentEdge;
+
+impl Handler<typelevel::TIM2> for SegmentEdge {
+    unsafe fn on_interrupt() {
+        pac::TIM2.sr().modify(|w| w.set_uif(false));
+        EDGES.record();
+    }
+}
+
+impl Handler<typelevel::TIM1_UP_TIM16> for SegmentEdge {
+    unsafe fn on_interrupt() {
+        pac::TIM1.sr().modify(|w| w.set_uif(false));
+        EDGES.record();
+    }
+}
+
+/// UART4 is unused on this board; its vector runs the control executor.
+struct ControlExecutor;
+
+impl Handler<typelevel::UART4> for ControlExecutor {
+    unsafe fn on_interrupt() {
+        // SAFETY: the executor was started on this interrupt in `init`.
+        unsafe { CONTROL_EXECUTOR.on_interrupt() }
+    }
+}
+
+/// Brings the board up with the output at zero and the driver disabled.
+pub fn init() -> Board {
+    let after_watchdog_reset = pac::RCC.csr().read().iwdgrstf();
+    pac::RCC.csr().modify(|w| w.set_rmvf(true));
+
+    let p = embassy_stm32::init(clocks());
+    let driver_enable = gpio::Output::new(p.PA10, Level::Low, Speed::Low);
+    let led = gpio::Output::new(p.PA5, Level::Low, Speed::Low);
+    let button = ExtiInput::new(p.PC13, p.EXTI13, Pull::Down, Irqs);
+    let output = match config::OUTPUT_STAGE {
+        OutputStage::Dac => G474Output::Dac(DacStage::new(p.DAC1, p.PA4, p.TIM2)),
+        OutputStage::PwmDir => G474Output::Pwm(PwmStage::new(p.TIM1, p.PA8, p.PA9)),
+    };
+    let mut watchdog = IndependentWatchdog::new(p.IWDG, config::WATCHDOG_TIMEOUT_US);
+    watchdog.unleash();
+
+    // Edges above the control executor, which is above the thread-mode tasks.
+    for edge_irq in [interrupt::TIM2, interrupt::TIM1_UP_TIM16] {
+        edge_irq.set_priority(Priority::P0);
+        edge_irq.unpend();
+        // SAFETY: both handlers are bound above and touch only their timer's flag and EDGES.
+        unsafe { edge_irq.enable() };
+    }
+    interrupt::UART4.set_priority(Priority::P1);
+    let control_spawner = CONTROL_EXECUTOR.start(interrupt::UART4);
+
+    Board { output, driver_enable, led, button, watchdog, after_watchdog_reset, control_spawner }
+}
+
+/// 170 MHz from HSI16: /4 × 85 /2, range 1 boost.
+fn clocks() -> Config {
+    let mut config = Config::default();
+    config.rcc.pll = Some(rcc::Pll {
+        source: rcc::PllSource::HSI,
+        prediv: rcc::PllPreDiv::DIV4,
+        mul: rcc::PllMul::MUL85,
+        divp: None,
+        divq: None,
+        divr: Some(rcc::PllRDiv::DIV2),
+    });
+    config.rcc.sys = rcc::Sysclk::PLL1_R;
+    config.rcc.boost = true;
+    config
+}
+
+/// Zeroes the command and drops the driver enable through the registers alone, whatever state
+/// the drivers are in. Writes to a stage that was never clocked are ignored by the hardware.
+pub fn emergency_stop() {
+    pac::DAC1.dhr12r(0).write(|w| w.set_dhr(config::DAC.zero_code));
+    // The update event makes the DAC latch the zero code through TRGO.
+    pac::TIM2.egr().write(|w| w.set_ug(true));
+    pac::TIM2.cr1().modify(|w| w.set_cen(false));
+    pac::TIM1.bdtr().modify(|w| w.set_moe(false));
+    pac::GPIOA.bsrr().write(|w| w.set_br(DRIVER_ENABLE_PIN, true));
+}
+
+impl app::Watchdog for Watchdog {
+    fn feed(&mut self) {
+        self.pet();
+    }
+}
+
+/// The output stage chosen by [`config::OUTPUT_STAGE`].
+pub enum G474Output {
+    Dac(DacStage),
+    Pwm(PwmStage),
+}
+
+impl SegmentOutput for G474Output {
+    fn clock(&self) -> TickClock {
+        match self {
+            G474Output::Dac(stage) => stage.clock(),
+            G474Output::Pwm(stage) => stage.clock,
+        }
+    }
+
+    fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
+        match self {
+            G474Output::Dac(stage) => {
+                stage.levels = None;
+                stage.levels = Some(config::DAC.levels(peak_accel_mps2)?);
+            }
+            G474Output::Pwm(stage) => {
+                stage.levels = None;
+                stage.levels = Some(config::PWM.levels(peak_accel_mps2, stage.period_counts)?);
+            }
+        }
+        Ok(())
+    }
+
+    fn restart(&mut self, segment: &Segment) {
+        match self {
+            G474Output::Dac(stage) => stage.restart(segment),
+            G474Output::Pwm(stage) => stage.restart(segment),
+        }
+    }
+
+    fn preload(&mut self, segment: &Segment) -> Result<(), EdgeMissed> {
+        let (seen, pending) = match self {
+            G474Output::Dac(stage) => stage.preload(segment)?,
+            G474Output::Pwm(stage) => stage.preload(segment),
+        };
+        // An edge during the writes may have split the preload across two segments.
+        if pending || EDGES.count() != seen {
+            return Err(EdgeMissed);
+        }
+        Ok(())
+    }
+
+    async fn wait_edge(&mut self) -> Result<(), EdgeMissed> {
+        let seen = match self {
+            G474Output::Dac(stage) => &mut stage.seen,
+            G474Output::Pwm(stage) => &mut stage.seen,
+        };
+        let (now, passed) = EDGES.wait_past(*seen).await;
+        *seen = now;
+        if passed == 1 {
+            Ok(())
+        } else {
+            Err(EdgeMissed)
+        }
+    }
+
+    fn halt(&mut self) {
+        match self {
+            G474Output::Dac(stage) => stage.halt(),
+            G474Output::Pwm(stage) => stage.halt(),
+        }
+    }
+}
+
+/// Analog command on PA4, edges timed by TIM2.
+pub struct DacStage {
+    dac: DacChannel<'static, Blocking>,
+    timer: Timer<'static, TIM2>,
+    levels: Option<DacLevels>,
+    /// Edge count when the playing segment began.
+    seen: u32,
+}
+
+impl DacStage {
+    fn new(dac: Peri<'static, DAC1>, pin: Peri<'static, PA4>, tim: Peri<'static, TIM2>) -> Self {
+        let mut dac = DacChannel::new_blocking(dac, pin);
+        // Untriggered, the zero code reaches the pin at once.
+        dac.set(Value::Bit12Right(config::DAC.zero_code));
+        let trigger = <triggers::TIM2_TRGO as ChannelTrigger<DAC1>>::signal(&triggers::TIM2_TRGO);
+        // The trigger selection can change only while the channel is disabled; the HAL has no
+        // call for it on a blocking channel.
+        pac::DAC1.cr().modify(|w| w.set_en(0, false));
+        pac::DAC1.cr().modify(|w| {
+            w.set_tsel(0, trigger);
+            w.set_ten(0, true);
+        });
+        pac::DAC1.cr().modify(|w| w.set_en(0, true));
+
+        let timer = Timer::new(tim);
+        timer.set_autoreload_preload(true);
+        timer.set_master_mode(MasterMode::UPDATE);
+        // Only counter overflows (segment ends) raise the interrupt, not forced updates.
+        timer.regs_core().cr1().modify(|w| w.set_urs(Urs::COUNTER_ONLY));
+        timer.enable_update_interrupt(true);
+        Self { dac, timer, levels: None, seen: EDGES.count() }
+    }
+
+    fn clock(&self) -> TickClock {
+        TickClock::new(self.timer.get_clock_frequency().0)
+    }
+
+    fn code(&self, segment: &Segment) -> u16 {
+        match self.levels {
+            Some(levels) => levels.code(segment.level, segment.amplitude),
+            None => config::DAC.zero_code,
+        }
+    }
+
+    fn restart(&mut self, segment: &Segment) {
+        self.timer.stop();
+        self.timer.reset();
+        self.dac.set(Value::Bit12Right(self.code(segment)));
+        self.timer.regs_gp32().arr().write_value(segment.ticks.saturating_sub(1));
+        // Loads the length and, through TRGO, the code; no interrupt (URS).
+        self.timer.regs_core().egr().write(|w| w.set_ug(true));
+        self.timer.clear_update_interrupt();
+        self.seen = EDGES.count();
+        self.timer.start();
+    }
+
+    /// Writes the next code and length; returns the edge count to check and whether an update
+    /// is pending.
+    fn preload(&mut self, segment: &Segment) -> Result<(u32, bool), EdgeMissed> {
+        // A one-tick segment would stop the counter (auto-reload 0) and cannot be prepared.
+        if segment.ticks < 2 {
+            return Err(EdgeMissed);
+        }
+        self.dac.set(Value::Bit12Right(self.code(segment)));
+        self.timer.regs_gp32().arr().write_value(segment.ticks - 1);
+        Ok((self.seen, self.timer.regs_core().sr().read().uif()))
+    }
+
+    fn halt(&mut self) {
+        self.timer.stop();
+        self.dac.set(Value::Bit12Right(config::DAC.zero_code));
+        self.timer.regs_core().egr().write(|w| w.set_ug(true));
+    }
+}
+
+/// PWM magnitude on PA8 and direction on PA9 (high = forward), segments counted in carrier
+/// periods by TIM1's repetition counter.
+pub struct PwmStage {
+    timer: Timer<'static, TIM1>,
+    _magnitude: PwmPin<'static, TIM1, Ch1>,
+    _direction: PwmPin<'static, TIM1, Ch2>,
+    /// Timer counts per carrier period (100 % duty).
+    period_counts: u16,
+    clock: TickClock,
+    levels: Option<PwmLevels>,
+    /// Edge count when the playing segment began.
+    seen: u32,
+}
+
+impl PwmStage {
+    fn new(tim: Peri<'static, TIM1>, pwm: Peri<'static, PA8>, dir: Peri<'static, PA9>) -> Self {
+        let magnitude = PwmPin::new(pwm, OutputType::PushPull);
+        let direction = PwmPin::new(dir, OutputType::PushPull);
+        let timer = Timer::new(tim);
+        let timer_hz = timer.get_clock_frequency().0;
+        let period_counts =
+            (timer_hz / config::PWM_FREQUENCY_HZ).clamp(1, u32::from(u16::MAX)) as u16;
+        let carrier_hz = timer_hz / u32::from(period_counts);
+        if carrier_hz * u32::from(period_counts) != timer_hz {
+            defmt::warn!("PWM carrier {=u32} Hz does not divide the timer clock", carrier_hz);
+        }
+        timer.regs_core().arr().write(|w| w.set_arr(period_counts - 1));
+        timer.set_autoreload_preload(true);
+        for channel in [Channel::Ch1, Channel::Ch2] {
+            timer.set_output_compare_mode(channel, OutputCompareMode::PwmMode1);
+            timer.set_output_compare_preload(channel, true);
+            timer.set_compare_value(channel, 0);
+            timer.enable_channel(channel, true);
+        }
+        // With the main output off, drive both pins to their idle level (low).
+        timer.set_ossi(Ossi::IDLE_LEVEL);
+        timer.regs_core().cr1().modify(|w| w.set_urs(Urs::COUNTER_ONLY));
+        timer.enable_update_interrupt(true);
+        Self {
+            timer,
+            _magnitude: magnitude,
+            _direction: direction,
+            period_counts,
+            // The repetition counter has 16 bits.
+            clock: TickClock::new(carrier_hz).with_max_segment_ticks(1 << 16),
+            levels: None,
+            seen: EDGES.count(),
+        }
+    }
+
+    fn write(&self, segment: &Segment) {
+        let (duty, direction) = match self.levels {
+            Some(levels) => {
+                let command = levels.command(segment.level, segment.amplitude);
+                (command.duty_counts, command.direction)
+            }
+            None => (0, Direction::Forward),
+        };
+        let direction_compare = match direction {
+            Direction::Forward => self.period_counts,
+            Direction::Reverse => 0,
+        };
+        self.timer.set_compare_value(Channel::Ch1, duty);
+        self.timer.set_compare_value(Channel::Ch2, direction_compare);
+        let repetitions = segment.ticks.saturating_sub(1).min(u32::from(u16::MAX)) as u16;
+        self.timer.set_repetition_counter(repetitions);
+    }
+
+    fn restart(&mut self, segment: &Segment) {
+        self.timer.stop();
+        self.timer.reset();
+        self.write(segment);
+        self.timer.regs_core().egr().write(|w| w.set_ug(true));
+        self.timer.clear_update_interrupt();
+        self.seen = EDGES.count();
+        self.timer.set_moe(true);
+        self.timer.start();
+    }
+
+    fn preload(&mut self, segment: &Segment) -> (u32, bool) {
+        self.write(segment);
+        (self.seen, self.timer.regs_core().sr().read().uif())
+    }
+
+    fn halt(&mut self) {
+        self.timer.set_moe(false);
+        self.timer.stop();
+    }
+}

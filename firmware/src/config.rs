@@ -1,0 +1,58 @@
+//! Default parameters of the feeder, in one place. Units are in the names.
+
+use feeder_shared::{DacCalibration, Drive, Limits, PwmCalibration, WaveformSpec};
+
+/// Which driver input the firmware commands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
+pub enum OutputStage {
+    /// Analog command from DAC1 channel 1 (PA4): zero code ± amplitude code.
+    Dac,
+    /// PWM magnitude on TIM1 CH1 (PA8) and direction on TIM1 CH2 (PA9), for H-bridge drivers.
+    PwmDir,
+}
+
+/// The driver input in use: the DAC unless the `output-pwm` cargo feature is enabled.
+pub const OUTPUT_STAGE: OutputStage =
+    if cfg!(feature = "output-pwm") { OutputStage::PwmDir } else { OutputStage::Dac };
+
+/// Waveform at power-up: 50 Hz, d = 0.586, stroke x_max = 2.5 mm peak to peak, which Eq. 5 turns
+/// into a_max ≈ 150 m/s² (the paper's operating point).
+pub const WAVEFORM: WaveformSpec =
+    WaveformSpec { period_s: 1.0 / 50.0, duty: 0.586, drive: Drive::Stroke { stroke_m: 2.5e-3 } };
+
+/// What this machine can do; every waveform is validated against it.
+pub const LIMITS: Limits = Limits {
+    min_frequency_hz: 50.0,
+    max_frequency_hz: 100.0,
+    // Peak acceleration the linear motor can deliver with the plate mounted.
+    max_accel_mps2: 200.0,
+    // Peak-to-peak plate travel before the end stops.
+    max_stroke_m: 5.0e-3,
+};
+
+/// Cycles over which soft start and soft stop ramp the amplitude (0.5 s at 50 Hz).
+pub const RAMP_CYCLES: u16 = 25;
+
+/// Calibration of the analog driver input (see [`DacCalibration::DEFAULT`]).
+pub const DAC: DacCalibration = DacCalibration::DEFAULT;
+
+/// Calibration of the PWM driver input (see [`PwmCalibration::DEFAULT`]).
+pub const PWM: PwmCalibration = PwmCalibration::DEFAULT;
+
+/// PWM carrier frequency; it is also the tick clock of the segments in PWM mode.
+pub const PWM_FREQUENCY_HZ: u32 = 20_000;
+
+/// Independent watchdog timeout.
+pub const WATCHDOG_TIMEOUT_US: u32 = 500_000;
+
+/// How often the monitor checks the control loop and feeds the watchdog.
+pub const MONITOR_PERIOD_MS: u64 = 100;
+
+/// How often the monitor logs the CPU cost of the edges (in monitor periods).
+pub const REPORT_EVERY_MONITOR_PERIODS: u32 = 10;
+
+/// Button contacts settle within this time.
+pub const DEBOUNCE_MS: u64 = 20;
+
+/// Half period of the LED blink that signals a fault.
+pub const BLINK_HALF_PERIOD_MS: u64 = 250;
