@@ -83,7 +83,11 @@ async fn led_task(mut led: board::Led) {
             _ => false,
         };
         // Board pins are infallible; a failed write only leaves the LED as it was.
-        let _ = if lit { led.set_high() } else { led.set_low() };
+        let _ = if lit {
+            OutputPin::set_high(&mut led)
+        } else {
+            OutputPin::set_low(&mut led)
+        };
         Timer::after_millis(config::BLINK_HALF_PERIOD_MS).await;
     }
 }
@@ -102,7 +106,10 @@ async fn monitor_task(mut watchdog: board::Watchdog) {
             watchdog.feed();
             last_beat = beat;
         } else {
-            warn!("control loop made no progress for {=u64} ms", config::MONITOR_PERIOD_MS);
+            warn!(
+                "control loop made no progress for {=u64} ms",
+                config::MONITOR_PERIOD_MS
+            );
         }
         periods += 1;
         if periods == config::REPORT_EVERY_MONITOR_PERIODS {
@@ -139,7 +146,11 @@ struct EdgeCost {
 
 impl EdgeCost {
     const fn new() -> Self {
-        Self { edges: AtomicU32::new(0), cycles: AtomicU32::new(0), max_cycles: AtomicU32::new(0) }
+        Self {
+            edges: AtomicU32::new(0),
+            cycles: AtomicU32::new(0),
+            max_cycles: AtomicU32::new(0),
+        }
     }
 
     fn record(&self, cycles: u32) {
@@ -154,8 +165,9 @@ impl EdgeCost {
         let cycles = self.cycles.swap(0, Ordering::Relaxed);
         let max_cycles = self.max_cycles.swap(0, Ordering::Relaxed);
         let mean_cycles = cycles.checked_div(edges).unwrap_or(0);
-        let load_ppm =
-            (u64::from(cycles) * 1_000_000).checked_div(u64::from(elapsed_cycles)).unwrap_or(0);
+        let load_ppm = (u64::from(cycles) * 1_000_000)
+            .checked_div(u64::from(elapsed_cycles))
+            .unwrap_or(0);
         info!(
             "edges: {=u32}, cycles per edge: mean {=u32} max {=u32}, CPU load {=u64} ppm",
             edges, mean_cycles, max_cycles, load_ppm
@@ -315,7 +327,11 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
 
     fn set_driver(&mut self, enabled: bool) {
         // Board pins are infallible; the fault path also drops the enable through the registers.
-        let _ = if enabled { self.driver_enable.set_high() } else { self.driver_enable.set_low() };
+        let _ = if enabled {
+            self.driver_enable.set_high()
+        } else {
+            self.driver_enable.set_low()
+        };
     }
 
     fn publish(&self) {

@@ -12,13 +12,19 @@ pub enum OutputStage {
 }
 
 /// The driver input in use: the DAC unless the `output-pwm` cargo feature is enabled.
-pub const OUTPUT_STAGE: OutputStage =
-    if cfg!(feature = "output-pwm") { OutputStage::PwmDir } else { OutputStage::Dac };
+pub const OUTPUT_STAGE: OutputStage = if cfg!(feature = "output-pwm") {
+    OutputStage::PwmDir
+} else {
+    OutputStage::Dac
+};
 
 /// Waveform at power-up: 50 Hz, d = 0.586, stroke x_max = 2.5 mm peak to peak, which Eq. 5 turns
 /// into a_max ≈ 150 m/s² (the paper's operating point).
-pub const WAVEFORM: WaveformSpec =
-    WaveformSpec { period_s: 1.0 / 50.0, duty: 0.586, drive: Drive::Stroke { stroke_m: 2.5e-3 } };
+pub const WAVEFORM: WaveformSpec = WaveformSpec {
+    period_s: 1.0 / 50.0,
+    duty: 0.586,
+    drive: Drive::Stroke { stroke_m: 2.5e-3 },
+};
 
 /// What this machine can do; every waveform is validated against it.
 pub const LIMITS: Limits = Limits {

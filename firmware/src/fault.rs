@@ -20,7 +20,11 @@ fn panic(info: &PanicInfo) -> ! {
 #[exception]
 unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
     board::emergency_stop();
-    defmt::error!("HardFault at pc {=u32:#010x}, lr {=u32:#010x}", frame.pc(), frame.lr());
+    defmt::error!(
+        "HardFault at pc {=u32:#010x}, lr {=u32:#010x}",
+        frame.pc(),
+        frame.lr()
+    );
     wait_for_watchdog()
 }
 

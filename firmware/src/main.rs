@@ -18,6 +18,9 @@ use defmt_rtt as _;
 async fn main(spawner: embassy_executor::Spawner) {
     let board = board::init();
     app::enable_cycle_counter();
-    defmt::info!("feeder firmware up: output {}, stopped", config::OUTPUT_STAGE);
+    defmt::info!(
+        "feeder firmware up: output {}, stopped",
+        config::OUTPUT_STAGE
+    );
     app::start(spawner, board);
 }

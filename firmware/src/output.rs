@@ -48,7 +48,10 @@ pub struct EdgeSignal {
 
 impl EdgeSignal {
     pub const fn new() -> Self {
-        Self { edges: AtomicU32::new(0), waker: AtomicWaker::new() }
+        Self {
+            edges: AtomicU32::new(0),
+            waker: AtomicWaker::new(),
+        }
     }
 
     /// Records one edge; called from the segment timer's interrupt.

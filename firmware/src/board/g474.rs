@@ -121,7 +121,15 @@ pub fn init() -> Board {
     interrupt::UART4.set_priority(Priority::P1);
     let control_spawner = CONTROL_EXECUTOR.start(interrupt::UART4);
 
-    Board { output, driver_enable, led, button, watchdog, after_watchdog_reset, control_spawner }
+    Board {
+        output,
+        driver_enable,
+        led,
+        button,
+        watchdog,
+        after_watchdog_reset,
+        control_spawner,
+    }
 }
 
 /// 170 MHz from HSI16: /4 × 85 /2, range 1 boost.
@@ -143,12 +151,16 @@ fn clocks() -> Config {
 /// Zeroes the command and drops the driver enable through the registers alone, whatever state
 /// the drivers are in. Writes to a stage that was never clocked are ignored by the hardware.
 pub fn emergency_stop() {
-    pac::DAC1.dhr12r(0).write(|w| w.set_dhr(config::DAC.zero_code));
+    pac::DAC1
+        .dhr12r(0)
+        .write(|w| w.set_dhr(config::DAC.zero_code));
     // The update event makes the DAC latch the zero code through TRGO.
     pac::TIM2.egr().write(|w| w.set_ug(true));
     pac::TIM2.cr1().modify(|w| w.set_cen(false));
     pac::TIM1.bdtr().modify(|w| w.set_moe(false));
-    pac::GPIOA.bsrr().write(|w| w.set_br(DRIVER_ENABLE_PIN, true));
+    pac::GPIOA
+        .bsrr()
+        .write(|w| w.set_br(DRIVER_ENABLE_PIN, true));
 }
 
 impl app::Watchdog for Watchdog {
@@ -254,9 +266,17 @@ impl DacStage {
         timer.set_autoreload_preload(true);
         timer.set_master_mode(MasterMode::UPDATE);
         // Only counter overflows (segment ends) raise the interrupt, not forced updates.
-        timer.regs_core().cr1().modify(|w| w.set_urs(Urs::COUNTER_ONLY));
+        timer
+            .regs_core()
+            .cr1()
+            .modify(|w| w.set_urs(Urs::COUNTER_ONLY));
         timer.enable_update_interrupt(true);
-        Self { dac, timer, levels: None, seen: EDGES.count() }
+        Self {
+            dac,
+            timer,
+            levels: None,
+            seen: EDGES.count(),
+        }
     }
 
     fn clock(&self) -> TickClock {
@@ -274,7 +294,10 @@ impl DacStage {
         self.timer.stop();
         self.timer.reset();
         self.dac.set(Value::Bit12Right(self.code(segment)));
-        self.timer.regs_gp32().arr().write_value(segment.ticks.saturating_sub(1));
+        self.timer
+            .regs_gp32()
+            .arr()
+            .write_value(segment.ticks.saturating_sub(1));
         // Loads the length and, through TRGO, the code; no interrupt (URS).
         self.timer.regs_core().egr().write(|w| w.set_ug(true));
         self.timer.clear_update_interrupt();
@@ -325,9 +348,15 @@ impl PwmStage {
             (timer_hz / config::PWM_FREQUENCY_HZ).clamp(1, u32::from(u16::MAX)) as u16;
         let carrier_hz = timer_hz / u32::from(period_counts);
         if carrier_hz * u32::from(period_counts) != timer_hz {
-            defmt::warn!("PWM carrier {=u32} Hz does not divide the timer clock", carrier_hz);
+            defmt::warn!(
+                "PWM carrier {=u32} Hz does not divide the timer clock",
+                carrier_hz
+            );
         }
-        timer.regs_core().arr().write(|w| w.set_arr(period_counts - 1));
+        timer
+            .regs_core()
+            .arr()
+            .write(|w| w.set_arr(period_counts - 1));
         timer.set_autoreload_preload(true);
         for channel in [Channel::Ch1, Channel::Ch2] {
             timer.set_output_compare_mode(channel, OutputCompareMode::PwmMode1);
@@ -337,7 +366,10 @@ impl PwmStage {
         }
         // With the main output off, drive both pins to their idle level (low).
         timer.set_ossi(Ossi::IDLE_LEVEL);
-        timer.regs_core().cr1().modify(|w| w.set_urs(Urs::COUNTER_ONLY));
+        timer
+            .regs_core()
+            .cr1()
+            .modify(|w| w.set_urs(Urs::COUNTER_ONLY));
         timer.enable_update_interrupt(true);
         Self {
             timer,
@@ -364,7 +396,8 @@ impl PwmStage {
             Direction::Reverse => 0,
         };
         self.timer.set_compare_value(Channel::Ch1, duty);
-        self.timer.set_compare_value(Channel::Ch2, direction_compare);
+        self.timer
+            .set_compare_value(Channel::Ch2, direction_compare);
         let repetitions = segment.ticks.saturating_sub(1).min(u32::from(u16::MAX)) as u16;
         self.timer.set_repetition_counter(repetitions);
     }
