@@ -200,26 +200,23 @@ impl Scheduler {
     /// Applies pending requests at a cycle boundary and chooses the cycle's amplitude and variant.
     /// Returns whether a new plan took effect.
     fn begin_cycle(&mut self) -> bool {
-        let residual_m = self.residual_m();
-        let plan_applied = match self.pending_plan.take() {
-            Some(plan) => {
+        let plan_applied = self.pending_plan.is_some();
+        if plan_applied || self.pending_ramp_steps.is_some() {
+            // The accumulated displacement is carried over in metres into the new units.
+            let residual_m = self.residual_m();
+            if let Some(plan) = self.pending_plan.take() {
                 self.plan = plan;
-                true
             }
-            None => false,
-        };
-        let ramp_changed = self.pending_ramp_steps.is_some();
-        if let Some(steps) = self.pending_ramp_steps.take() {
-            let old_steps = u32::from(self.ramp_steps);
-            let scaled = (u32::from(self.step) * u32::from(steps) + old_steps / 2) / old_steps;
-            self.step = if self.step > 0 {
-                scaled.max(1) as u16
-            } else {
-                0
-            };
-            self.ramp_steps = steps;
-        }
-        if plan_applied || ramp_changed {
+            if let Some(steps) = self.pending_ramp_steps.take() {
+                let old_steps = u32::from(self.ramp_steps);
+                let scaled = (u32::from(self.step) * u32::from(steps) + old_steps / 2) / old_steps;
+                self.step = if self.step > 0 {
+                    scaled.max(1) as u16
+                } else {
+                    0
+                };
+                self.ramp_steps = steps;
+            }
             self.residual = round(residual_m / self.residual_unit_m()) as i64;
         }
         self.step = if self.run_requested {
