@@ -5,7 +5,7 @@
 use feeder_shared::protocol::REPLY_CAPACITY;
 use feeder_shared::recipe::{self, RECIPE_SLOTS, RECORD_LEN};
 use feeder_shared::{
-    Command, Friction, LineAssembler, Limits, Machine, Phase, RecipeSlot, Reply, Settings, Status,
+    Command, Friction, Limits, LineAssembler, Machine, Phase, RecipeSlot, Reply, Settings, Status,
     TickClock,
 };
 use libfuzzer_sys::fuzz_target;
@@ -43,7 +43,9 @@ fuzz_target!(|input: &[u8]| {
     let mut flash = [[0xff_u8; RECORD_LEN]; RECIPE_SLOTS];
     let mut assembler = LineAssembler::new();
     for &byte in input {
-        let Some(request) = assembler.push(byte) else { continue };
+        let Some(request) = assembler.push(byte) else {
+            continue;
+        };
         assert!(matches!(byte, b'\r' | b'\n'), "a reply only at a line end");
         let status = Status {
             phase: Phase::Running,

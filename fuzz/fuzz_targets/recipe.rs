@@ -7,8 +7,12 @@ use feeder_shared::{Friction, Limits, Machine, RecipeSlot, TickClock};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|input: &[u8]| {
-    let Some((&number, rest)) = input.split_first() else { return };
-    let Ok(record) = <[u8; RECORD_LEN]>::try_from(rest) else { return };
+    let Some((&number, rest)) = input.split_first() else {
+        return;
+    };
+    let Ok(record) = <[u8; RECORD_LEN]>::try_from(rest) else {
+        return;
+    };
     let slot = RecipeSlot::new(number % RECIPE_SLOTS as u8).expect("slot below RECIPE_SLOTS");
     let machine = Machine {
         limits: Limits::NONE,
@@ -20,5 +24,8 @@ fuzz_target!(|input: &[u8]| {
         assert_eq!(recipe::encode(slot, &settings), record);
     }
     let loaded = recipe::load(&record, slot, &machine).expect("defaults are valid");
-    assert_eq!(loaded.issue.is_none(), decoded.is_ok_and(|s| s.validate(&machine).is_ok()));
+    assert_eq!(
+        loaded.issue.is_none(),
+        decoded.is_ok_and(|s| s.validate(&machine).is_ok())
+    );
 });
