@@ -4,8 +4,10 @@
 //! The supervisor comes up [`RunState::Stopped`] after every reset (or [`RunState::Faulted`] when
 //! the reset was the watchdog's), with the driver disabled: the feeder never resumes motion by
 //! itself. A press starts; a press while running begins a soft stop, and the driver stays enabled
-//! until the output has reached idle. A fault halts at once and is latched: the next press only
-//! acknowledges it (back to stopped) and a further press starts again.
+//! until the output has reached idle. A fault halts at once and is latched: the next press (or an
+//! explicit reset) only acknowledges it, back to stopped, and a further press or start starts
+//! again. Explicit start and stop requests (command line, scripts) act like the button but never
+//! toggle.
 
 /// Why the output was halted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -17,6 +19,22 @@ pub enum Fault {
     WatchdogReset,
     /// The configured waveform or output calibration was refused.
     InvalidSettings,
+}
+
+impl Fault {
+    pub const fn name(self) -> &'static str {
+        match self {
+            Fault::EdgeMissed => "edge-missed",
+            Fault::WatchdogReset => "watchdog-reset",
+            Fault::InvalidSettings => "invalid-settings",
+        }
+    }
+}
+
+impl core::fmt::Display for Fault {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 /// What the feeder is doing.
@@ -46,6 +64,12 @@ pub enum Led {
 pub enum SupervisorEvent {
     /// The start/stop button was pressed (debounced).
     ButtonPressed,
+    /// An explicit start (command line, script). Refused while a fault is latched.
+    StartRequested,
+    /// An explicit soft stop.
+    StopRequested,
+    /// An explicit acknowledgement of a latched fault.
+    ResetRequested,
     /// An idle period has begun on the output: no motion is being commanded.
     OutputIdle,
     Fault(Fault),
@@ -93,6 +117,15 @@ impl Supervisor {
             (Running, SupervisorEvent::ButtonPressed) => (Stopping, Stop),
             (Stopping, SupervisorEvent::ButtonPressed) => (Running, Start),
             (Faulted(_), SupervisorEvent::ButtonPressed) => (Stopped, Keep),
+            (Stopped | Stopping, SupervisorEvent::StartRequested) => (Running, Start),
+            (Running | Stopping, SupervisorEvent::StopRequested) => (Stopping, Stop),
+            (Faulted(_), SupervisorEvent::ResetRequested) => (Stopped, Keep),
+            (
+                state,
+                SupervisorEvent::StartRequested
+                | SupervisorEvent::StopRequested
+                | SupervisorEvent::ResetRequested,
+            ) => (state, Keep),
             (Stopping, SupervisorEvent::OutputIdle) => (Stopped, Keep),
             (state, SupervisorEvent::OutputIdle) => (state, Keep),
         };

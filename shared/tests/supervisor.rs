@@ -2,7 +2,10 @@
 
 use feeder_shared::{Fault, Led, MotionRequest, RunState, Supervisor, SupervisorEvent};
 
-use SupervisorEvent::{ButtonPressed as Press, OutputIdle as Idle};
+use SupervisorEvent::{
+    ButtonPressed as Press, OutputIdle as Idle, ResetRequested as Reset, StartRequested as Start,
+    StopRequested as Stop,
+};
 
 #[test]
 fn comes_up_stopped_with_the_driver_disabled() {
@@ -78,9 +81,33 @@ fn faults_halt_at_once_and_latch_the_first_cause() {
     assert_eq!(supervisor.handle(Press), MotionRequest::Start);
 }
 
-const EVENTS: [SupervisorEvent; 5] = [
+#[test]
+fn explicit_commands_start_stop_and_reset() {
+    let mut supervisor = Supervisor::new(false);
+    assert_eq!(supervisor.handle(Stop), MotionRequest::Keep);
+    assert_eq!(supervisor.handle(Start), MotionRequest::Start);
+    assert_eq!(supervisor.handle(Start), MotionRequest::Keep);
+    assert_eq!(supervisor.state(), RunState::Running);
+    assert_eq!(supervisor.handle(Stop), MotionRequest::Stop);
+    assert_eq!(supervisor.state(), RunState::Stopping);
+    assert_eq!(supervisor.handle(Start), MotionRequest::Start);
+    assert_eq!(supervisor.handle(Reset), MotionRequest::Keep);
+    assert_eq!(supervisor.state(), RunState::Running);
+    supervisor.handle(SupervisorEvent::Fault(Fault::EdgeMissed));
+    // A latched fault refuses an explicit start; only a reset clears it.
+    assert_eq!(supervisor.handle(Start), MotionRequest::Keep);
+    assert_eq!(supervisor.state(), RunState::Faulted(Fault::EdgeMissed));
+    assert_eq!(supervisor.handle(Reset), MotionRequest::Keep);
+    assert_eq!(supervisor.state(), RunState::Stopped);
+    assert_eq!(supervisor.handle(Start), MotionRequest::Start);
+}
+
+const EVENTS: [SupervisorEvent; 8] = [
     Press,
     Idle,
+    Start,
+    Stop,
+    Reset,
     SupervisorEvent::Fault(Fault::EdgeMissed),
     SupervisorEvent::Fault(Fault::WatchdogReset),
     SupervisorEvent::Fault(Fault::InvalidSettings),
@@ -120,14 +147,14 @@ fn the_driver_is_enabled_only_while_running_or_ramping_down() {
 }
 
 #[test]
-fn every_fault_halts_and_only_a_press_starts() {
+fn every_fault_halts_and_only_a_press_or_start_starts() {
     for_all_sequences(|before, event, request, after| {
         if let SupervisorEvent::Fault(_) = event {
             assert_eq!(request, MotionRequest::Halt);
             assert!(!after.driver_enabled());
         }
         if request == MotionRequest::Start {
-            assert_eq!(event, Press);
+            assert!(event == Press || event == Start);
             assert!(
                 !matches!(before.state(), RunState::Faulted(_)),
                 "a fault needs acknowledging"
@@ -140,12 +167,12 @@ fn every_fault_halts_and_only_a_press_starts() {
 }
 
 #[test]
-fn a_fault_is_left_only_by_a_press_and_only_to_stopped() {
+fn a_fault_is_left_only_by_a_press_or_reset_and_only_to_stopped() {
     for_all_sequences(|before, event, _, after| {
         if let RunState::Faulted(first) = before.state() {
             match after.state() {
                 RunState::Faulted(latched) => assert_eq!(latched, first),
-                RunState::Stopped => assert_eq!(event, Press),
+                RunState::Stopped => assert!(event == Press || event == Reset),
                 other => panic!("left a fault to {other:?}"),
             }
         }
