@@ -1,33 +1,54 @@
 //! The application: control loop, button, status LED and watchdog monitor. Board-independent;
 //! the board module supplies the output stage, pins and executors.
 
-use core::sync::atomic::{AtomicU32, AtomicU8, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicU32, AtomicU8, Ordering};
 
 use defmt::{error, info, unwrap, warn};
-use embassy_executor::Spawner;
+use embassy_executor::SendSpawner;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
-use embassy_sync::signal::Signal;
+use embassy_sync::channel::Channel;
 use embassy_time::{Duration, Ticker, Timer};
 use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_hal_async::digital::Wait;
 use feeder_shared::{
-    Fault, Led, MotionRequest, Phase, RunState, Scheduler, Segment, SegmentKind, Supervisor,
-    SupervisorEvent, TickPlan, Waveform,
+    Error, Fault, Led, MotionRequest, Phase, RunState, Scheduler, Segment, SegmentKind, Supervisor,
+    SupervisorEvent, TickPlan, Waveform, WaveformSpec,
 };
 
 use crate::board::{self, Board};
 use crate::config;
 use crate::output::SegmentOutput;
+use crate::trace;
 
 /// A watchdog the monitor feeds while the control loop makes progress.
 pub trait Watchdog {
     fn feed(&mut self);
 }
 
-/// Set by the button, taken by the control loop at the next edge.
-static START_STOP: Signal<CriticalSectionRawMutex, ()> = Signal::new();
+/// What an operator (the button, a script, a command line) asks of the control loop.
+#[derive(Clone, Copy, defmt::Format)]
+pub enum OperatorRequest {
+    /// The start/stop button: start when stopped, soft stop when running.
+    Toggle,
+    Start,
+    Stop,
+    /// A new waveform and ramp length, validated first and applied at a cycle boundary.
+    Configure {
+        spec: WaveformSpec,
+        ramp_cycles: u16,
+    },
+}
+
+/// Operator requests, taken by the control loop at the next edge.
+static REQUESTS: Channel<CriticalSectionRawMutex, OperatorRequest, 4> = Channel::new();
 /// What the status LED shows ([`Led`] as `u8`), published by the control loop.
 static LED: AtomicU8 = AtomicU8::new(LED_OFF);
+/// Cycles begun so far (low 32 bits), published by the control loop.
+static CYCLE: AtomicU32 = AtomicU32::new(0);
+/// The supervisor's state ([`OperatorView`] as `u8`), published by the control loop.
+static STATE: AtomicU8 = AtomicU8::new(OperatorView::Stopped as u8);
+/// Set when the DWT cycle counter runs, so that edge costs are measured.
+static CYCLE_COUNTER_RUNS: AtomicBool = AtomicBool::new(false);
 /// Counts the control loop's progress (segment starts, or parking ticks).
 static HEARTBEAT: AtomicU32 = AtomicU32::new(0);
 /// CPU cost of the work per edge since the last report.
@@ -37,8 +58,38 @@ const LED_OFF: u8 = 0;
 const LED_ON: u8 = 1;
 const LED_BLINK: u8 = 2;
 
-/// Spawns the tasks: the control loop on the board's high-priority executor, the rest here.
-pub fn start(spawner: Spawner, board: Board) {
+/// Queues a request for the control loop; `false` if the queue is full and it was dropped.
+pub fn request(request: OperatorRequest) -> bool {
+    REQUESTS.try_send(request).is_ok()
+}
+
+/// Cycles (and idle periods) the output has begun, modulo 2³².
+pub fn cycles_begun() -> u32 {
+    CYCLE.load(Ordering::Relaxed)
+}
+
+/// The run state as an operator sees it.
+#[derive(Clone, Copy, PartialEq, Eq, defmt::Format)]
+#[repr(u8)]
+pub enum OperatorView {
+    Stopped,
+    /// Running or ramping down.
+    Moving,
+    Faulted,
+}
+
+/// The supervisor's state as last published by the control loop.
+pub fn state() -> OperatorView {
+    match STATE.load(Ordering::Relaxed) {
+        0 => OperatorView::Stopped,
+        1 => OperatorView::Moving,
+        _ => OperatorView::Faulted,
+    }
+}
+
+/// Spawns the tasks: the control loop on the board's high-priority executor, the rest on
+/// `spawner`.
+pub fn start(spawner: SendSpawner, board: Board) {
     let control = ControlLoop {
         output: board.output,
         driver_enable: board.driver_enable,
@@ -65,7 +116,7 @@ async fn button_task(mut button: board::Button) {
         }
         Timer::after_millis(config::DEBOUNCE_MS).await;
         if InputPin::is_high(&mut button) == Ok(true) {
-            START_STOP.signal(());
+            request(OperatorRequest::Toggle);
             while Wait::wait_for_low(&mut button).await.is_err() {}
             Timer::after_millis(config::DEBOUNCE_MS).await;
         }
@@ -112,7 +163,9 @@ async fn monitor_task(mut watchdog: board::Watchdog) {
             );
         }
         periods += 1;
-        if periods == config::REPORT_EVERY_MONITOR_PERIODS {
+        if periods == config::REPORT_EVERY_MONITOR_PERIODS
+            && CYCLE_COUNTER_RUNS.load(Ordering::Relaxed)
+        {
             periods = 0;
             let now = cycles();
             COST.report(now.wrapping_sub(report_start));
@@ -132,6 +185,13 @@ pub fn enable_cycle_counter() {
         Some(mut core) => {
             core.DCB.enable_trace();
             core.DWT.enable_cycle_counter();
+            let start = cycles();
+            cortex_m::asm::delay(100);
+            if cycles() != start {
+                CYCLE_COUNTER_RUNS.store(true, Ordering::Relaxed);
+            } else {
+                warn!("no DWT cycle counter: edge cost is not measured");
+            }
         }
         None => warn!("core peripherals taken: edge cost is not measured"),
     }
@@ -194,24 +254,25 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
 
     /// The configured waveform planned on the output's clock, or `None` if it is refused.
     fn plan(&mut self) -> Option<TickPlan> {
-        let waveform = match Waveform::new(config::WAVEFORM, &config::LIMITS) {
-            Ok(waveform) => waveform,
+        let plan = match self.make_plan(&config::WAVEFORM) {
+            Ok(plan) => plan,
             Err(err) => {
                 error!("waveform refused: {}", err);
                 return None;
             }
         };
-        let plan = match TickPlan::new(&waveform, self.output.clock()) {
-            Ok(plan) => plan,
-            Err(err) => {
-                error!("tick plan refused: {}", err);
-                return None;
-            }
-        };
-        if let Err(err) = self.output.set_peak_accel(waveform.accel_mps2) {
+        if let Err(err) = self.output.set_peak_accel(plan.waveform.accel_mps2) {
             error!("output calibration refused: {}", err);
             return None;
         }
+        trace::plan(0, &config::WAVEFORM, plan.clock_hz, config::RAMP_CYCLES);
+        Some(plan)
+    }
+
+    /// Validates `spec` against the machine's limits and plans it on the output's clock.
+    fn make_plan(&self, spec: &WaveformSpec) -> Result<TickPlan, Error> {
+        let waveform = Waveform::new(*spec, &config::LIMITS)?;
+        let plan = TickPlan::new(&waveform, self.output.clock())?;
         info!(
             "plan: {=f64} Hz ({=u32} ticks of {=u32} Hz), d = {=f64}, a_max = {=f64} m/s², \
              x_max = {=f64} m, drift bound {=f64} m",
@@ -223,7 +284,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             waveform.stroke_m,
             plan.drift_bound_m
         );
-        Some(plan)
+        Ok(plan)
     }
 
     /// Invalid settings: stay at zero with the driver disabled; only a reset helps.
@@ -293,6 +354,10 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     /// Work at the start of every segment: supervision and pending requests.
     fn begin(&mut self, playing: &Segment, scheduler: &mut Scheduler) {
         HEARTBEAT.fetch_add(1, Ordering::Relaxed);
+        trace::segment(playing, self.output.started_tick(playing));
+        if playing.starts_cycle() {
+            CYCLE.store(playing.cycle as u32, Ordering::Relaxed);
+        }
         if playing.phase != self.last_phase {
             info!("cycle {=u64}: {}", playing.cycle, playing.phase);
             self.last_phase = playing.phase;
@@ -300,8 +365,31 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         if playing.kind == SegmentKind::Idle {
             self.handle(SupervisorEvent::OutputIdle, Some(scheduler));
         }
-        if START_STOP.try_take().is_some() {
-            self.handle(SupervisorEvent::ButtonPressed, Some(scheduler));
+        while let Ok(request) = REQUESTS.try_receive() {
+            let event = match request {
+                OperatorRequest::Toggle => SupervisorEvent::ButtonPressed,
+                OperatorRequest::Start => SupervisorEvent::StartRequested,
+                OperatorRequest::Stop => SupervisorEvent::StopRequested,
+                OperatorRequest::Configure { spec, ramp_cycles } => {
+                    self.configure(&spec, ramp_cycles, scheduler);
+                    continue;
+                }
+            };
+            self.handle(event, Some(scheduler));
+        }
+    }
+
+    /// Validates and queues a new waveform; a refused one changes nothing.
+    fn configure(&mut self, spec: &WaveformSpec, ramp_cycles: u16, scheduler: &mut Scheduler) {
+        match self.make_plan(spec) {
+            Ok(plan) => match scheduler.set_plan(plan) {
+                Ok(()) => {
+                    scheduler.set_ramp_cycles(ramp_cycles);
+                    trace::plan(scheduler.next_tick(), spec, plan.clock_hz, ramp_cycles);
+                }
+                Err(err) => warn!("new waveform refused: {}", err),
+            },
+            Err(err) => warn!("new waveform refused: {}", err),
         }
     }
 
@@ -310,11 +398,23 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         let before = self.supervisor.state();
         let request = self.supervisor.handle(event);
         if let Some(scheduler) = scheduler {
-            match request {
-                MotionRequest::Keep => {}
-                MotionRequest::Start => scheduler.start(),
-                MotionRequest::Stop => scheduler.stop(),
-                MotionRequest::Halt => scheduler.halt(),
+            let traced = match request {
+                MotionRequest::Keep => None,
+                MotionRequest::Start => {
+                    scheduler.start();
+                    Some(trace::Request::Start)
+                }
+                MotionRequest::Stop => {
+                    scheduler.stop();
+                    Some(trace::Request::Stop)
+                }
+                MotionRequest::Halt => {
+                    scheduler.halt();
+                    Some(trace::Request::Halt)
+                }
+            };
+            if let Some(traced) = traced {
+                trace::request(scheduler.next_tick(), traced);
             }
         }
         self.set_driver(self.supervisor.driver_enabled());
@@ -341,6 +441,12 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             Led::Blink => LED_BLINK,
         };
         LED.store(led, Ordering::Relaxed);
+        let view = match self.supervisor.state() {
+            RunState::Stopped => OperatorView::Stopped,
+            RunState::Running | RunState::Stopping => OperatorView::Moving,
+            RunState::Faulted(_) => OperatorView::Faulted,
+        };
+        STATE.store(view as u8, Ordering::Relaxed);
         if let RunState::Faulted(fault) = self.supervisor.state() {
             warn!("fault latched: {}", fault);
         }

@@ -1,7 +1,10 @@
 //! Default parameters of the feeder, in one place. Units are in the names.
 
-use feeder_shared::{DacCalibration, Drive, Limits, PwmCalibration, WaveformSpec};
+#[cfg(feature = "board-g474")]
+use feeder_shared::PwmCalibration;
+use feeder_shared::{DacCalibration, Drive, Limits, WaveformSpec};
 
+#[cfg(feature = "board-g474")]
 /// Which driver input the firmware commands.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum OutputStage {
@@ -11,6 +14,7 @@ pub enum OutputStage {
     PwmDir,
 }
 
+#[cfg(feature = "board-g474")]
 /// The driver input in use: the DAC unless the `output-pwm` cargo feature is enabled.
 pub const OUTPUT_STAGE: OutputStage = if cfg!(feature = "output-pwm") {
     OutputStage::PwmDir
@@ -42,12 +46,15 @@ pub const RAMP_CYCLES: u16 = 25;
 /// Calibration of the analog driver input (see [`DacCalibration::DEFAULT`]).
 pub const DAC: DacCalibration = DacCalibration::DEFAULT;
 
+#[cfg(feature = "board-g474")]
 /// Calibration of the PWM driver input (see [`PwmCalibration::DEFAULT`]).
 pub const PWM: PwmCalibration = PwmCalibration::DEFAULT;
 
+#[cfg(feature = "board-g474")]
 /// PWM carrier frequency; it is also the tick clock of the segments in PWM mode.
 pub const PWM_FREQUENCY_HZ: u32 = 20_000;
 
+#[cfg(feature = "board-g474")]
 /// Independent watchdog timeout.
 pub const WATCHDOG_TIMEOUT_US: u32 = 500_000;
 

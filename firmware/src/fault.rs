@@ -1,8 +1,9 @@
 //! Panic and HardFault: make the output safe before anything else, then log.
 //!
 //! Both handlers zero the command and drop the driver enable through the board's registers,
-//! log through defmt and wait for the independent watchdog, which resets the board. It comes
-//! up faulted (LED blinking) and needs a press of B1 to acknowledge.
+//! log through defmt and hand over to the board: on the NUCLEO-G474RE the independent watchdog
+//! resets it and it comes up faulted (LED blinking, B1 acknowledges); under QEMU the emulation
+//! exits with a failure code.
 
 use core::panic::PanicInfo;
 
@@ -14,7 +15,7 @@ use crate::board;
 fn panic(info: &PanicInfo) -> ! {
     board::emergency_stop();
     defmt::error!("panic: {}", defmt::Display2Format(info));
-    wait_for_watchdog()
+    board::after_fault()
 }
 
 #[exception]
@@ -25,11 +26,5 @@ unsafe fn HardFault(frame: &ExceptionFrame) -> ! {
         frame.pc(),
         frame.lr()
     );
-    wait_for_watchdog()
-}
-
-fn wait_for_watchdog() -> ! {
-    loop {
-        cortex_m::asm::wfi();
-    }
+    board::after_fault()
 }

@@ -11,9 +11,9 @@ mod board;
 mod config;
 mod fault;
 mod output;
+mod trace;
 
-use defmt_rtt as _;
-
+#[cfg(feature = "board-g474")]
 #[embassy_executor::main]
 async fn main(spawner: embassy_executor::Spawner) {
     let board = board::init();
@@ -22,5 +22,16 @@ async fn main(spawner: embassy_executor::Spawner) {
         "feeder firmware up: output {}, stopped",
         config::OUTPUT_STAGE
     );
+    app::start(spawner.make_send(), board);
+}
+
+#[cfg(feature = "board-qemu")]
+#[cortex_m_rt::entry]
+fn main() -> ! {
+    let (spawner, board) = board::init();
+    app::enable_cycle_counter();
+    defmt::info!("feeder firmware up on QEMU mps2-an386: output reported as events, stopped");
     app::start(spawner, board);
+    board::spawn_operator(spawner);
+    board::sleep_forever()
 }

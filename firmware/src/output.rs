@@ -1,11 +1,6 @@
 //! The output stage as the application sees it: a timer that starts each segment in hardware,
 //! with the next segment preloaded by software while the current one plays.
 
-use core::future::poll_fn;
-use core::sync::atomic::{AtomicU32, Ordering};
-use core::task::Poll;
-
-use embassy_sync::waitqueue::AtomicWaker;
 use feeder_shared::{DriveError, Segment, TickClock};
 
 /// A segment could not be prepared before its edge: the output timing is lost.
@@ -38,44 +33,8 @@ pub trait SegmentOutput {
 
     /// Outputs zero at once and stops the timer.
     fn halt(&mut self);
-}
 
-/// Edge count of the segment timer, shared between its interrupt and the output stage.
-pub struct EdgeSignal {
-    edges: AtomicU32,
-    waker: AtomicWaker,
-}
-
-impl EdgeSignal {
-    pub const fn new() -> Self {
-        Self {
-            edges: AtomicU32::new(0),
-            waker: AtomicWaker::new(),
-        }
-    }
-
-    /// Records one edge; called from the segment timer's interrupt.
-    pub fn record(&self) {
-        self.edges.fetch_add(1, Ordering::Release);
-        self.waker.wake();
-    }
-
-    /// Edges recorded so far (wrapping).
-    pub fn count(&self) -> u32 {
-        self.edges.load(Ordering::Acquire)
-    }
-
-    /// Waits until the count differs from `seen` and returns how many edges have passed.
-    pub async fn wait_past(&self, seen: u32) -> (u32, u32) {
-        poll_fn(|cx| {
-            self.waker.register(cx.waker());
-            let now = self.count();
-            if now == seen {
-                Poll::Pending
-            } else {
-                Poll::Ready((now, now.wrapping_sub(seen)))
-            }
-        })
-        .await
-    }
+    /// The tick at which `segment`, the one just begun, took effect. Hardware-timed stages
+    /// return its planned start; an emulated stage returns what it measured.
+    fn started_tick(&self, segment: &Segment) -> u64;
 }

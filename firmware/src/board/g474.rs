@@ -16,6 +16,11 @@
 //! of the repetitions loads the preloaded compare values (duty and direction) and repetition count.
 //! In both, the update interrupt only tells the control loop that the preload slot is free.
 
+use core::future::poll_fn;
+use core::sync::atomic::{AtomicU32, Ordering};
+use core::task::Poll;
+
+use defmt_rtt as _;
 use embassy_executor::{InterruptExecutor, SendSpawner};
 use embassy_stm32::dac::{ChannelTrigger, DacChannel, Value};
 use embassy_stm32::exti::{self, ExtiInput};
@@ -30,11 +35,12 @@ use embassy_stm32::timer::simple_pwm::PwmPin;
 use embassy_stm32::timer::{Ch1, Ch2, Channel};
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{bind_interrupts, pac, rcc, triggers, Config, Peri};
+use embassy_sync::waitqueue::AtomicWaker;
 use feeder_shared::{DacLevels, Direction, DriveError, PwmLevels, Segment, TickClock};
 
 use crate::app;
 use crate::config::{self, OutputStage};
-use crate::output::{EdgeMissed, EdgeSignal, SegmentOutput};
+use crate::output::{EdgeMissed, SegmentOutput};
 
 pub type Output = G474Output;
 pub type DriverEnable = gpio::Output<'static>;
@@ -148,6 +154,13 @@ fn clocks() -> Config {
     config
 }
 
+/// After a panic or HardFault: wait for the independent watchdog to reset the board.
+pub fn after_fault() -> ! {
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
 /// Zeroes the command and drops the driver enable through the registers alone, whatever state
 /// the drivers are in. Writes to a stage that was never clocked are ignored by the hardware.
 pub fn emergency_stop() {
@@ -235,6 +248,11 @@ impl SegmentOutput for G474Output {
             G474Output::Dac(stage) => stage.halt(),
             G474Output::Pwm(stage) => stage.halt(),
         }
+    }
+
+    fn started_tick(&self, segment: &Segment) -> u64 {
+        // The timer's update event starts every segment exactly on its planned tick.
+        segment.start_tick
     }
 }
 
@@ -421,5 +439,45 @@ impl PwmStage {
     fn halt(&mut self) {
         self.timer.set_moe(false);
         self.timer.stop();
+    }
+}
+
+/// Edge count of the segment timer, shared between its interrupt and the output stage.
+pub struct EdgeSignal {
+    edges: AtomicU32,
+    waker: AtomicWaker,
+}
+
+impl EdgeSignal {
+    pub const fn new() -> Self {
+        Self {
+            edges: AtomicU32::new(0),
+            waker: AtomicWaker::new(),
+        }
+    }
+
+    /// Records one edge; called from the segment timer's interrupt.
+    pub fn record(&self) {
+        self.edges.fetch_add(1, Ordering::Release);
+        self.waker.wake();
+    }
+
+    /// Edges recorded so far (wrapping).
+    pub fn count(&self) -> u32 {
+        self.edges.load(Ordering::Acquire)
+    }
+
+    /// Waits until the count differs from `seen` and returns how many edges have passed.
+    pub async fn wait_past(&self, seen: u32) -> (u32, u32) {
+        poll_fn(|cx| {
+            self.waker.register(cx.waker());
+            let now = self.count();
+            if now == seen {
+                Poll::Pending
+            } else {
+                Poll::Ready((now, now.wrapping_sub(seen)))
+            }
+        })
+        .await
     }
 }

@@ -1,0 +1,270 @@
+//! QEMU `-machine mps2-an386` (Cortex-M4F at 25 MHz): the same application as on the board, with
+//! an output stage that reports every level change instead of driving a DAC.
+//!
+//! * Time: an embassy-time driver on the CMSDK APB timers ([`time_driver`]), 1 µs ticks; the
+//!   scheduler plans in those ticks and the output waits for each edge with `Timer::at`, so the
+//!   reported `actual` tick shows the software latency.
+//! * Operator: a script read from the semihosting command line ([`scenario`]) instead of B1.
+//! * Executors: all tasks run on two interrupt executors and thread mode sleeps in `wfi`. QEMU
+//!   executes `wfe` as a no-op, so embassy's thread executor would spin instead of letting
+//!   `-icount` skip idle time.
+//! * Logs: defmt over semihosting; the run ends with a semihosting exit code, non-zero after a
+//!   panic or fault.
+
+mod scenario;
+mod time_driver;
+
+use core::convert::Infallible;
+
+use cortex_m::interrupt::InterruptNumber;
+use cortex_m::peripheral::NVIC;
+use cortex_m_semihosting::debug::{self, EXIT_FAILURE};
+use defmt_semihosting as _;
+use embassy_executor::{InterruptExecutor, SendSpawner};
+use embassy_time::Instant;
+use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
+use embedded_hal_async::digital::Wait;
+use feeder_shared::{DriveError, Segment, TickClock};
+
+use crate::app;
+use crate::config;
+use crate::output::{EdgeMissed, SegmentOutput};
+
+pub use scenario::spawn_operator;
+
+pub type Output = ReportingOutput;
+pub type DriverEnable = EmulatedPin;
+pub type Led = EmulatedPin;
+pub type Button = NoButton;
+pub type Watchdog = NoWatchdog;
+
+/// Everything the application needs from the board.
+pub struct Board {
+    pub output: Output,
+    pub driver_enable: DriverEnable,
+    pub led: Led,
+    pub button: Button,
+    pub watchdog: Watchdog,
+    /// QEMU starts fresh every run.
+    pub after_watchdog_reset: bool,
+    /// Spawner of the executor that runs the control loop above the other tasks.
+    pub control_spawner: SendSpawner,
+}
+
+/// External interrupts of mps2-an386 used here. 30 and 31 belong to GPIO pins nobody enables.
+#[derive(Clone, Copy)]
+#[repr(u16)]
+pub enum Irq {
+    Timer0 = 8,
+    Timer1 = 9,
+    ControlExecutor = 30,
+    TaskExecutor = 31,
+}
+
+// SAFETY: the numbers are valid external interrupts of the machine (it has 32).
+unsafe impl InterruptNumber for Irq {
+    fn number(self) -> u16 {
+        self as u16
+    }
+}
+
+static CONTROL_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
+static TASK_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
+
+/// Every external interrupt lands here (there is no device crate for this machine).
+#[cortex_m_rt::exception]
+unsafe fn DefaultHandler(irqn: i16) {
+    match irqn {
+        8 => time_driver::on_alarm(),
+        9 => time_driver::on_clock_wrap(),
+        // SAFETY: each executor was started on its interrupt in `init`.
+        30 => unsafe { CONTROL_EXECUTOR.on_interrupt() },
+        31 => unsafe { TASK_EXECUTOR.on_interrupt() },
+        _ => {
+            emergency_stop();
+            defmt::error!("unexpected interrupt {=i16}", irqn);
+            after_fault()
+        }
+    }
+}
+
+/// Brings the emulated board up: time driver, executors (timers above the control loop above
+/// the other tasks). Returns the spawner for the application's other tasks.
+pub fn init() -> (SendSpawner, Board) {
+    time_driver::init();
+    for irq in time_driver::IRQS {
+        set_priority(irq, 0x00);
+        // SAFETY: the time driver's handlers are ready (`time_driver::init` ran).
+        unsafe { NVIC::unmask(irq) };
+    }
+    set_priority(Irq::ControlExecutor, 0x40);
+    set_priority(Irq::TaskExecutor, 0x80);
+    let control_spawner = CONTROL_EXECUTOR.start(Irq::ControlExecutor);
+    let task_spawner = TASK_EXECUTOR.start(Irq::TaskExecutor);
+    let board = Board {
+        output: ReportingOutput::new(),
+        driver_enable: EmulatedPin,
+        led: EmulatedPin,
+        button: NoButton,
+        watchdog: NoWatchdog,
+        after_watchdog_reset: false,
+        control_spawner,
+    };
+    (task_spawner, board)
+}
+
+/// Sets an interrupt's priority (lower is more urgent) without taking the core peripherals,
+/// which the application's cycle counter needs.
+fn set_priority(irq: Irq, priority: u8) {
+    // SAFETY: a byte write to this interrupt's priority register before it is enabled; no
+    // priority-based critical section is in use.
+    unsafe { (*NVIC::PTR).ipr[usize::from(irq.number())].write(priority) }
+}
+
+/// Thread mode has nothing to do: every task runs in an interrupt. It spins instead of sleeping
+/// so that, under `-icount`, virtual time is exactly the instruction count: QEMU advances an idle
+/// (`wfi`) CPU by host time, which would make runs differ.
+pub fn sleep_forever() -> ! {
+    loop {
+        cortex_m::asm::nop();
+    }
+}
+
+/// There is no hardware output to zero; the stream shows the halt.
+pub fn emergency_stop() {}
+
+/// Ends the emulation with a failure code, so a panic or fault fails the run.
+pub fn after_fault() -> ! {
+    debug::exit(EXIT_FAILURE);
+    sleep_forever()
+}
+
+/// The output stage: holds each level from its planned tick, measured on the embassy clock.
+pub struct ReportingOutput {
+    /// Embassy tick at which scheduler tick 0 lies.
+    origin_ticks: u64,
+    queued: Option<Segment>,
+    started_tick: u64,
+}
+
+impl ReportingOutput {
+    fn new() -> Self {
+        Self {
+            origin_ticks: 0,
+            queued: None,
+            started_tick: 0,
+        }
+    }
+
+    /// The scheduler tick now.
+    fn now_tick(&self) -> u64 {
+        Instant::now().as_ticks().wrapping_sub(self.origin_ticks)
+    }
+}
+
+impl SegmentOutput for ReportingOutput {
+    fn clock(&self) -> TickClock {
+        TickClock::new(embassy_time::TICK_HZ as u32)
+    }
+
+    fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
+        // The same check the board's DAC stage makes.
+        config::DAC.levels(peak_accel_mps2).map(|_| ())
+    }
+
+    fn restart(&mut self, segment: &Segment) {
+        self.origin_ticks = Instant::now().as_ticks().wrapping_sub(segment.start_tick);
+        self.queued = None;
+        self.started_tick = segment.start_tick;
+    }
+
+    fn preload(&mut self, segment: &Segment) -> Result<(), EdgeMissed> {
+        if self.now_tick() >= segment.start_tick {
+            return Err(EdgeMissed);
+        }
+        self.queued = Some(*segment);
+        Ok(())
+    }
+
+    async fn wait_edge(&mut self) -> Result<(), EdgeMissed> {
+        let segment = self.queued.take().ok_or(EdgeMissed)?;
+        let edge = Instant::from_ticks(self.origin_ticks.wrapping_add(segment.start_tick));
+        embassy_time::Timer::at(edge).await;
+        self.started_tick = self.now_tick();
+        if self.started_tick >= segment.end_tick() {
+            return Err(EdgeMissed);
+        }
+        Ok(())
+    }
+
+    fn halt(&mut self) {
+        self.queued = None;
+    }
+
+    fn started_tick(&self, _segment: &Segment) -> u64 {
+        self.started_tick
+    }
+}
+
+/// Driver enable and LED: no pins on this machine; their state shows in the log.
+pub struct EmulatedPin;
+
+impl ErrorType for EmulatedPin {
+    type Error = Infallible;
+}
+
+impl OutputPin for EmulatedPin {
+    fn set_low(&mut self) -> Result<(), Infallible> {
+        Ok(())
+    }
+
+    fn set_high(&mut self) -> Result<(), Infallible> {
+        Ok(())
+    }
+}
+
+/// The scenario presses no button.
+pub struct NoButton;
+
+impl ErrorType for NoButton {
+    type Error = Infallible;
+}
+
+impl InputPin for NoButton {
+    fn is_high(&mut self) -> Result<bool, Infallible> {
+        Ok(false)
+    }
+
+    fn is_low(&mut self) -> Result<bool, Infallible> {
+        Ok(true)
+    }
+}
+
+impl Wait for NoButton {
+    async fn wait_for_high(&mut self) -> Result<(), Infallible> {
+        core::future::pending().await
+    }
+
+    async fn wait_for_low(&mut self) -> Result<(), Infallible> {
+        Ok(())
+    }
+
+    async fn wait_for_rising_edge(&mut self) -> Result<(), Infallible> {
+        core::future::pending().await
+    }
+
+    async fn wait_for_falling_edge(&mut self) -> Result<(), Infallible> {
+        core::future::pending().await
+    }
+
+    async fn wait_for_any_edge(&mut self) -> Result<(), Infallible> {
+        core::future::pending().await
+    }
+}
+
+/// QEMU models no independent watchdog for this machine; the monitor's feeding is a no-op.
+pub struct NoWatchdog;
+
+impl app::Watchdog for NoWatchdog {
+    fn feed(&mut self) {}
+}

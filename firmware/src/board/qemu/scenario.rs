@@ -1,0 +1,169 @@
+//! The scripted operator of an emulated run, configured on QEMU's command line
+//! (`-semihosting-config enable=on,target=native,arg=cycles=1000,arg=freq_hz=100`):
+//!
+//! | argument     | meaning                                                   | default              |
+//! |--------------|-----------------------------------------------------------|----------------------|
+//! | `cycles=N`   | request the soft stop once N cycles have begun            | 300                  |
+//! | `freq_hz=F`  | waveform frequency                                         | the firmware default |
+//! | `duty=D`     | duty at start                                              | the firmware default |
+//! | `new_duty=D` | duty of the live change at N/2 cycles                      | `duty` + 0.02        |
+//! | `ramp=R`     | soft start/stop cycles                                     | the firmware default |
+//! | `panic_at=C` | panic once C cycles have begun (to test failure handling) | never                |
+//!
+//! The run starts (soft), changes the duty at N/2, stops (soft) at N, and exits with code 0 once
+//! the output is idle again.
+
+use cortex_m_semihosting::debug::{self, EXIT_SUCCESS};
+use cortex_m_semihosting::nr::GET_CMDLINE;
+use defmt::{info, unwrap, warn};
+use embassy_executor::SendSpawner;
+use embassy_time::{Instant, Timer};
+use feeder_shared::WaveformSpec;
+
+use super::{after_fault, sleep_forever};
+use crate::app::{self, OperatorRequest, OperatorView};
+use crate::{config, trace};
+
+/// How often the operator looks at the cycle count.
+const POLL_MS: u64 = 5;
+/// Cycles past the stop request by which the output must be idle again.
+const STOP_GRACE_CYCLES: u32 = 100;
+
+struct Scenario {
+    stop_after_cycles: u32,
+    spec: WaveformSpec,
+    new_duty: f64,
+    ramp_cycles: u16,
+    panic_at_cycle: Option<u32>,
+}
+
+impl Scenario {
+    /// Reads `key=value` words; unknown or malformed words are reported and ignored.
+    fn parse(command_line: &str) -> Self {
+        let mut scenario = Scenario {
+            stop_after_cycles: 300,
+            spec: config::WAVEFORM,
+            new_duty: f64::NAN,
+            ramp_cycles: config::RAMP_CYCLES,
+            panic_at_cycle: None,
+        };
+        for word in command_line.split_whitespace() {
+            let Some((key, value)) = word.split_once('=') else {
+                continue;
+            };
+            let understood = match key {
+                "cycles" => value
+                    .parse()
+                    .map(|n| scenario.stop_after_cycles = n)
+                    .is_ok(),
+                "freq_hz" => value
+                    .parse::<f64>()
+                    .map(|f| scenario.spec.period_s = 1.0 / f)
+                    .is_ok(),
+                "duty" => value.parse().map(|d| scenario.spec.duty = d).is_ok(),
+                "new_duty" => value.parse().map(|d| scenario.new_duty = d).is_ok(),
+                "ramp" => value.parse().map(|r| scenario.ramp_cycles = r).is_ok(),
+                "panic_at" => value
+                    .parse()
+                    .map(|c| scenario.panic_at_cycle = Some(c))
+                    .is_ok(),
+                _ => false,
+            };
+            if !understood {
+                warn!("scenario: ignored `{=str}`", word);
+            }
+        }
+        if scenario.new_duty.is_nan() {
+            scenario.new_duty = scenario.spec.duty + 0.02;
+        }
+        scenario
+    }
+}
+
+/// Reads the semihosting command line into `buffer`.
+fn command_line(buffer: &mut [u8]) -> &str {
+    let mut block = [buffer.as_mut_ptr() as usize, buffer.len()];
+    // SAFETY: SYS_GET_CMDLINE writes at most `block[1]` bytes into `buffer` and the length into
+    // `block[1]`; both outlive the call.
+    let status =
+        unsafe { cortex_m_semihosting::syscall1(GET_CMDLINE, block.as_mut_ptr() as usize) };
+    // SAFETY: `block` is a live local written by the host during the call.
+    let length = unsafe { core::ptr::read_volatile(&block[1]) };
+    if status != 0 || length > buffer.len() {
+        return "";
+    }
+    core::str::from_utf8(&buffer[..length]).unwrap_or("")
+}
+
+pub fn spawn_operator(spawner: SendSpawner) {
+    spawner.spawn(unwrap!(operator_task()));
+}
+
+/// Ends the run with a failure code if the firmware faulted.
+fn fail_on_fault() {
+    if app::state() == OperatorView::Faulted {
+        defmt::error!("scenario: the firmware faulted");
+        after_fault();
+    }
+}
+
+async fn until_cycle(cycle: u32, panic_at_cycle: Option<u32>) {
+    loop {
+        fail_on_fault();
+        let begun = app::cycles_begun();
+        if let Some(panic_at) = panic_at_cycle {
+            if begun >= panic_at {
+                panic!("scenario: panic requested at cycle {}", panic_at);
+            }
+        }
+        if begun >= cycle {
+            return;
+        }
+        Timer::after_millis(POLL_MS).await;
+    }
+}
+
+#[embassy_executor::task]
+async fn operator_task() {
+    let mut buffer = [0u8; 256];
+    let scenario = Scenario::parse(command_line(&mut buffer));
+    let half = scenario.stop_after_cycles / 2;
+    info!(
+        "scenario: {=u32} cycles, duty {=f64} then {=f64} at cycle {=u32}, ramp {=u16}",
+        scenario.stop_after_cycles,
+        scenario.spec.duty,
+        scenario.new_duty,
+        half,
+        scenario.ramp_cycles
+    );
+    let configure = |duty| OperatorRequest::Configure {
+        spec: WaveformSpec {
+            duty,
+            ..scenario.spec
+        },
+        ramp_cycles: scenario.ramp_cycles,
+    };
+    app::request(configure(scenario.spec.duty));
+    app::request(OperatorRequest::Start);
+    until_cycle(half, scenario.panic_at_cycle).await;
+    app::request(configure(scenario.new_duty));
+    until_cycle(scenario.stop_after_cycles, scenario.panic_at_cycle).await;
+    app::request(OperatorRequest::Stop);
+    let deadline = scenario.stop_after_cycles + u32::from(scenario.ramp_cycles) + STOP_GRACE_CYCLES;
+    while app::state() != OperatorView::Stopped || app::cycles_begun() <= scenario.stop_after_cycles
+    {
+        fail_on_fault();
+        if app::cycles_begun() > deadline {
+            defmt::error!(
+                "scenario: the output did not stop by cycle {=u32}",
+                deadline
+            );
+            after_fault();
+        }
+        Timer::after_millis(POLL_MS).await;
+    }
+    trace::end(Instant::now().as_ticks());
+    info!("scenario: done");
+    debug::exit(EXIT_SUCCESS);
+    sleep_forever()
+}

@@ -1,0 +1,71 @@
+//! The event stream for firmware-in-the-loop checks (`hil-trace` feature): one `EVT` line per
+//! level change and per request, in the format `host-sim hil` replays against the scheduler.
+//! Requests carry the scheduler's next segment start (`tick`), so the replay applies them at
+//! the same point. Without the feature every function here compiles to nothing.
+
+use feeder_shared::{Segment, WaveformSpec};
+
+/// A request the control loop passed to the scheduler.
+#[derive(Clone, Copy, defmt::Format)]
+pub enum Request {
+    Start,
+    Stop,
+    Halt,
+}
+
+#[cfg(feature = "hil-trace")]
+mod stream {
+    use super::*;
+    use feeder_shared::Drive;
+
+    pub fn segment(segment: &Segment, actual_tick: u64) {
+        defmt::println!(
+            "EVT seg cycle={=u64} kind={=str} planned={=u64} actual={=u64} ticks={=u32} level={=i8} step={=u16} steps={=u16}",
+            segment.cycle,
+            segment.kind.name(),
+            segment.start_tick,
+            actual_tick,
+            segment.ticks,
+            segment.level.sign(),
+            segment.amplitude.step,
+            segment.amplitude.steps
+        );
+    }
+
+    pub fn plan(tick: u64, spec: &WaveformSpec, clock_hz: u32, ramp_cycles: u16) {
+        match spec.drive {
+            Drive::Stroke { stroke_m } => defmt::println!(
+                "EVT plan tick={=u64} period_s={=f64} duty={=f64} stroke_m={=f64} clock_hz={=u32} ramp={=u16}",
+                tick, spec.period_s, spec.duty, stroke_m, clock_hz, ramp_cycles
+            ),
+            Drive::Accel { accel_mps2 } => defmt::println!(
+                "EVT plan tick={=u64} period_s={=f64} duty={=f64} accel_mps2={=f64} clock_hz={=u32} ramp={=u16}",
+                tick, spec.period_s, spec.duty, accel_mps2, clock_hz, ramp_cycles
+            ),
+        }
+    }
+
+    pub fn request(tick: u64, request: Request) {
+        let name = match request {
+            Request::Start => "start",
+            Request::Stop => "stop",
+            Request::Halt => "halt",
+        };
+        defmt::println!("EVT {=str} tick={=u64}", name, tick);
+    }
+
+    pub fn end(tick: u64) {
+        defmt::println!("EVT end tick={=u64}", tick);
+    }
+}
+
+#[cfg(not(feature = "hil-trace"))]
+mod stream {
+    use super::*;
+
+    pub fn segment(_: &Segment, _: u64) {}
+    pub fn plan(_: u64, _: &WaveformSpec, _: u32, _: u16) {}
+    pub fn request(_: u64, _: Request) {}
+}
+
+pub use stream::*;
