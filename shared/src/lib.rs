@@ -12,6 +12,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_debug_implementations)]
 
+pub mod control;
 pub mod drive;
 pub mod error;
 pub mod model;
@@ -22,6 +23,7 @@ pub mod scheduler;
 pub mod supervisor;
 pub mod waveform;
 
+pub use control::{Action, Controller, Outcome, RecipeStore, Snapshot};
 pub use drive::{
     DacCalibration, DacLevels, Direction, DriveError, PwmCalibration, PwmCommand, PwmLevels,
 };

@@ -1,0 +1,271 @@
+//! The command controller: executes one command line against the operator's settings, the
+//! feeder's state and the recipe store, and answers with exactly one [`Reply`] and at most one
+//! [`Action`] for the control loop.
+//!
+//! The controller owns the operator's [`Settings`] (always valid on its [`Machine`]); the control
+//! loop owns the motion. A command never touches the output directly: it yields an action that
+//! the transport queues for the control loop, which applies it at a segment start (and the
+//! scheduler at the next cycle boundary). A refused command yields [`Action::None`] and leaves the
+//! settings and the store as they were.
+//!
+//! Rules beyond validation:
+//! * `start` is refused while a fault is latched (`ERR 61`); `reset` clears it.
+//! * `recipe save` writes only while the feeder is stopped (`ERR 60`); a failed write is `ERR 62`.
+//! * `recipe load` applies the slot like a `set` (the defaults, and why, if the slot is unusable).
+//!
+//! The [`Snapshot`] the transport passes in lags the requests it has just queued by up to a few
+//! cycles. The controller therefore remembers its last `start`, `stop` or `reset` until
+//! [`SETTLE_CYCLES`] cycles have begun: a `recipe save` right after `start` is refused, and a
+//! `start` right after `reset` is accepted.
+
+use crate::error::Error;
+use crate::protocol::{Applied, Command, Machine, Reply, ReplyError, Settings, Status};
+use crate::recipe::{self, RecipeSlot, RecordError, RECIPE_SLOTS, RECORD_LEN};
+use crate::scheduler::Phase;
+use crate::supervisor::{Fault, RunState};
+use crate::waveform::WaveformSpec;
+
+/// Cycles (or idle periods) after which a queued motion request shows in the snapshot: the
+/// control loop takes it at the next segment start and the scheduler acts on it at the cycle
+/// boundary after the one already prepared.
+pub const SETTLE_CYCLES: u64 = 3;
+
+/// Persistent storage of the recipe records, one [`RECORD_LEN`]-byte record per slot.
+pub trait RecipeStore {
+    /// Why a record could not be written.
+    type Error;
+
+    /// The record stored in `slot`; erased storage reads as all `0xFF`.
+    fn read(&mut self, slot: RecipeSlot) -> [u8; RECORD_LEN];
+
+    /// Replaces the record in `slot`, leaving the other slots as they are.
+    fn write(&mut self, slot: RecipeSlot, record: &[u8; RECORD_LEN]) -> Result<(), Self::Error>;
+}
+
+/// The feeder as the control loop last published it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Snapshot {
+    /// The supervisor's state, with the latched fault's cause.
+    pub state: RunState,
+    /// Phase of the cycle being output.
+    pub phase: Phase,
+    pub uptime_ms: u64,
+    /// Cycles (including idle periods) begun since power-up.
+    pub cycles: u64,
+}
+
+/// What the control loop must do after a command.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Action {
+    None,
+    Start,
+    Stop,
+    /// Acknowledge the latched fault.
+    Reset,
+    /// Run this validated waveform and ramp length from the next cycle boundary.
+    Configure {
+        spec: WaveformSpec,
+        ramp_cycles: u16,
+    },
+}
+
+/// The answer to one command line.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Outcome {
+    /// The one reply line, without its terminator.
+    pub reply: Reply,
+    pub action: Action,
+}
+
+impl Outcome {
+    fn reply(reply: Reply) -> Self {
+        Outcome {
+            reply,
+            action: Action::None,
+        }
+    }
+
+    fn error(error: ReplyError) -> Self {
+        Self::reply(Reply::error(&error))
+    }
+}
+
+/// A motion request the snapshot may not show yet.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Issued {
+    Start,
+    Stop,
+    Reset,
+}
+
+/// Executes commands; see the module documentation.
+#[derive(Debug, Clone)]
+pub struct Controller {
+    machine: Machine,
+    applied: Applied,
+    /// The last motion request and the snapshot's cycle count when it was issued.
+    issued: Option<(Issued, u64)>,
+}
+
+impl Controller {
+    /// A controller for `machine` starting from `settings`, which must be valid on it.
+    pub fn new(machine: Machine, settings: Settings) -> Result<Self, Error> {
+        Ok(Controller {
+            machine,
+            applied: settings.validate(&machine)?,
+            issued: None,
+        })
+    }
+
+    /// The operator's settings: in force, or taking effect at the next cycle boundary.
+    pub fn settings(&self) -> &Settings {
+        &self.applied.settings
+    }
+
+    /// The settings with their tick plan and predicted feed rate.
+    pub fn applied(&self) -> &Applied {
+        &self.applied
+    }
+
+    /// Answers one line from the [`crate::LineAssembler`]: a refused line gets its `ERR`.
+    pub fn handle<S: RecipeStore>(
+        &mut self,
+        line: Result<Command, ReplyError>,
+        snapshot: &Snapshot,
+        store: &mut S,
+    ) -> Outcome {
+        match line {
+            Ok(command) => self.execute(command, snapshot, store),
+            Err(error) => Outcome::error(error),
+        }
+    }
+
+    /// Executes `command` given the feeder's `snapshot`.
+    pub fn execute<S: RecipeStore>(
+        &mut self,
+        command: Command,
+        snapshot: &Snapshot,
+        store: &mut S,
+    ) -> Outcome {
+        if self
+            .issued
+            .is_some_and(|(_, at_cycle)| snapshot.cycles >= at_cycle.saturating_add(SETTLE_CYCLES))
+        {
+            self.issued = None;
+        }
+        match command {
+            Command::Start if self.fault_latched(snapshot) => {
+                Outcome::error(ReplyError::FaultLatched)
+            }
+            Command::Start => self.issue(Issued::Start, snapshot, "starting"),
+            Command::Stop => self.issue(Issued::Stop, snapshot, "stopping"),
+            Command::Reset if self.fault_latched(snapshot) => {
+                self.issue(Issued::Reset, snapshot, "fault cleared")
+            }
+            Command::Reset => Outcome::reply(Reply::ok(format_args!("no fault latched"))),
+            Command::Status => Outcome::reply(Reply::status(&self.status(snapshot))),
+            Command::Get(param) => Outcome::reply(Reply::get(param, &self.status(snapshot))),
+            Command::Set(setting) => match self.applied.settings.apply(setting, &self.machine) {
+                Ok(applied) => self.adopt(applied, Reply::applied(&applied)),
+                Err(error) => Outcome::error(error.into()),
+            },
+            Command::RecipeSave(_) if !self.stopped(snapshot) => {
+                Outcome::error(ReplyError::NotStopped)
+            }
+            Command::RecipeSave(slot) => {
+                let record = recipe::encode(slot, &self.applied.settings);
+                match store.write(slot, &record) {
+                    Ok(()) => Outcome::reply(Reply::recipe_saved(slot)),
+                    Err(_) => Outcome::error(ReplyError::StorageFailed),
+                }
+            }
+            Command::RecipeLoad(slot) => {
+                match recipe::load(&store.read(slot), slot, &self.machine) {
+                    Ok(loaded) => self.adopt(loaded.applied, Reply::recipe_loaded(slot, &loaded)),
+                    Err(error) => Outcome::error(error.into()),
+                }
+            }
+            Command::RecipeList => {
+                let mut entries = [Err(RecordError::Empty); RECIPE_SLOTS];
+                for (entry, slot) in entries.iter_mut().zip(RecipeSlot::all()) {
+                    *entry = self.entry(store, slot);
+                }
+                Outcome::reply(Reply::recipe_list(&entries))
+            }
+            Command::Help => Outcome::reply(Reply::help()),
+        }
+    }
+
+    /// What `recipe list` shows for `slot`: the stored settings if they are usable here.
+    fn entry<S: RecipeStore>(
+        &self,
+        store: &mut S,
+        slot: RecipeSlot,
+    ) -> Result<Settings, RecordError> {
+        let settings = recipe::decode(&store.read(slot), slot)?;
+        match settings.validate(&self.machine) {
+            Ok(_) => Ok(settings),
+            Err(error) => Err(RecordError::Rejected(error)),
+        }
+    }
+
+    /// Makes `applied` the operator's settings and asks the control loop to run them.
+    fn adopt(&mut self, applied: Applied, reply: Reply) -> Outcome {
+        self.applied = applied;
+        let settings = applied.settings;
+        Outcome {
+            reply,
+            action: Action::Configure {
+                spec: WaveformSpec::from_frequency(
+                    settings.frequency_hz,
+                    settings.duty,
+                    settings.drive,
+                ),
+                ramp_cycles: settings.ramp_cycles,
+            },
+        }
+    }
+
+    fn issue(&mut self, issued: Issued, snapshot: &Snapshot, what: &str) -> Outcome {
+        self.issued = Some((issued, snapshot.cycles));
+        let action = match issued {
+            Issued::Start => Action::Start,
+            Issued::Stop => Action::Stop,
+            Issued::Reset => Action::Reset,
+        };
+        Outcome {
+            reply: Reply::ok(format_args!("{}", what)),
+            action,
+        }
+    }
+
+    /// A fault is latched and no `reset` is on its way.
+    fn fault_latched(&self, snapshot: &Snapshot) -> bool {
+        matches!(snapshot.state, RunState::Faulted(_))
+            && !matches!(self.issued, Some((Issued::Reset, _)))
+    }
+
+    /// The output is idle and stays idle: no motion in progress, requested or on its way.
+    fn stopped(&self, snapshot: &Snapshot) -> bool {
+        let idle = matches!(snapshot.state, RunState::Stopped | RunState::Faulted(_))
+            && snapshot.phase == Phase::Stopped;
+        idle && !matches!(self.issued, Some((Issued::Start | Issued::Stop, _)))
+    }
+
+    fn status(&self, snapshot: &Snapshot) -> Status<Fault> {
+        Status {
+            phase: snapshot.phase,
+            fault: match snapshot.state {
+                RunState::Faulted(fault) => Some(fault),
+                _ => None,
+            },
+            waveform: self.applied.plan.waveform,
+            ramp_cycles: self.applied.settings.ramp_cycles,
+            feed_rate_mps: self.applied.feed_rate_mps,
+            uptime_ms: snapshot.uptime_ms,
+            cycles: snapshot.cycles,
+        }
+    }
+}
