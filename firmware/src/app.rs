@@ -30,9 +30,15 @@ pub trait Watchdog {
 pub enum OperatorRequest {
     /// The start/stop button: start when stopped, soft stop when running.
     Toggle,
+    #[cfg(any(feature = "board-qemu", feature = "console"))]
     Start,
+    #[cfg(any(feature = "board-qemu", feature = "console"))]
     Stop,
+    /// Acknowledge a latched fault.
+    #[cfg(feature = "console")]
+    Reset,
     /// A new waveform and ramp length, validated first and applied at a cycle boundary.
+    #[cfg(any(feature = "board-qemu", feature = "console"))]
     Configure {
         spec: WaveformSpec,
         ramp_cycles: u16,
@@ -45,8 +51,11 @@ static REQUESTS: Channel<CriticalSectionRawMutex, OperatorRequest, 4> = Channel:
 static LED: AtomicU8 = AtomicU8::new(LED_OFF);
 /// Cycles begun so far (low 32 bits), published by the control loop.
 static CYCLE: AtomicU32 = AtomicU32::new(0);
-/// The supervisor's state ([`OperatorView`] as `u8`), published by the control loop.
-static STATE: AtomicU8 = AtomicU8::new(OperatorView::Stopped as u8);
+/// The supervisor's state ([`RunState`] as `u8`, see [`encode_state`]), published by the control
+/// loop.
+static STATE: AtomicU8 = AtomicU8::new(STATE_STOPPED);
+/// Phase of the cycle being output (index in [`PHASES`]), published by the control loop.
+static PHASE: AtomicU8 = AtomicU8::new(Phase::Stopped as u8);
 /// Set when the DWT cycle counter runs, so that edge costs are measured.
 static CYCLE_COUNTER_RUNS: AtomicBool = AtomicBool::new(false);
 /// Counts the control loop's progress (segment starts, or parking ticks).
@@ -58,17 +67,42 @@ const LED_OFF: u8 = 0;
 const LED_ON: u8 = 1;
 const LED_BLINK: u8 = 2;
 
+const STATE_STOPPED: u8 = 0;
+const STATE_RUNNING: u8 = 1;
+const STATE_STOPPING: u8 = 2;
+/// Faulted: this plus the index of the cause in [`FAULTS`].
+const STATE_FAULTED: u8 = 3;
+const FAULTS: [Fault; 3] = [
+    Fault::EdgeMissed,
+    Fault::WatchdogReset,
+    Fault::InvalidSettings,
+];
+const PHASES: [Phase; 4] = [
+    Phase::Stopped,
+    Phase::Starting,
+    Phase::Running,
+    Phase::Stopping,
+];
+
 /// Queues a request for the control loop; `false` if the queue is full and it was dropped.
 pub fn request(request: OperatorRequest) -> bool {
     REQUESTS.try_send(request).is_ok()
 }
 
+/// Queues a request for the control loop, waiting for room in the queue.
+#[cfg(feature = "console")]
+pub async fn submit(request: OperatorRequest) {
+    REQUESTS.send(request).await
+}
+
 /// Cycles (and idle periods) the output has begun, modulo 2³².
+#[cfg(any(feature = "board-qemu", feature = "console"))]
 pub fn cycles_begun() -> u32 {
     CYCLE.load(Ordering::Relaxed)
 }
 
-/// The run state as an operator sees it.
+/// The run state as the scripted operator sees it.
+#[cfg(all(feature = "board-qemu", not(feature = "console")))]
 #[derive(Clone, Copy, PartialEq, Eq, defmt::Format)]
 #[repr(u8)]
 pub enum OperatorView {
@@ -79,17 +113,64 @@ pub enum OperatorView {
 }
 
 /// The supervisor's state as last published by the control loop.
+#[cfg(all(feature = "board-qemu", not(feature = "console")))]
 pub fn state() -> OperatorView {
     match STATE.load(Ordering::Relaxed) {
-        0 => OperatorView::Stopped,
-        1 => OperatorView::Moving,
+        STATE_STOPPED => OperatorView::Stopped,
+        STATE_RUNNING | STATE_STOPPING => OperatorView::Moving,
         _ => OperatorView::Faulted,
     }
+}
+
+/// The feeder as last published by the control loop, for the command console.
+#[cfg(feature = "console")]
+pub fn snapshot() -> feeder_shared::Snapshot {
+    let phase = PHASES
+        .get(usize::from(PHASE.load(Ordering::Relaxed)))
+        .copied()
+        .unwrap_or(Phase::Stopped);
+    feeder_shared::Snapshot {
+        state: run_state(),
+        phase,
+        uptime_ms: embassy_time::Instant::now().as_millis(),
+        cycles: u64::from(cycles_begun()),
+    }
+}
+
+#[cfg(feature = "console")]
+fn run_state() -> RunState {
+    match STATE.load(Ordering::Relaxed) {
+        STATE_STOPPED => RunState::Stopped,
+        STATE_RUNNING => RunState::Running,
+        STATE_STOPPING => RunState::Stopping,
+        faulted => RunState::Faulted(
+            FAULTS
+                .get(usize::from(faulted - STATE_FAULTED))
+                .copied()
+                .unwrap_or(Fault::InvalidSettings),
+        ),
+    }
+}
+
+fn encode_state(state: RunState) -> u8 {
+    match state {
+        RunState::Stopped => STATE_STOPPED,
+        RunState::Running => STATE_RUNNING,
+        RunState::Stopping => STATE_STOPPING,
+        RunState::Faulted(fault) => STATE_FAULTED + index_of(&FAULTS, fault),
+    }
+}
+
+/// Position of `value` in `table` (all tables here are short and complete).
+fn index_of<T: PartialEq, const N: usize>(table: &[T; N], value: T) -> u8 {
+    table.iter().position(|entry| *entry == value).unwrap_or(0) as u8
 }
 
 /// Spawns the tasks: the control loop on the board's high-priority executor, the rest on
 /// `spawner`.
 pub fn start(spawner: SendSpawner, board: Board) {
+    #[cfg(feature = "console")]
+    let console_clock = board.output.clock();
     let control = ControlLoop {
         output: board.output,
         driver_enable: board.driver_enable,
@@ -100,6 +181,8 @@ pub fn start(spawner: SendSpawner, board: Board) {
     spawner.spawn(unwrap!(button_task(board.button)));
     spawner.spawn(unwrap!(led_task(board.led)));
     spawner.spawn(unwrap!(monitor_task(board.watchdog)));
+    #[cfg(feature = "console")]
+    spawner.spawn(unwrap!(board::console_task(board.console, console_clock)));
 }
 
 #[embassy_executor::task]
@@ -361,6 +444,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         if playing.phase != self.last_phase {
             info!("cycle {=u64}: {}", playing.cycle, playing.phase);
             self.last_phase = playing.phase;
+            PHASE.store(index_of(&PHASES, playing.phase), Ordering::Relaxed);
         }
         if playing.kind == SegmentKind::Idle {
             self.handle(SupervisorEvent::OutputIdle, Some(scheduler));
@@ -368,8 +452,13 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         while let Ok(request) = REQUESTS.try_receive() {
             let event = match request {
                 OperatorRequest::Toggle => SupervisorEvent::ButtonPressed,
+                #[cfg(any(feature = "board-qemu", feature = "console"))]
                 OperatorRequest::Start => SupervisorEvent::StartRequested,
+                #[cfg(any(feature = "board-qemu", feature = "console"))]
                 OperatorRequest::Stop => SupervisorEvent::StopRequested,
+                #[cfg(feature = "console")]
+                OperatorRequest::Reset => SupervisorEvent::ResetRequested,
+                #[cfg(any(feature = "board-qemu", feature = "console"))]
                 OperatorRequest::Configure { spec, ramp_cycles } => {
                     self.configure(&spec, ramp_cycles, scheduler);
                     continue;
@@ -380,6 +469,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     }
 
     /// Validates and queues a new waveform; a refused one changes nothing.
+    #[cfg(any(feature = "board-qemu", feature = "console"))]
     fn configure(&mut self, spec: &WaveformSpec, ramp_cycles: u16, scheduler: &mut Scheduler) {
         match self.make_plan(spec) {
             Ok(plan) => match scheduler.set_plan(plan) {
@@ -441,12 +531,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             Led::Blink => LED_BLINK,
         };
         LED.store(led, Ordering::Relaxed);
-        let view = match self.supervisor.state() {
-            RunState::Stopped => OperatorView::Stopped,
-            RunState::Running | RunState::Stopping => OperatorView::Moving,
-            RunState::Faulted(_) => OperatorView::Faulted,
-        };
-        STATE.store(view as u8, Ordering::Relaxed);
+        STATE.store(encode_state(self.supervisor.state()), Ordering::Relaxed);
         if let RunState::Faulted(fault) = self.supervisor.state() {
             warn!("fault latched: {}", fault);
         }

@@ -40,6 +40,14 @@ pub const LIMITS: Limits = Limits {
     max_stroke_m: 5.0e-3,
 };
 
+/// Coulomb friction between the plate and the parts (μ = 0.3, typical of small metal parts on a
+/// steel plate): the feed-rate model behind `status` and `set feed` on the console.
+#[cfg(feature = "console")]
+pub const FRICTION: feeder_shared::Friction = feeder_shared::Friction {
+    mu: 0.3,
+    gravity_mps2: feeder_shared::model::STANDARD_GRAVITY_MPS2,
+};
+
 /// Cycles over which soft start and soft stop ramp the amplitude (0.5 s at 50 Hz).
 pub const RAMP_CYCLES: u16 = 25;
 

@@ -9,6 +9,8 @@
 mod app;
 mod board;
 mod config;
+#[cfg(feature = "console")]
+mod console;
 mod fault;
 mod output;
 mod trace;
@@ -32,6 +34,7 @@ fn main() -> ! {
     app::enable_cycle_counter();
     defmt::info!("feeder firmware up on QEMU mps2-an386: output reported as events, stopped");
     app::start(spawner, board);
+    #[cfg(not(feature = "console"))]
     board::spawn_operator(spawner);
     board::sleep_forever()
 }

@@ -54,6 +54,7 @@ mod stream {
         defmt::println!("EVT {=str} tick={=u64}", name, tick);
     }
 
+    #[cfg(not(feature = "console"))]
     pub fn end(tick: u64) {
         defmt::println!("EVT end tick={=u64}", tick);
     }

@@ -8,6 +8,13 @@
 //! | driver enable (high = on) | PA10 | D2            |
 //! | start/stop button B1      | PC13 | —             |
 //! | status LED LD2            | PA5  | D13           |
+//! | console TX (LPUART1)      | PA2  | ST-LINK VCP   |
+//! | console RX (LPUART1)      | PA3  | ST-LINK VCP   |
+//!
+//! The operator's console runs on LPUART1 (115200 8N1), which the NUCLEO routes to the ST-LINK's
+//! virtual COM port. Recipes live in the last 2 KiB page of flash (bank 2 in the factory-default
+//! dual-bank mode), which the top-level `memory.x` leaves out of the program: erasing and writing
+//! it never stalls the code running from bank 1.
 //!
 //! Both output stages time every edge in hardware. DAC: TIM2 (32 bits, 170 MHz) counts one
 //! segment; its update event loads the preloaded auto-reload (the next length) and, through TRGO,
@@ -62,6 +69,9 @@ pub struct Board {
     pub after_watchdog_reset: bool,
     /// Spawner of the executor that runs the control loop above the other tasks.
     pub control_spawner: SendSpawner,
+    /// The console's peripherals.
+    #[cfg(feature = "console")]
+    pub console: Console,
 }
 
 static EDGES: EdgeSignal = EdgeSignal::new();
@@ -101,6 +111,124 @@ impl Handler<typelevel::UART4> for ControlExecutor {
     }
 }
 
+/// The operator's console: LPUART1 and the recipe page in flash.
+#[cfg(feature = "console")]
+mod console {
+    use defmt::{error, warn};
+    use embassy_stm32::flash::{self, Flash};
+    use embassy_stm32::interrupt::{self, InterruptExt, Priority};
+    use embassy_stm32::peripherals::{FLASH, LPUART1, PA2, PA3};
+    use embassy_stm32::usart::{self, BufferedUart};
+    use embassy_stm32::{bind_interrupts, Peri};
+    use feeder_shared::recipe::{RECIPE_SLOTS, RECORD_LEN};
+    use feeder_shared::{RecipeSlot, RecipeStore, TickClock};
+
+    bind_interrupts!(struct ConsoleIrqs {
+        LPUART1 => usart::BufferedInterruptHandler<LPUART1>;
+    });
+
+    /// The console's peripherals, handed to [`console_task`].
+    pub struct Console {
+        pub(super) lpuart: Peri<'static, LPUART1>,
+        pub(super) tx: Peri<'static, PA2>,
+        pub(super) rx: Peri<'static, PA3>,
+        pub(super) flash: Peri<'static, FLASH>,
+    }
+
+    /// Bytes the console's transmitter buffers: a whole reply line.
+    const CONSOLE_TX_BUFFER_BYTES: usize = 336;
+    /// Bytes the console's receiver buffers while a reply is being composed.
+    const CONSOLE_RX_BUFFER_BYTES: usize = 128;
+
+    /// The operator's console on LPUART1 (ST-LINK virtual COM port, 115200 8N1), recipes in flash.
+    /// Runs in thread mode, below every interrupt.
+    #[embassy_executor::task]
+    pub async fn console_task(console: Console, clock: TickClock) {
+        let mut tx_buffer = [0u8; CONSOLE_TX_BUFFER_BYTES];
+        let mut rx_buffer = [0u8; CONSOLE_RX_BUFFER_BYTES];
+        // Below the edges and the control executor.
+        interrupt::LPUART1.set_priority(Priority::P3);
+        let port = match BufferedUart::new(
+            console.lpuart,
+            console.rx,
+            console.tx,
+            &mut tx_buffer,
+            &mut rx_buffer,
+            ConsoleIrqs,
+            usart::Config::default(),
+        ) {
+            Ok(port) => port,
+            Err(err) => {
+                error!(
+                    "console disabled: LPUART1 refused its configuration: {}",
+                    err
+                );
+                return;
+            }
+        };
+        let recipes = FlashRecipes {
+            flash: Flash::new_blocking(console.flash),
+        };
+        crate::console::serve(port, recipes, clock).await
+    }
+
+    /// Offset from the start of flash of the recipe page: the last 2 KiB page of the 512 KiB.
+    const RECIPE_PAGE_OFFSET: u32 = 512 * 1024 - RECIPE_PAGE_BYTES;
+    /// One flash page in dual-bank mode.
+    const RECIPE_PAGE_BYTES: u32 = 2 * 1024;
+    /// The records of all slots, one after the other from the start of the page.
+    const RECIPE_BYTES: usize = RECORD_LEN * RECIPE_SLOTS;
+
+    /// The recipe records in the reserved flash page. A write rewrites the whole page (about 20 ms
+    /// of erase time, spent in the console task).
+    struct FlashRecipes {
+        flash: Flash<'static, flash::Blocking>,
+    }
+
+    impl FlashRecipes {
+        fn offset(slot: RecipeSlot) -> u32 {
+            RECIPE_PAGE_OFFSET + (slot.index() * RECORD_LEN) as u32
+        }
+    }
+
+    impl RecipeStore for FlashRecipes {
+        type Error = flash::Error;
+
+        fn read(&mut self, slot: RecipeSlot) -> [u8; RECORD_LEN] {
+            let mut record = [0xff; RECORD_LEN];
+            if let Err(err) = self.flash.blocking_read(Self::offset(slot), &mut record) {
+                warn!("recipe {} unreadable: {}", slot, err);
+                record = [0xff; RECORD_LEN];
+            }
+            record
+        }
+
+        fn write(
+            &mut self,
+            slot: RecipeSlot,
+            record: &[u8; RECORD_LEN],
+        ) -> Result<(), flash::Error> {
+            let mut page = [0xff; RECIPE_BYTES];
+            self.flash.blocking_read(RECIPE_PAGE_OFFSET, &mut page)?;
+            let start = slot.index() * RECORD_LEN;
+            if let Some(stored) = page.get_mut(start..start + RECORD_LEN) {
+                stored.copy_from_slice(record);
+            }
+            let result = self
+                .flash
+                .blocking_erase(RECIPE_PAGE_OFFSET, RECIPE_PAGE_OFFSET + RECIPE_PAGE_BYTES)
+                .and_then(|()| self.flash.blocking_write(RECIPE_PAGE_OFFSET, &page));
+            if let Err(err) = result {
+                warn!("recipe {} not written: {}", slot, err);
+            }
+            result
+        }
+    }
+}
+
+#[cfg(feature = "console")]
+pub use console::{console_task, Console};
+
 /// Brings the board up with the output at zero and the driver disabled.
 pub fn init() -> Board {
     let after_watchdog_reset = pac::RCC.csr().read().iwdgrstf();
@@ -135,6 +263,13 @@ pub fn init() -> Board {
         watchdog,
         after_watchdog_reset,
         control_spawner,
+        #[cfg(feature = "console")]
+        console: Console {
+            lpuart: p.LPUART1,
+            tx: p.PA2,
+            rx: p.PA3,
+            flash: p.FLASH,
+        },
     }
 }
 

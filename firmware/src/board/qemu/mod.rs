@@ -4,15 +4,22 @@
 //! * Time: an embassy-time driver on the CMSDK APB timers ([`time_driver`]), 1 µs ticks; the
 //!   scheduler plans in those ticks and the output waits for each edge with `Timer::at`, so the
 //!   reported `actual` tick shows the software latency.
-//! * Operator: a script read from the semihosting command line ([`scenario`]) instead of B1.
+//! * Operator: a script read from the semihosting command line (`scenario`) instead of B1; with
+//!   the `console` feature, the serial console on UART0 (`uart`, QEMU's `-serial`) instead, with
+//!   recipes kept in RAM: the feeder waits, stopped, for commands and the emulation runs until
+//!   QEMU is ended. The script's image contains no console, so its run (and its `EVT` stream)
+//!   does not depend on the console's code.
 //! * Executors: all tasks run on two interrupt executors and thread mode sleeps in `wfi`. QEMU
 //!   executes `wfe` as a no-op, so embassy's thread executor would spin instead of letting
 //!   `-icount` skip idle time.
 //! * Logs: defmt over semihosting; the run ends with a semihosting exit code, non-zero after a
 //!   panic or fault.
 
+#[cfg(not(feature = "console"))]
 mod scenario;
 mod time_driver;
+#[cfg(feature = "console")]
+mod uart;
 
 use core::convert::Infallible;
 
@@ -24,12 +31,17 @@ use embassy_executor::{InterruptExecutor, SendSpawner};
 use embassy_time::Instant;
 use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
 use embedded_hal_async::digital::Wait;
+#[cfg(feature = "console")]
+use feeder_shared::recipe::{RECIPE_SLOTS, RECORD_LEN};
 use feeder_shared::{DriveError, Segment, TickClock};
+#[cfg(feature = "console")]
+use feeder_shared::{RecipeSlot, RecipeStore};
 
 use crate::app;
 use crate::config;
 use crate::output::{EdgeMissed, SegmentOutput};
 
+#[cfg(not(feature = "console"))]
 pub use scenario::spawn_operator;
 
 pub type Output = ReportingOutput;
@@ -49,12 +61,19 @@ pub struct Board {
     pub after_watchdog_reset: bool,
     /// Spawner of the executor that runs the control loop above the other tasks.
     pub control_spawner: SendSpawner,
+    /// UART0, for the console.
+    #[cfg(feature = "console")]
+    pub console: uart::Uart,
 }
 
 /// External interrupts of mps2-an386 used here. 30 and 31 belong to GPIO pins nobody enables.
 #[derive(Clone, Copy)]
 #[repr(u16)]
 pub enum Irq {
+    #[cfg(feature = "console")]
+    Uart0Rx = 0,
+    #[cfg(feature = "console")]
+    Uart0Tx = 1,
     Timer0 = 8,
     Timer1 = 9,
     ControlExecutor = 30,
@@ -68,6 +87,9 @@ unsafe impl InterruptNumber for Irq {
     }
 }
 
+/// Priority of the executor that runs every task but the control loop.
+const TASK_PRIORITY: u8 = 0x80;
+
 static CONTROL_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 static TASK_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 
@@ -75,6 +97,10 @@ static TASK_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 #[cortex_m_rt::exception]
 unsafe fn DefaultHandler(irqn: i16) {
     match irqn {
+        #[cfg(feature = "console")]
+        0 => uart::on_receive(),
+        #[cfg(feature = "console")]
+        1 => uart::on_transmit(),
         8 => time_driver::on_alarm(),
         9 => time_driver::on_clock_wrap(),
         // SAFETY: each executor was started on its interrupt in `init`.
@@ -98,7 +124,7 @@ pub fn init() -> (SendSpawner, Board) {
         unsafe { NVIC::unmask(irq) };
     }
     set_priority(Irq::ControlExecutor, 0x40);
-    set_priority(Irq::TaskExecutor, 0x80);
+    set_priority(Irq::TaskExecutor, TASK_PRIORITY);
     let control_spawner = CONTROL_EXECUTOR.start(Irq::ControlExecutor);
     let task_spawner = TASK_EXECUTOR.start(Irq::TaskExecutor);
     let board = Board {
@@ -109,6 +135,8 @@ pub fn init() -> (SendSpawner, Board) {
         watchdog: NoWatchdog,
         after_watchdog_reset: false,
         control_spawner,
+        #[cfg(feature = "console")]
+        console: uart::Uart::new(),
     };
     (task_spawner, board)
 }
@@ -159,6 +187,47 @@ impl ReportingOutput {
     /// The scheduler tick now.
     fn now_tick(&self) -> u64 {
         Instant::now().as_ticks().wrapping_sub(self.origin_ticks)
+    }
+}
+
+/// The operator's console on UART0, with recipes in RAM.
+#[cfg(feature = "console")]
+#[embassy_executor::task]
+pub async fn console_task(port: uart::Uart, clock: TickClock) {
+    crate::console::serve(port, RamRecipes::new(), clock).await
+}
+
+/// Recipe records in RAM: erased at every start of the emulation.
+#[cfg(feature = "console")]
+struct RamRecipes {
+    records: [[u8; RECORD_LEN]; RECIPE_SLOTS],
+}
+
+#[cfg(feature = "console")]
+impl RamRecipes {
+    fn new() -> Self {
+        Self {
+            records: [[0xff; RECORD_LEN]; RECIPE_SLOTS],
+        }
+    }
+}
+
+#[cfg(feature = "console")]
+impl RecipeStore for RamRecipes {
+    type Error = Infallible;
+
+    fn read(&mut self, slot: RecipeSlot) -> [u8; RECORD_LEN] {
+        self.records
+            .get(slot.index())
+            .copied()
+            .unwrap_or([0xff; RECORD_LEN])
+    }
+
+    fn write(&mut self, slot: RecipeSlot, record: &[u8; RECORD_LEN]) -> Result<(), Infallible> {
+        if let Some(stored) = self.records.get_mut(slot.index()) {
+            *stored = *record;
+        }
+        Ok(())
     }
 }
 

@@ -1,4 +1,5 @@
-//! The scripted operator of an emulated run, configured on QEMU's command line
+//! The scripted operator of an emulated run (without the `qemu-console` feature), configured on
+//! QEMU's command line
 //! (`-semihosting-config enable=on,target=native,arg=cycles=1000,arg=freq_hz=100`):
 //!
 //! | argument     | meaning                                                   | default              |

@@ -1,0 +1,82 @@
+//! The operator's serial console: bytes in, one reply line out per command line.
+//!
+//! Received bytes go through the shared [`LineAssembler`] and [`Controller`]; the reply is written
+//! back followed by `\r\n`, and the controller's action is queued for the control loop, which
+//! applies it at the next segment start. The console runs below the control loop: waiting for
+//! bytes, for room in the request queue or for the transmitter only ever delays the console.
+
+use defmt::{error, info, warn};
+use embedded_io_async::{Read, Write};
+use feeder_shared::{Action, Controller, LineAssembler, Machine, RecipeStore, Settings, TickClock};
+
+use crate::app::{self, OperatorRequest};
+use crate::config;
+
+/// Bytes taken from the port per read.
+const READ_CHUNK_BYTES: usize = 32;
+
+/// The operator's settings at power-up: the firmware's configured waveform.
+fn power_up_settings() -> Settings {
+    Settings {
+        frequency_hz: 1.0 / config::WAVEFORM.period_s,
+        duty: config::WAVEFORM.duty,
+        drive: config::WAVEFORM.drive,
+        ramp_cycles: config::RAMP_CYCLES,
+    }
+}
+
+/// Serves the console on `port` for good; `clock` is the output's tick clock, on which every new
+/// waveform must be representable. Returns only if the power-up settings are refused.
+pub async fn serve<P: Read + Write, S: RecipeStore>(mut port: P, mut recipes: S, clock: TickClock) {
+    let machine = Machine {
+        limits: config::LIMITS,
+        friction: config::FRICTION,
+        clock,
+    };
+    let mut controller = match Controller::new(machine, power_up_settings()) {
+        Ok(controller) => controller,
+        Err(err) => {
+            error!("console disabled: power-up settings refused: {}", err);
+            return;
+        }
+    };
+    info!("console ready");
+    let mut assembler = LineAssembler::new();
+    let mut chunk = [0u8; READ_CHUNK_BYTES];
+    loop {
+        let received = match port.read(&mut chunk).await {
+            Ok(received) => received,
+            Err(_) => {
+                warn!("console: receive error, partial line dropped");
+                assembler.clear();
+                continue;
+            }
+        };
+        for &byte in chunk.iter().take(received) {
+            let Some(line) = assembler.push(byte) else {
+                continue;
+            };
+            let outcome = controller.handle(line, &app::snapshot(), &mut recipes);
+            if let Some(request) = request_for(outcome.action) {
+                app::submit(request).await;
+            }
+            let sent = port.write_all(outcome.reply.as_str().as_bytes()).await;
+            if sent.is_err() || port.write_all(b"\r\n").await.is_err() {
+                warn!("console: transmit error, reply lost");
+            }
+        }
+    }
+}
+
+/// The control-loop request carrying out `action`, if any.
+fn request_for(action: Action) -> Option<OperatorRequest> {
+    match action {
+        Action::None => None,
+        Action::Start => Some(OperatorRequest::Start),
+        Action::Stop => Some(OperatorRequest::Stop),
+        Action::Reset => Some(OperatorRequest::Reset),
+        Action::Configure { spec, ramp_cycles } => {
+            Some(OperatorRequest::Configure { spec, ramp_cycles })
+        }
+    }
+}
