@@ -7,6 +7,7 @@
 //! | `cycles=N`   | request the soft stop once N cycles have begun            | 300                  |
 //! | `freq_hz=F`  | waveform frequency                                         | the firmware default |
 //! | `duty=D`     | duty at start                                              | the firmware default |
+//! | `stroke_m=X` | stroke (peak-to-peak plate travel)                         | the firmware default |
 //! | `new_duty=D` | duty of the live change at N/2 cycles                      | `duty` + 0.02        |
 //! | `ramp=R`     | soft start/stop cycles                                     | the firmware default |
 //! | `panic_at=C` | panic once C cycles have begun (to test failure handling) | never                |
@@ -19,7 +20,7 @@ use cortex_m_semihosting::nr::GET_CMDLINE;
 use defmt::{info, unwrap, warn};
 use embassy_executor::SendSpawner;
 use embassy_time::{Instant, Timer};
-use feeder_shared::WaveformSpec;
+use feeder_shared::{Drive, WaveformSpec};
 
 use super::{after_fault, sleep_forever};
 use crate::app::{self, OperatorRequest, OperatorView};
@@ -62,6 +63,10 @@ impl Scenario {
                     .map(|f| scenario.spec.period_s = 1.0 / f)
                     .is_ok(),
                 "duty" => value.parse().map(|d| scenario.spec.duty = d).is_ok(),
+                "stroke_m" => value
+                    .parse()
+                    .map(|stroke_m| scenario.spec.drive = Drive::Stroke { stroke_m })
+                    .is_ok(),
                 "new_duty" => value.parse().map(|d| scenario.new_duty = d).is_ok(),
                 "ramp" => value.parse().map(|r| scenario.ramp_cycles = r).is_ok(),
                 "panic_at" => value
