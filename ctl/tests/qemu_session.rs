@@ -1,0 +1,282 @@
+//! A scripted operator session against the QEMU firmware built with the `console` feature
+//! (`FEEDER_QEMU_ELF`): every reply is checked, then the firmware's `EVT` stream shows that every
+//! change landed on a cycle boundary and that no edge is missing.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::thread;
+use std::time::{Duration, Instant};
+
+/// Longest the whole session may take.
+const SESSION_TIMEOUT: Duration = Duration::from_secs(90);
+/// Longest to wait for one reply.
+const REPLY_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// Kills QEMU when the test ends, however it ends.
+struct Emulator(Child);
+
+impl Drop for Emulator {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn free_port() -> u16 {
+    let listener = TcpListener::bind("127.0.0.1:0").expect("a free loopback port");
+    listener.local_addr().expect("bound address").port()
+}
+
+struct Console {
+    stream: TcpStream,
+    deadline: Instant,
+}
+
+impl Console {
+    fn connect(port: u16, deadline: Instant, emulator: &mut Emulator) -> Self {
+        loop {
+            if let Ok(Some(status)) = emulator.0.try_wait() {
+                panic!("QEMU ended before its serial port opened: {status}");
+            }
+            match TcpStream::connect(("127.0.0.1", port)) {
+                Ok(stream) => {
+                    stream.set_read_timeout(Some(REPLY_TIMEOUT)).unwrap();
+                    stream.set_nodelay(true).unwrap();
+                    return Console { stream, deadline };
+                }
+                Err(_) if Instant::now() < deadline => thread::sleep(Duration::from_millis(50)),
+                Err(error) => panic!("QEMU's serial port never opened: {error}"),
+            }
+        }
+    }
+
+    /// Sends raw bytes (a line with its terminator) and returns the reply line.
+    fn send(&mut self, bytes: &[u8]) -> String {
+        assert!(Instant::now() < self.deadline, "session timed out");
+        self.stream.write_all(bytes).unwrap();
+        let mut reply = Vec::new();
+        let mut byte = [0u8];
+        loop {
+            let read = self.stream.read(&mut byte).expect("a reply in time");
+            assert_eq!(read, 1, "the console closed the connection");
+            match byte[0] {
+                b'\n' => break,
+                b'\r' => {}
+                other => reply.push(other),
+            }
+        }
+        String::from_utf8(reply).expect("replies are ASCII")
+    }
+
+    fn command(&mut self, line: &str) -> String {
+        self.send(format!("{line}\r\n").as_bytes())
+    }
+
+    /// Sends `line` and checks that the reply starts with `expected`.
+    fn expect(&mut self, line: &str, expected: &str) -> String {
+        let reply = self.command(line);
+        assert!(
+            reply.starts_with(expected),
+            "{line:?}: expected {expected:?}, got {reply:?}"
+        );
+        reply
+    }
+
+    /// Polls `status` until the state is `state`.
+    fn wait_for_state(&mut self, state: &str) {
+        let wanted = format!("OK state={state} ");
+        loop {
+            let reply = self.command("status");
+            if reply.starts_with(&wanted) {
+                return;
+            }
+            assert!(reply.starts_with("OK state="), "status: {reply:?}");
+            thread::sleep(Duration::from_millis(100));
+        }
+    }
+}
+
+/// One `EVT seg` line.
+#[derive(Debug)]
+struct Seg {
+    cycle: u64,
+    kind: String,
+    planned: u64,
+    ticks: u64,
+    step: u64,
+    steps: u64,
+}
+
+fn field<'a>(line: &'a str, key: &str) -> &'a str {
+    line.split_whitespace()
+        .find_map(|word| word.strip_prefix(key)?.strip_prefix('='))
+        .unwrap_or_else(|| panic!("no {key} in {line:?}"))
+}
+
+fn number(line: &str, key: &str) -> u64 {
+    field(line, key).parse().unwrap()
+}
+
+fn segment(line: &str) -> Seg {
+    Seg {
+        cycle: number(line, "cycle"),
+        kind: field(line, "kind").to_string(),
+        planned: number(line, "planned"),
+        ticks: number(line, "ticks"),
+        step: number(line, "step"),
+        steps: number(line, "steps"),
+    }
+}
+
+#[test]
+#[ignore = "needs the QEMU firmware; run by cargo xtask test"]
+fn scripted_session_over_the_serial_console() {
+    let elf = std::env::var("FEEDER_QEMU_ELF")
+        .ok()
+        .filter(|path| !path.is_empty())
+        .expect("FEEDER_QEMU_ELF must name the QEMU firmware built with the console feature");
+    let deadline = Instant::now() + SESSION_TIMEOUT;
+    let port = free_port();
+    let mut qemu = Command::new("qemu-system-arm")
+        .args(["-machine", "mps2-an386", "-cpu", "cortex-m4"])
+        .args(["-display", "none", "-monitor", "none"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(["-icount", "shift=4", "-serial"])
+        .arg(format!("tcp:127.0.0.1:{port},server=on,wait=off"))
+        .arg("-kernel")
+        .arg(&elf)
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("qemu-system-arm runs");
+    let raw_log = qemu.stdout.take().expect("QEMU's standard output");
+    let mut emulator = Emulator(qemu);
+    let mut decoder = Command::new("defmt-print")
+        .args(["-e", &elf])
+        .stdin(raw_log)
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("defmt-print runs");
+    let decoded = decoder.stdout.take().unwrap();
+    let (log_tx, log_rx) = mpsc::channel();
+    let reader = thread::spawn(move || {
+        for line in BufReader::new(decoded).lines() {
+            match line {
+                Ok(line) => {
+                    if log_tx.send(line).is_err() {
+                        break;
+                    }
+                }
+                Err(_) => break,
+            }
+        }
+    });
+
+    let mut console = Console::connect(port, deadline, &mut emulator);
+    console.expect("status", "OK state=stopped ");
+    console.expect("set freq 55", "OK freq_hz=55 ");
+    console.expect("set ramp 5 cycles", "OK freq_hz=55 ");
+    console.expect("get ramp", "OK ramp_cycles=5");
+    console.expect("start", "OK starting");
+    console.wait_for_state("running");
+    console.expect("set duty 0.6", "OK freq_hz=55 duty=0.6 ");
+    thread::sleep(Duration::from_millis(300));
+    let feed = console.expect("set feed 30", "OK freq_hz=55 duty=");
+    assert!(feed.ends_with(" feed_mmps=30"), "{feed}");
+    console.expect("get feed", "OK feed_mmps=30");
+    let garbage = console.send(b"\x00\x01\xfe\xff\x1b[A junk\r\n");
+    assert!(garbage.starts_with("ERR 11 "), "{garbage:?}");
+    let overlong = console.send(format!("set duty {}\r\n", "9".repeat(100)).as_bytes());
+    assert!(overlong.starts_with("ERR 10 "), "{overlong:?}");
+    console.expect("launch", "ERR 20 ");
+    console.expect("set duty 2", "ERR 43 ");
+    console.expect("set freq nan", "ERR 25 ");
+    console.expect("recipe save 1", "ERR 60 ");
+    console.expect("start", "OK starting");
+    let running = console.expect("status", "OK state=running freq_hz=55 ");
+    assert!(running.ends_with(" fault=none"), "{running}");
+    console.expect("stop", "OK stopping");
+    console.wait_for_state("stopped");
+    console.expect("recipe save 1", "OK recipe 1 saved");
+    console.expect("recipe load 1", "OK recipe 1 loaded freq_hz=55 ");
+    console.expect("recipe load 2", "OK recipe 2 not usable (no recipe saved");
+    console.expect("help", "OK commands: ");
+    // Let the last plan (the defaults of slot 2) reach the output.
+    thread::sleep(Duration::from_millis(300));
+    drop(emulator);
+    drop(console);
+    let _ = decoder.wait();
+    reader.join().unwrap();
+    let log: Vec<String> = log_rx.try_iter().collect();
+
+    check_event_stream(&log);
+}
+
+/// Every plan change lands on a cycle boundary and the segments are contiguous.
+fn check_event_stream(log: &[String]) {
+    assert!(
+        !log.iter().any(|line| line.contains("fault")),
+        "the firmware faulted:\n{}",
+        log.join("\n")
+    );
+    let events: Vec<&str> = log
+        .iter()
+        .filter_map(|line| line.strip_prefix("EVT "))
+        .collect();
+    let segments: Vec<Seg> = events
+        .iter()
+        .filter(|event| event.starts_with("seg "))
+        .map(|event| segment(event))
+        .collect();
+    assert!(segments.len() > 100, "too few segments: {}", segments.len());
+    for pair in segments.windows(2) {
+        let (previous, next) = (&pair[0], &pair[1]);
+        assert_eq!(
+            next.planned,
+            previous.planned + previous.ticks,
+            "missing edge between {previous:?} and {next:?}"
+        );
+        let boundary = matches!(next.kind.as_str(), "accelerate" | "idle");
+        if boundary {
+            assert_eq!(next.cycle, previous.cycle + 1, "{previous:?} -> {next:?}");
+        } else {
+            assert_eq!(next.cycle, previous.cycle, "{previous:?} -> {next:?}");
+            assert_eq!(
+                (next.step, next.steps),
+                (previous.step, previous.steps),
+                "amplitude changed inside a cycle: {previous:?} -> {next:?}"
+            );
+        }
+    }
+    // Each plan takes effect at the first cycle boundary at or after its request.
+    let mut plans = 0;
+    for event in events.iter().filter(|event| event.starts_with("plan ")) {
+        let tick = number(event, "tick");
+        if tick == 0 {
+            continue;
+        }
+        plans += 1;
+        let period_ticks = (field(event, "period_s").parse::<f64>().unwrap() * 1e6).round() as u64;
+        let first = segments
+            .iter()
+            .position(|seg| {
+                seg.planned >= tick && matches!(seg.kind.as_str(), "accelerate" | "idle")
+            })
+            .unwrap_or_else(|| panic!("the plan at tick {tick} never took effect"));
+        let cycle = segments[first].cycle;
+        let length: u64 = segments
+            .iter()
+            .filter(|seg| seg.cycle == cycle)
+            .map(|seg| seg.ticks)
+            .sum();
+        assert!(
+            length.abs_diff(period_ticks) <= 1,
+            "cycle {cycle} after the plan at tick {tick} lasts {length} ticks, not {period_ticks}"
+        );
+    }
+    assert!(
+        plans >= 5,
+        "expected a plan per accepted change, saw {plans}"
+    );
+}
