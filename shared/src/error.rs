@@ -5,6 +5,8 @@
 
 use core::fmt;
 
+use crate::number::Significant;
+
 /// The physical or configuration quantity an [`Error`] refers to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -134,50 +136,50 @@ impl fmt::Display for Error {
         match *self {
             Error::NotFinite { quantity } => write!(f, "{} must be a finite number", quantity.name()),
             Error::NotPositive { quantity, value } => {
-                write!(f, "{} must be greater than zero, got {}", quantity.name(), value)
+                write!(f, "{} must be greater than zero, got {}", quantity.name(), Significant(value))
             }
             Error::DutyTooLow { duty } => write!(
                 f,
                 "duty cycle {} must be above 0.5: at or below 0.5 the plate's velocity profile is \
                  not forward-biased and the part does not feed",
-                duty
+                Significant(duty)
             ),
             Error::DutyTooHigh { duty } => write!(
                 f,
                 "duty cycle {} must be below 1: at 1 there is no time left for the backward swing",
-                duty
+                Significant(duty)
             ),
             Error::FrequencyOutOfBand { frequency_hz, min_hz, max_hz } => write!(
                 f,
                 "frequency {} Hz is outside the allowed band {}..={} Hz",
-                frequency_hz, min_hz, max_hz
+                Significant(frequency_hz), Significant(min_hz), Significant(max_hz)
             ),
             Error::AccelAboveLimit { accel_mps2, limit_mps2 } => write!(
                 f,
                 "peak acceleration {} m/s² exceeds the motor limit of {} m/s²",
-                accel_mps2, limit_mps2
+                Significant(accel_mps2), Significant(limit_mps2)
             ),
             Error::StrokeAboveLimit { stroke_m, limit_m } => write!(
                 f,
                 "stroke {} m exceeds the plate travel limit of {} m",
-                stroke_m, limit_m
+                Significant(stroke_m), Significant(limit_m)
             ),
             Error::InvalidLimit { quantity, value } => {
-                write!(f, "{} must be a non-negative number, got {}", quantity.name(), value)
+                write!(f, "{} must be a non-negative number, got {}", quantity.name(), Significant(value))
             }
             Error::SegmentTooShort { segment, exact_ticks } => write!(
                 f,
                 "the {} segment lasts {} timer ticks and would round to zero: use a faster clock \
                  or a duty further from its limits",
                 segment.name(),
-                exact_ticks
+                Significant(exact_ticks)
             ),
             Error::TicksOverflow { segment, exact_ticks, max_ticks } => write!(
                 f,
                 "the {} segment needs {} timer ticks but the timer counts at most {}: use a slower \
                  clock or a higher frequency",
                 segment.name(),
-                exact_ticks,
+                Significant(exact_ticks),
                 max_ticks
             ),
             Error::ClockMismatch { running_hz, requested_hz } => write!(
@@ -189,24 +191,24 @@ impl fmt::Display for Error {
                 f,
                 "peak acceleration {} m/s² does not exceed μg = {} m/s²: the part sticks to the \
                  plate and does not feed",
-                accel_mps2, friction_accel_mps2
+                Significant(accel_mps2), Significant(friction_accel_mps2)
             ),
             Error::OutsideViscousRange { force_n } => write!(
                 f,
                 "external force {} N makes the part stick or overcomes friction: the linear viscous \
                  law does not hold there",
-                force_n
+                Significant(force_n)
             ),
             Error::FeedRateAboveReach { target_mps, max_mps } => write!(
                 f,
                 "feed rate {} m/s cannot be reached within the limits while the part slides; the \
                  most is {} m/s",
-                target_mps, max_mps
+                Significant(target_mps), Significant(max_mps)
             ),
             Error::FeedRateBelowReach { target_mps, min_mps } => write!(
                 f,
                 "feed rate {} m/s is below what the limits allow; the least is {} m/s",
-                target_mps, min_mps
+                Significant(target_mps), Significant(min_mps)
             ),
         }
     }

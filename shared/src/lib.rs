@@ -16,6 +16,7 @@ pub mod control;
 pub mod drive;
 pub mod error;
 pub mod model;
+pub mod number;
 pub mod plan;
 pub mod protocol;
 pub mod recipe;

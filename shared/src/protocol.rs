@@ -17,6 +17,7 @@ use heapless::{String, Vec};
 
 use crate::error::{positive, Error, Quantity};
 use crate::model::{self, Friction};
+use crate::number::{split_decimal, Fixed};
 use crate::plan::{TickClock, TickPlan};
 use crate::recipe::{RecipeSlot, RecordError, RECIPE_SLOTS};
 use crate::scheduler::Phase;
@@ -109,14 +110,15 @@ impl Param {
         }
     }
 
-    /// Decimal places shown in replies.
-    const fn decimals(self) -> usize {
-        match self {
+    /// `value` with the decimal places shown in replies.
+    const fn fixed(self, value: f64) -> Fixed {
+        let decimals = match self {
             Param::Frequency | Param::Feed => 3,
             Param::Duty | Param::Stroke => 4,
             Param::Accel => 2,
             Param::Ramp => 0,
-        }
+        };
+        Fixed { value, decimals }
     }
 
     const fn value(self) -> Value {
@@ -436,7 +438,7 @@ fn number<'a>(value: Value, words: &mut impl Iterator<Item = &'a str>) -> Result
         .next()
         .ok_or(ReplyError::MissingArgument { what: value.what })?;
     let (number, attached) =
-        split_number(word).ok_or(ReplyError::BadNumber { what: value.what })?;
+        split_decimal(word).ok_or(ReplyError::BadNumber { what: value.what })?;
     if !number.is_finite() {
         return Err(ReplyError::NotFinite);
     }
@@ -451,22 +453,6 @@ fn number<'a>(value: Value, words: &mut impl Iterator<Item = &'a str>) -> Result
         }
         _ => Ok(number),
     }
-}
-
-/// Splits `word` into its longest prefix that is a number and the rest.
-fn split_number(word: &str) -> Option<(f64, &str)> {
-    let mut end = word.len();
-    while end > 0 {
-        let (head, tail) = word.split_at_checked(end)?;
-        if let Ok(number) = head.parse::<f64>() {
-            return Some((number, tail));
-        }
-        end = head
-            .char_indices()
-            .next_back()
-            .map_or(0, |(index, _)| index);
-    }
-    None
 }
 
 /// Assembles bytes into command lines.
@@ -690,7 +676,7 @@ impl Params {
             out,
             " {}={}",
             param.reply_key(),
-            Fixed(self.value(param), param.decimals())
+            param.fixed(self.value(param))
         );
     }
 
@@ -698,23 +684,6 @@ impl Params {
         for param in Param::ALL {
             self.write(out, param);
         }
-    }
-}
-
-/// A number with at most the given decimals, without trailing zeros.
-struct Fixed(f64, usize);
-
-impl fmt::Display for Fixed {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let mut text: String<48> = String::new();
-        if write!(text, "{:.*}", self.1, self.0).is_err() {
-            return write!(f, "{:e}", self.0);
-        }
-        let mut digits = text.as_str();
-        if digits.contains('.') {
-            digits = digits.trim_end_matches('0').trim_end_matches('.');
-        }
-        f.write_str(if digits == "-0" { "0" } else { digits })
     }
 }
 
@@ -831,19 +800,15 @@ impl Reply {
                     let _ = write!(
                         reply,
                         "{}Hz/{}/",
-                        Fixed(settings.frequency_hz, Param::Frequency.decimals()),
-                        Fixed(settings.duty, Param::Duty.decimals())
+                        Param::Frequency.fixed(settings.frequency_hz),
+                        Param::Duty.fixed(settings.duty)
                     );
                     let _ = match settings.drive {
                         Drive::Stroke { stroke_m } => {
-                            write!(
-                                reply,
-                                "{}mm",
-                                Fixed(stroke_m * 1000.0, Param::Stroke.decimals())
-                            )
+                            write!(reply, "{}mm", Param::Stroke.fixed(stroke_m * 1000.0))
                         }
                         Drive::Accel { accel_mps2 } => {
-                            write!(reply, "{}m/s2", Fixed(accel_mps2, Param::Accel.decimals()))
+                            write!(reply, "{}m/s2", Param::Accel.fixed(accel_mps2))
                         }
                     };
                     write!(reply, "/r{}", settings.ramp_cycles)
