@@ -47,7 +47,7 @@ pub fn split_decimal(text: &str) -> Option<(f64, &str)> {
             .get(at..end)
             .is_some_and(|head| head.eq_ignore_ascii_case(word.as_bytes()))
         {
-            return Some((signed(value), &text[end..]));
+            return Some((signed(value), text.get(end..)?));
         }
     }
 
@@ -78,7 +78,7 @@ pub fn split_decimal(text: &str) -> Option<(f64, &str)> {
         exponent = exponent.saturating_add(power);
         at = end;
     }
-    Some((signed(scaled_integer(mantissa, exponent)), &text[at..]))
+    Some((signed(scaled_integer(mantissa, exponent)), text.get(at..)?))
 }
 
 /// The exponent `e[+-]digits` starting at `at`, saturated far beyond `f64`'s range, and where it
@@ -168,7 +168,7 @@ impl fmt::Display for Fixed {
             return f.write_str("0");
         }
         let digits = Digits::new(whole);
-        let integer_digits = digits.len() as i32 - self.decimals as i32;
+        let integer_digits = digits.all().len() as i32 - self.decimals as i32;
         write_plain(f, self.value < 0.0, digits.trimmed(), integer_digits)
     }
 }
@@ -203,13 +203,11 @@ impl fmt::Display for Significant {
         if (-5..SIGNIFICANT_DIGITS).contains(&exponent) {
             return write_plain(f, false, digits.trimmed(), exponent + 1);
         }
-        let (first, rest) = digits.trimmed().split_at(1);
-        write_plain(f, false, first, 1)?;
-        if !rest.is_empty() {
-            f.write_str(".")?;
-            write_plain(f, false, rest, rest.len() as i32)?;
-        }
-        write!(f, "e{}", exponent)
+        write_plain(f, false, digits.trimmed(), 1)?;
+        f.write_str("e")?;
+        let exponent_digits = Digits::new(exponent.unsigned_abs().into());
+        let all = exponent_digits.all();
+        write_plain(f, exponent < 0, all, all.len() as i32)
     }
 }
 
@@ -281,13 +279,14 @@ impl Digits {
         }
     }
 
-    fn len(&self) -> usize {
-        self.buffer.len() - self.start
+    /// Every digit, from the most significant one.
+    fn all(&self) -> &[u8] {
+        &self.buffer[self.start..]
     }
 
     /// The digits without trailing zeros (`0` stays `0`).
     fn trimmed(&self) -> &[u8] {
-        let digits = &self.buffer[self.start..];
+        let digits = self.all();
         let end = digits
             .iter()
             .rposition(|&d| d != b'0')

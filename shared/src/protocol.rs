@@ -853,7 +853,7 @@ impl fmt::Write for Reply {
                 '≤' => "<=",
                 '≥' => ">=",
                 '…' => "...",
-                c if c.is_control() || c.is_whitespace() => " ",
+                c if c.is_control() => " ",
                 _ => "?",
             };
             let _ = self.text.push_str(ascii);
