@@ -4,10 +4,12 @@
 //! [`sim`] runs it over any stream of plate segments with steady-state detection; [`scenario`]
 //! builds those streams from the shared crate (scheduler tick plan or exact waveform times) and
 //! holds the analytic predictions; [`reference`] is a fixed-step integrator for validation;
-//! [`figures`] reproduces the paper's figures' data.
+//! [`figures`] reproduces the paper's figures' data; [`hil`] checks a running firmware's event
+//! stream against the shared scheduler and drives the plant with its actual edge times.
 
 pub mod error;
 pub mod figures;
+pub mod hil;
 pub mod plant;
 pub mod reference;
 pub mod scenario;

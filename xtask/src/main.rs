@@ -1,16 +1,20 @@
 //! `cargo xtask <command>`: the project's two entry points and their helpers.
 //!
-//! * `run`  — the main job (with no board attached: the simulator at the paper's operating point).
+//! * `run`  — the main job: the firmware under QEMU drives the simulated plate and part
+//!   (`run --board`: the firmware on a NUCLEO-G474RE through probe-rs instead).
 //! * `test` — the whole test suite: host tests, the `no_std` crate and the firmware for
-//!   `thumbv7em-none-eabihf`, and the firmware size budget.
+//!   `thumbv7em-none-eabihf`, the firmware size budget, and the firmware-in-the-loop scenarios
+//!   under QEMU.
 //! * `size` — the firmware's flash and static RAM use against the budget.
 //!
-//! Each command installs what it needs (the thumb target) so it works on a fresh machine.
+//! Each command installs what it needs (the thumb target, qemu-system-arm, defmt-print) so it
+//! works on a fresh machine.
 
+mod qemu;
 mod size;
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, ExitCode};
+use std::process::{Command, ExitCode, Stdio};
 
 const THUMB_TARGET: &str = "thumbv7em-none-eabihf";
 
@@ -33,7 +37,8 @@ fn main() -> ExitCode {
     }
 }
 
-const USAGE: &str = "usage: cargo xtask <run [host-sim args…] | test | size>";
+const USAGE: &str =
+    "usage: cargo xtask <run [--board] [scenario key=value…] [-- hil flags…] | test | size>";
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -88,16 +93,69 @@ fn ensure_thumb_target() -> Result {
     exec(Command::new("rustup").args(["target", "add", THUMB_TARGET]))
 }
 
-fn run(host_sim_args: &[String]) -> Result {
-    let mut command = cargo();
-    command.args(["run", "--quiet", "--release", "--package", "host-sim", "--"]);
-    if host_sim_args.is_empty() {
-        let plot = root().join("target").join("paper-operating-point.svg");
-        command.args(["simulate", "--plot"]).arg(plot);
-    } else {
-        command.args(host_sim_args);
+/// The firmware (QEMU by default, the board with `--board`) piped through the defmt decoder into
+/// `host-sim hil`, which checks every edge and simulates the part on the actual edge times.
+fn run(args: &[String]) -> Result {
+    let (ours, hil_flags) = match args.iter().position(|arg| arg == "--") {
+        Some(split) => (&args[..split], &args[split + 1..]),
+        None => (args, &[][..]),
+    };
+    let on_board = ours.iter().any(|arg| arg == "--board");
+    let scenario: Vec<String> = ours
+        .iter()
+        .filter(|arg| *arg != "--board")
+        .cloned()
+        .collect();
+    ensure_thumb_target()?;
+    exec(cargo().args(["build", "--release", "--locked", "--package", "host-sim"]))?;
+    let mut hil = cargo();
+    hil.args([
+        "run",
+        "--quiet",
+        "--release",
+        "--locked",
+        "--package",
+        "host-sim",
+        "--",
+        "hil",
+    ]);
+    if !hil_flags.iter().any(|flag| flag == "--plot") {
+        hil.arg("--plot")
+            .arg(root().join("target").join("hil-run.svg"));
     }
-    exec(&mut command)
+    hil.args(hil_flags);
+    let (mut firmware, mut decoder) = if on_board {
+        let mut board = firmware_cargo();
+        board
+            .args(["run", "--release", "--locked", "--features", "hil-trace"])
+            .stdout(Stdio::piped());
+        let mut board = board
+            .spawn()
+            .map_err(|error| format!("cannot start the board run: {error}"))?;
+        let log = board.stdout.take().ok_or("no board output")?;
+        hil.stdin(log);
+        (board, None)
+    } else {
+        qemu::ensure_tools()?;
+        let elf = qemu::build_firmware(qemu::Image::Scripted)?;
+        let (emulator, mut decoder) = qemu::spawn_decoded(&elf, &scenario)?;
+        hil.stdin(decoder.stdout.take().ok_or("no decoder output")?);
+        (emulator, Some(decoder))
+    };
+    let report = hil
+        .status()
+        .map_err(|error| format!("cannot run host-sim hil: {error}"))?;
+    let firmware_status = firmware.wait().map_err(|error| error.to_string())?;
+    if let Some(decoder) = decoder.as_mut() {
+        decoder.wait().map_err(|error| error.to_string())?;
+    }
+    if !firmware_status.success() {
+        return Err(format!("the firmware ended with {firmware_status}"));
+    }
+    if !report.success() {
+        return Err("the firmware-in-the-loop check failed".into());
+    }
+    Ok(())
 }
 
 fn test() -> Result {
@@ -116,16 +174,61 @@ fn test() -> Result {
         ]))?;
     }
     exec(firmware_cargo().args(["build", "--release", "--locked"]))?;
-    firmware_size()
+    exec(
+        firmware_cargo()
+            .args(["build", "--release", "--locked", "--features", "console"])
+            .args(["--target-dir", "target/console"]),
+    )?;
+    firmware_size()?;
+    qemu::ensure_tools()?;
+    let scripted = qemu::build_firmware(qemu::Image::Scripted)?;
+    exec(
+        cargo()
+            .args([
+                "test",
+                "--locked",
+                "--package",
+                "feeder-tests",
+                "--test",
+                "qemu",
+                "--",
+                "--ignored",
+            ])
+            .env("FEEDER_QEMU_ELF", &scripted),
+    )?;
+    let console = qemu::build_firmware(qemu::Image::Console)?;
+    exec(
+        cargo()
+            .args([
+                "test",
+                "--locked",
+                "--package",
+                "feeder-ctl",
+                "--test",
+                "qemu_session",
+                "--",
+                "--ignored",
+            ])
+            .env("FEEDER_QEMU_ELF", &console),
+    )
 }
 
+/// The board images against their budgets: the default one and the one with the console.
 fn firmware_size() -> Result {
-    let elf = firmware_dir()
-        .join("target")
-        .join(THUMB_TARGET)
-        .join("release")
-        .join("feeder-firmware");
-    let report = size::measure(&elf)?;
-    println!("{report}");
-    report.check_budget()
+    for (image, directory, budget) in [
+        ("default", "target", size::DEFAULT_BUDGET),
+        ("console", "target/console", size::CONSOLE_BUDGET),
+    ] {
+        let elf = firmware_dir()
+            .join(directory)
+            .join(THUMB_TARGET)
+            .join("release")
+            .join("feeder-firmware");
+        let report = size::measure(&elf)?;
+        println!("{image} image: {}", report.against(&budget));
+        report
+            .check(&budget)
+            .map_err(|error| format!("{image} image: {error}"))?;
+    }
+    Ok(())
 }

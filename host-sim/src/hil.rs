@@ -1,0 +1,618 @@
+//! Firmware-in-the-loop checking: the decoded event stream of a running firmware (QEMU or a real
+//! board) replayed against the shared scheduler.
+//!
+//! The firmware prints one event per line (anywhere in the line, after the marker `EVT`):
+//!
+//! ```text
+//! EVT plan tick=0 period_s=0.02 duty=0.586 stroke_m=0.0025 clock_hz=1000000 ramp=4
+//! EVT start tick=20000
+//! EVT seg cycle=1 kind=accelerate planned=20000 actual=20007 ticks=1713 level=1 step=1 steps=4
+//! EVT stop tick=1000000
+//! EVT halt tick=1000000
+//! EVT end tick=1200000
+//! ```
+//!
+//! `tick` on a request is the scheduler's next segment start when the request was made, so the
+//! replay applies it at exactly the same point; `accel_mps2=` may stand for `stroke_m=`.
+//! Every `seg` event is compared with the segment the shared scheduler produces for the same
+//! requests: start tick, length, kind, level and amplitude must match exactly.
+
+use std::collections::BTreeMap;
+use std::fmt;
+use std::io::BufRead;
+
+use feeder_shared::{
+    Drive, Limits, Scheduler, Segment, SegmentKind, TickClock, TickPlan, Waveform, WaveformSpec,
+};
+
+use crate::plant::{Contact, PlateSegment};
+use crate::sim::{run_segments, Criteria, CycleStats, RunOptions};
+
+/// The marker that starts an event inside a log line.
+pub const EVENT_MARKER: &str = "EVT ";
+
+/// One parsed firmware event.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Event {
+    Plan {
+        tick: u64,
+        spec: WaveformSpec,
+        clock_hz: u32,
+        ramp_cycles: u16,
+    },
+    Start {
+        tick: u64,
+    },
+    Stop {
+        tick: u64,
+    },
+    /// Fault stop: output zeroed at once.
+    Halt {
+        tick: u64,
+    },
+    Segment(SegmentEvent),
+    End {
+        tick: u64,
+    },
+}
+
+/// A level change as the firmware reports it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SegmentEvent {
+    pub cycle: u64,
+    pub kind: SegmentKind,
+    pub planned_tick: u64,
+    pub actual_tick: u64,
+    pub ticks: u32,
+    pub level: i8,
+    pub step: u16,
+    pub steps: u16,
+}
+
+/// A line that carries the event marker but cannot be read.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ParseError {
+    pub line: String,
+    pub reason: String,
+}
+
+impl fmt::Display for ParseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "unreadable event ({}): {}", self.reason, self.line)
+    }
+}
+
+impl std::error::Error for ParseError {}
+
+/// Reads one log line: `Ok(None)` for lines without an event.
+pub fn parse_line(line: &str) -> Result<Option<Event>, ParseError> {
+    let Some(start) = line.find(EVENT_MARKER) else {
+        return Ok(None);
+    };
+    let error = |reason: String| ParseError {
+        line: line.trim_end().to_string(),
+        reason,
+    };
+    let mut words = line[start + EVENT_MARKER.len()..].split_whitespace();
+    let name = words.next().ok_or_else(|| error("no event name".into()))?;
+    let fields: BTreeMap<&str, &str> = words.filter_map(|word| word.split_once('=')).collect();
+    let field = |key: &str| {
+        fields
+            .get(key)
+            .copied()
+            .ok_or_else(|| error(format!("no `{key}`")))
+    };
+    let number = |key: &str| -> Result<u64, ParseError> {
+        field(key)?
+            .parse()
+            .map_err(|_| error(format!("`{key}` is not a whole number")))
+    };
+    let real = |key: &str| -> Result<f64, ParseError> {
+        field(key)?
+            .parse()
+            .map_err(|_| error(format!("`{key}` is not a number")))
+    };
+    let narrow = |key: &str, value: u64| -> Result<u32, ParseError> {
+        u32::try_from(value).map_err(|_| error(format!("`{key}` is out of range")))
+    };
+    let event = match name {
+        "plan" => {
+            let drive = match (fields.get("stroke_m"), fields.get("accel_mps2")) {
+                (Some(_), None) => Drive::Stroke {
+                    stroke_m: real("stroke_m")?,
+                },
+                (None, Some(_)) => Drive::Accel {
+                    accel_mps2: real("accel_mps2")?,
+                },
+                _ => {
+                    return Err(error(
+                        "needs exactly one of `stroke_m`, `accel_mps2`".into(),
+                    ))
+                }
+            };
+            let ramp = number("ramp")?;
+            Event::Plan {
+                tick: number("tick")?,
+                spec: WaveformSpec {
+                    period_s: real("period_s")?,
+                    duty: real("duty")?,
+                    drive,
+                },
+                clock_hz: narrow("clock_hz", number("clock_hz")?)?,
+                ramp_cycles: u16::try_from(ramp)
+                    .map_err(|_| error("`ramp` is out of range".into()))?,
+            }
+        }
+        "start" => Event::Start {
+            tick: number("tick")?,
+        },
+        "stop" => Event::Stop {
+            tick: number("tick")?,
+        },
+        "halt" => Event::Halt {
+            tick: number("tick")?,
+        },
+        "end" => Event::End {
+            tick: number("tick")?,
+        },
+        "seg" => {
+            let kind = match field("kind")? {
+                "accelerate" => SegmentKind::Accelerate,
+                "plateau" => SegmentKind::Plateau,
+                "reverse" => SegmentKind::Reverse,
+                "return" => SegmentKind::Return,
+                "idle" => SegmentKind::Idle,
+                other => return Err(error(format!("unknown segment kind `{other}`"))),
+            };
+            let small = |key: &str| -> Result<u16, ParseError> {
+                u16::try_from(number(key)?).map_err(|_| error(format!("`{key}` is out of range")))
+            };
+            let level: i8 = field("level")?
+                .parse()
+                .ok()
+                .filter(|level: &i8| (-1..=1).contains(level))
+                .ok_or_else(|| error("`level` must be -1, 0 or 1".into()))?;
+            Event::Segment(SegmentEvent {
+                cycle: number("cycle")?,
+                kind,
+                planned_tick: number("planned")?,
+                actual_tick: number("actual")?,
+                ticks: narrow("ticks", number("ticks")?)?,
+                level,
+                step: small("step")?,
+                steps: small("steps")?,
+            })
+        }
+        other => return Err(error(format!("unknown event `{other}`"))),
+    };
+    Ok(Some(event))
+}
+
+/// How the recorded run compares with the shared scheduler.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CheckReport {
+    /// Segment events read.
+    pub edges: u64,
+    /// Events that matched the replay exactly.
+    pub matched: u64,
+    /// Planned segments the firmware never reported.
+    pub missing: u64,
+    /// Reported segments the replay did not produce (or produced differently).
+    pub unexpected: u64,
+    /// Amplitude or plan changes away from a cycle boundary.
+    pub glitches: u64,
+    /// Number of motion cycles (not idle periods) completed.
+    pub motion_cycles: u64,
+    /// `actual − planned` in ticks: count per value.
+    pub deviation_histogram: BTreeMap<i64, u64>,
+    /// The first problems found, in words.
+    pub problems: Vec<String>,
+    /// Whether the stream ended with an `end` event.
+    pub ended: bool,
+}
+
+impl CheckReport {
+    pub fn max_deviation_ticks(&self) -> i64 {
+        self.deviation_histogram
+            .keys()
+            .map(|d| d.abs())
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// True when every edge was present, exact and glitch-free and the run ended.
+    pub fn passed(&self) -> bool {
+        self.ended
+            && self.edges > 0
+            && self.missing == 0
+            && self.unexpected == 0
+            && self.glitches == 0
+            && self.problems.is_empty()
+    }
+}
+
+/// Problems listed in full; further ones are only counted.
+const MAX_PROBLEMS: usize = 20;
+
+/// A reported edge with what the replay knows about it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Edge {
+    pub event: SegmentEvent,
+    /// `a_max` of the plan in force (from the replay).
+    pub peak_accel_mps2: f64,
+    /// How many plan changes had taken effect by this edge.
+    pub plan_index: usize,
+}
+
+/// Replays the firmware's requests on the shared scheduler and compares every edge.
+#[derive(Debug, Default)]
+pub struct Checker {
+    replay: Option<Scheduler>,
+    pending: Vec<Event>,
+    previous: Option<SegmentEvent>,
+    report: CheckReport,
+    edges: Vec<Edge>,
+    plan_index: usize,
+    clock_hz: u32,
+}
+
+impl Checker {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    fn problem(&mut self, text: String) {
+        if self.report.problems.len() < MAX_PROBLEMS {
+            self.report.problems.push(text);
+        }
+    }
+
+    /// Takes the next event of the stream.
+    pub fn feed(&mut self, event: &Event) {
+        match event {
+            Event::Segment(segment) => self.segment(segment),
+            Event::End { .. } => self.report.ended = true,
+            Event::Plan {
+                tick: 0,
+                spec,
+                clock_hz,
+                ramp_cycles,
+            } if self.replay.is_none() => match plan_for(spec, *clock_hz) {
+                Ok(plan) => {
+                    self.clock_hz = *clock_hz;
+                    self.replay = Some(Scheduler::new(plan, *ramp_cycles));
+                }
+                Err(reason) => self.problem(format!("initial plan refused: {reason}")),
+            },
+            request => self.pending.push(request.clone()),
+        }
+    }
+
+    /// Applies the requests the firmware made before the replay's next segment was prepared.
+    fn apply_requests(&mut self) {
+        let Some(replay) = self.replay.as_mut() else {
+            return;
+        };
+        let next_tick = replay.next_tick();
+        let mut problems = Vec::new();
+        self.pending.retain(|request| {
+            let tick = match request {
+                Event::Plan { tick, .. }
+                | Event::Start { tick }
+                | Event::Stop { tick }
+                | Event::Halt { tick } => *tick,
+                _ => return false,
+            };
+            if tick > next_tick {
+                return true;
+            }
+            if tick < next_tick {
+                problems.push(format!(
+                    "request at tick {tick} arrived after tick {next_tick}"
+                ));
+            }
+            match request {
+                Event::Start { .. } => replay.start(),
+                Event::Stop { .. } => replay.stop(),
+                Event::Halt { .. } => replay.halt(),
+                Event::Plan {
+                    spec,
+                    clock_hz,
+                    ramp_cycles,
+                    ..
+                } => {
+                    match plan_for(spec, *clock_hz)
+                        .and_then(|plan| replay.set_plan(plan).map_err(|error| error.to_string()))
+                    {
+                        Ok(()) => replay.set_ramp_cycles(*ramp_cycles),
+                        Err(reason) => {
+                            problems.push(format!("plan at tick {tick} refused: {reason}"))
+                        }
+                    }
+                }
+                _ => {}
+            }
+            false
+        });
+        for problem in problems {
+            self.problem(problem);
+        }
+    }
+
+    fn segment(&mut self, reported: &SegmentEvent) {
+        self.report.edges += 1;
+        let deviation = reported.actual_tick as i64 - reported.planned_tick as i64;
+        *self
+            .report
+            .deviation_histogram
+            .entry(deviation)
+            .or_default() += 1;
+        if let Some(previous) = self.previous {
+            let changed = previous.step != reported.step || previous.steps != reported.steps;
+            let boundary = matches!(reported.kind, SegmentKind::Accelerate | SegmentKind::Idle);
+            if changed && !boundary {
+                self.report.glitches += 1;
+                self.problem(format!(
+                    "amplitude changed mid-cycle at tick {}",
+                    reported.planned_tick
+                ));
+            }
+        }
+        self.previous = Some(*reported);
+        if self.replay.is_none() {
+            self.report.unexpected += 1;
+            self.problem("segment before the initial plan".into());
+            return;
+        }
+        loop {
+            self.apply_requests();
+            let Some(replay) = self.replay.as_mut() else {
+                return;
+            };
+            if replay.next_tick() > reported.planned_tick {
+                self.report.unexpected += 1;
+                self.problem(format!("unexpected edge at tick {}", reported.planned_tick));
+                return;
+            }
+            let expected = replay.next_segment();
+            if expected.start_tick < reported.planned_tick {
+                self.report.missing += 1;
+                self.problem(format!("missing edge at tick {}", expected.start_tick));
+                continue;
+            }
+            if expected.plan_applied {
+                self.plan_index += 1;
+            }
+            self.edges.push(Edge {
+                event: *reported,
+                peak_accel_mps2: expected.peak_accel_mps2,
+                plan_index: self.plan_index,
+            });
+            if matches(&expected, reported) {
+                self.report.matched += 1;
+                if expected.kind == SegmentKind::Return {
+                    self.report.motion_cycles += 1;
+                }
+            } else {
+                self.report.unexpected += 1;
+                self.problem(format!(
+                    "edge at tick {} differs: reported {:?}, planned {:?} for {} ticks at {}/{}",
+                    reported.planned_tick,
+                    reported,
+                    expected.kind,
+                    expected.ticks,
+                    expected.amplitude.step,
+                    expected.amplitude.steps
+                ));
+            }
+            return;
+        }
+    }
+
+    /// The comparison, the edges as reported, and the clock they count.
+    pub fn finish(mut self) -> (CheckReport, Vec<Edge>, u32) {
+        if !self.report.ended {
+            self.problem("the stream has no `end` event: the firmware stopped early".into());
+        }
+        (self.report, self.edges, self.clock_hz)
+    }
+}
+
+fn matches(expected: &Segment, reported: &SegmentEvent) -> bool {
+    expected.start_tick == reported.planned_tick
+        && expected.ticks == reported.ticks
+        && expected.kind == reported.kind
+        && expected.level.sign() == reported.level
+        && expected.amplitude.step == reported.step
+        && expected.amplitude.steps == reported.steps
+        && expected.cycle == reported.cycle
+}
+
+fn plan_for(spec: &WaveformSpec, clock_hz: u32) -> Result<TickPlan, String> {
+    let waveform = Waveform::new(*spec, &Limits::NONE).map_err(|error| error.to_string())?;
+    TickPlan::new(&waveform, TickClock::new(clock_hz)).map_err(|error| error.to_string())
+}
+
+/// A decoded log: its events and the lines that report a firmware error.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Stream {
+    pub events: Vec<Event>,
+    /// Lines with `ERROR` or `panic` (defmt's error level, the panic handler's message).
+    pub errors: Vec<String>,
+}
+
+/// Reads a decoded log (defmt-print's or probe-rs's output).
+pub fn read_stream(reader: impl BufRead) -> Result<Stream, HilError> {
+    let mut stream = Stream::default();
+    for line in reader.lines() {
+        let line = line.map_err(|error| HilError::Read(error.to_string()))?;
+        if let Some(event) = parse_line(&line).map_err(HilError::Parse)? {
+            stream.events.push(event);
+        } else if line.contains("ERROR") || line.contains("panic") {
+            stream.errors.push(line.trim_end().to_string());
+        }
+    }
+    Ok(stream)
+}
+
+/// Why a stream could not be analysed.
+#[derive(Debug, Clone, PartialEq)]
+pub enum HilError {
+    Read(String),
+    Parse(ParseError),
+}
+
+impl fmt::Display for HilError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            HilError::Read(reason) => write!(f, "cannot read the event stream: {reason}"),
+            HilError::Parse(error) => error.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for HilError {}
+
+/// Cycles averaged for the steady feed rate: the last ones at full amplitude of the final plan.
+/// A change of plan decays by about `((a − μg)/(a + μg))²` per cycle (Eq. 12), so the window sits
+/// at the end of the stretch.
+pub const STEADY_WINDOW_CYCLES: usize = 16;
+
+/// Which instant of each edge the simulation uses.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EdgeTimes {
+    /// When the level took effect, as the firmware measured it.
+    Actual,
+    /// The scheduler's planned tick.
+    Planned,
+}
+
+/// The part simulated on the recorded edges.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PartReport {
+    /// Mean part velocity over the last [`STEADY_WINDOW_CYCLES`] full-amplitude cycles of the
+    /// final plan (fewer if the run had fewer).
+    pub feed_rate_mps: f64,
+    /// The same relative to the plate's mean velocity over those cycles: the feed rate the
+    /// waveform produces, whatever the plate's drift.
+    pub feed_rate_relative_mps: f64,
+    /// Cycles those means are over.
+    pub steady_cycles: usize,
+    /// Stick fraction over the same cycles.
+    pub stick_fraction: f64,
+    /// Distance the part moved over the whole run.
+    pub part_travel_m: f64,
+    /// Peak-to-peak plate travel over the run.
+    pub plate_excursion_m: f64,
+    /// Plate position at the end of the run relative to its start.
+    pub plate_drift_m: f64,
+    /// Seconds of firmware time simulated.
+    pub duration_s: f64,
+}
+
+/// Simulates the part on the edges: each level holds from its edge to the next edge (the last
+/// one for its planned length), at the actual or the planned instants.
+pub fn simulate(edges: &[Edge], clock_hz: u32, contact: &Contact, times: EdgeTimes) -> PartReport {
+    let clock_hz = f64::from(clock_hz.max(1));
+    let tick = |edge: &Edge| match times {
+        EdgeTimes::Actual => edge.event.actual_tick,
+        EdgeTimes::Planned => edge.event.planned_tick,
+    };
+    let segments: Vec<PlateSegment> = edges
+        .iter()
+        .enumerate()
+        .map(|(index, edge)| {
+            let start_tick = tick(edge);
+            let end_tick = edges
+                .get(index + 1)
+                .map_or(start_tick + u64::from(edge.event.ticks), tick);
+            let amplitude = f64::from(edge.event.step) / f64::from(edge.event.steps.max(1));
+            PlateSegment {
+                duration_s: end_tick.saturating_sub(start_tick) as f64 / clock_hz,
+                accel_mps2: f64::from(edge.event.level) * edge.peak_accel_mps2 * amplitude,
+                starts_cycle: starts_cycle(edge),
+            }
+        })
+        .collect();
+    let options = RunOptions {
+        fixed_cycles: Some(u64::MAX),
+        record_cycles: true,
+        ..RunOptions::converge(Criteria::periodic(0.0, 1.0))
+    };
+    let run = run_segments(segments.iter().copied(), contact, &options);
+    let plate_m = plate_cycle_displacements_m(&segments);
+    // Cycles (in order) that ran at full amplitude under the final plan.
+    let final_plan = edges.last().map_or(0, |edge| edge.plan_index);
+    let steady: Vec<bool> = edges
+        .iter()
+        .filter(|edge| starts_cycle(edge))
+        .map(|edge| {
+            edge.event.kind == SegmentKind::Accelerate
+                && edge.event.step == edge.event.steps
+                && edge.plan_index == final_plan
+        })
+        .collect();
+    let window: Vec<(&CycleStats, f64)> = run
+        .cycle_stats
+        .iter()
+        .zip(plate_m.iter().copied())
+        .zip(&steady)
+        .filter(|(_, steady)| **steady)
+        .map(|(cycle, _)| cycle)
+        .collect();
+    let window = &window[window.len().saturating_sub(STEADY_WINDOW_CYCLES)..];
+    let window_s: f64 = window.iter().map(|(stats, _)| stats.duration_s).sum();
+    let mean = |total: f64| {
+        if window_s > 0.0 {
+            total / window_s
+        } else {
+            0.0
+        }
+    };
+    let part_m: f64 = window
+        .iter()
+        .map(|(stats, _)| stats.mean_velocity_mps * stats.duration_s)
+        .sum();
+    let plate_window_m: f64 = window.iter().map(|(_, plate_m)| plate_m).sum();
+    PartReport {
+        feed_rate_mps: mean(part_m),
+        feed_rate_relative_mps: mean(part_m - plate_window_m),
+        steady_cycles: window.len(),
+        stick_fraction: mean(
+            window
+                .iter()
+                .map(|(stats, _)| stats.stick_fraction * stats.duration_s)
+                .sum(),
+        ),
+        part_travel_m: run
+            .cycle_stats
+            .iter()
+            .map(|stats| stats.mean_velocity_mps * stats.duration_s)
+            .sum(),
+        plate_excursion_m: run.plate_excursion_m,
+        plate_drift_m: plate_m.iter().sum(),
+        duration_s: segments.iter().map(|segment| segment.duration_s).sum(),
+    }
+}
+
+fn starts_cycle(edge: &Edge) -> bool {
+    matches!(edge.event.kind, SegmentKind::Accelerate | SegmentKind::Idle)
+}
+
+/// The plate's displacement over each cycle of `segments`, from rest (constant acceleration per
+/// segment); the velocity carried across a cycle boundary is what timing errors leave behind.
+fn plate_cycle_displacements_m(segments: &[PlateSegment]) -> Vec<f64> {
+    let mut cycles = Vec::new();
+    let mut velocity_mps = 0.0;
+    for segment in segments {
+        if segment.starts_cycle || cycles.is_empty() {
+            cycles.push(0.0);
+        }
+        let t = segment.duration_s;
+        if let Some(displacement_m) = cycles.last_mut() {
+            *displacement_m += velocity_mps * t + segment.accel_mps2 * t * t / 2.0;
+        }
+        velocity_mps += segment.accel_mps2 * t;
+    }
+    cycles
+}

@@ -1,0 +1,127 @@
+//! The emulated board: installing QEMU and defmt-print when missing, building the QEMU firmware
+//! and running it with its decoded log piped onward.
+
+use std::path::PathBuf;
+use std::process::{Child, Command, Stdio};
+
+use crate::{exec, firmware_cargo, firmware_dir, Result, THUMB_TARGET};
+
+/// `-icount shift=4`: one instruction is 16 ns of virtual time, so runs are deterministic.
+const ICOUNT_SHIFT: &str = "4";
+
+fn available(program: &str, version_flag: &str) -> bool {
+    Command::new(program)
+        .arg(version_flag)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|status| status.success())
+}
+
+/// Installs `qemu-system-arm` (Debian package) and `defmt-print` (crates.io) if missing.
+pub fn ensure_tools() -> Result {
+    if !available("qemu-system-arm", "--version") {
+        exec(Command::new("apt-get").arg("update"))?;
+        exec(Command::new("apt-get").args([
+            "install",
+            "-y",
+            "--no-install-recommends",
+            "qemu-system-arm",
+        ]))
+        .map_err(|error| format!("{error}: install qemu-system-arm (needs root)"))?;
+    }
+    if !available("defmt-print", "--version") {
+        exec(
+            Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into())).args([
+                "install",
+                "defmt-print",
+                "--locked",
+            ]),
+        )?;
+    }
+    Ok(())
+}
+
+/// The QEMU firmware with the scripted operator, or with the serial console instead.
+#[derive(Clone, Copy)]
+pub enum Image {
+    Scripted,
+    Console,
+}
+
+/// Builds a QEMU firmware image (in its own target directory, beside the board image) and
+/// returns the ELF's path.
+pub fn build_firmware(image: Image) -> Result<PathBuf> {
+    let (directory, features) = match image {
+        Image::Scripted => ("qemu", "board-qemu"),
+        Image::Console => ("qemu-console", "board-qemu,console"),
+    };
+    let target_dir = firmware_dir().join("target").join(directory);
+    exec(
+        firmware_cargo()
+            .args([
+                "build",
+                "--release",
+                "--locked",
+                "--no-default-features",
+                "--features",
+                features,
+                "--target-dir",
+            ])
+            .arg(&target_dir),
+    )?;
+    Ok(target_dir
+        .join(THUMB_TARGET)
+        .join("release")
+        .join("feeder-firmware"))
+}
+
+/// QEMU running `elf` with the scenario arguments (`key=value`), its semihosting output on
+/// stdout. The serial port is unused.
+pub fn command(elf: &std::path::Path, scenario: &[String]) -> Command {
+    let mut semihosting = String::from("enable=on,target=native");
+    for argument in scenario {
+        semihosting.push_str(",arg=");
+        semihosting.push_str(argument);
+    }
+    let mut command = Command::new("qemu-system-arm");
+    command
+        .args([
+            "-machine",
+            "mps2-an386",
+            "-cpu",
+            "cortex-m4",
+            "-display",
+            "none",
+            "-monitor",
+            "none",
+            "-serial",
+            "none",
+        ])
+        .args([
+            "-semihosting-config",
+            &semihosting,
+            "-icount",
+            &format!("shift={ICOUNT_SHIFT}"),
+            "-kernel",
+        ])
+        .arg(elf);
+    command
+}
+
+/// Starts QEMU and defmt-print; the decoded log is on the returned decoder's stdout.
+pub fn spawn_decoded(elf: &std::path::Path, scenario: &[String]) -> Result<(Child, Child)> {
+    let mut emulator = command(elf, scenario)
+        .stdout(Stdio::piped())
+        .spawn()
+        .map_err(|error| format!("cannot start qemu-system-arm: {error}"))?;
+    let raw = emulator.stdout.take().ok_or("no QEMU output")?;
+    let decoder = Command::new("defmt-print")
+        .arg("-e")
+        .arg(elf)
+        .stdin(raw)
+        .stdout(Stdio::piped())
+        .spawn()
+        .map_err(|error| format!("cannot start defmt-print: {error}"))?;
+    Ok((emulator, decoder))
+}
