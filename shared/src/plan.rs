@@ -126,9 +126,11 @@ impl TickPlan {
         let n = f64::from(period_ticks);
         let d = waveform.duty;
         let root = sqrt(2.0 * d - 1.0);
+        // t1 = N(d − √(2d − 1))/2 = N(1 − d)²/(2(d + √(2d − 1))), free of cancellation.
+        let t1 = n * (1.0 - d) * (1.0 - d) / (2.0 * (d + root));
         let exact = ExactTicks {
-            t1: n * (d - root) / 2.0,
-            t2: n * (d + root) / 2.0,
+            t1,
+            t2: n * d - t1,
             t3: n * (1.0 + d) / 2.0,
         };
         let lengths = [

@@ -166,7 +166,8 @@ impl Waveform {
         let forward_s = duty * period_s;
         let backward_s = period_s - forward_s;
         let plateau_s = period_s * sqrt(2.0 * duty - 1.0);
-        let t1_s = (forward_s - plateau_s) / 2.0;
+        // t1 = (F − P)/2 = B²/(2(F + P)) by Eq. 1, without the cancellation of F − P as d → 1.
+        let t1_s = backward_s * backward_s / (2.0 * (forward_s + plateau_s));
         Waveform {
             period_s,
             duty,
@@ -176,7 +177,7 @@ impl Waveform {
             backward_s,
             plateau_s,
             t1_s,
-            t2_s: (forward_s + plateau_s) / 2.0,
+            t2_s: forward_s - t1_s,
             t3_s: forward_s + backward_s / 2.0,
             v_max_mps: accel_mps2 * t1_s,
             v_min_mps: -accel_mps2 * backward_s / 2.0,
