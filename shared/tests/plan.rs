@@ -119,7 +119,8 @@ proptest! {
             let n = f64::from(plan.period_ticks);
             let root = (2.0 * duty - 1.0).sqrt();
             for (edge, exact) in [(t1, n * (duty - root) / 2.0), (t2, n * (duty + root) / 2.0), (t3, n * (1.0 + duty) / 2.0)] {
-                prop_assert!((f64::from(edge) - exact).abs() <= plan.worst_edge_offset_ticks + 1e-9);
+                // Rounding of the exact edges themselves grows with N.
+                prop_assert!((f64::from(edge) - exact).abs() <= plan.worst_edge_offset_ticks + 1e-12 * n);
             }
         }
         if shortest_ticks >= 4.0 {
