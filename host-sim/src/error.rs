@@ -15,6 +15,10 @@ pub enum SimError {
     BadRange { what: &'static str },
     /// Writing an output file failed.
     Output { path: String, reason: String },
+    /// Reading an input (file or stream) failed.
+    Input { source: String, reason: String },
+    /// A firmware-in-the-loop run did not match the shared plan (details in the report).
+    CheckFailed { problems: usize },
 }
 
 impl fmt::Display for SimError {
@@ -28,6 +32,11 @@ impl fmt::Display for SimError {
             ),
             SimError::BadRange { what } => write!(f, "{what}"),
             SimError::Output { path, reason } => write!(f, "cannot write {path}: {reason}"),
+            SimError::Input { source, reason } => write!(f, "cannot read {source}: {reason}"),
+            SimError::CheckFailed { problems } => write!(
+                f,
+                "the firmware-in-the-loop check failed with {problems} problem(s), listed above"
+            ),
         }
     }
 }

@@ -21,6 +21,8 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::io::BufRead;
 
+use serde::Serialize;
+
 use feeder_shared::{
     Drive, Limits, Scheduler, Segment, SegmentKind, TickClock, TickPlan, Waveform, WaveformSpec,
 };
@@ -508,6 +510,19 @@ pub struct PartReport {
     pub plate_drift_m: f64,
     /// Seconds of firmware time simulated.
     pub duration_s: f64,
+    /// Every cycle (and idle period) of the run.
+    pub cycles: Vec<CyclePoint>,
+}
+
+/// One cycle of a simulated run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CyclePoint {
+    pub start_s: f64,
+    pub duration_s: f64,
+    /// Mean part velocity.
+    pub part_velocity_mps: f64,
+    /// Mean plate velocity: zero for a cycle that returns the plate to its start.
+    pub plate_velocity_mps: f64,
 }
 
 /// Simulates the part on the edges: each level holds from its edge to the next edge (the last
@@ -574,6 +589,22 @@ pub fn simulate(edges: &[Edge], clock_hz: u32, contact: &Contact, times: EdgeTim
         .map(|(stats, _)| stats.mean_velocity_mps * stats.duration_s)
         .sum();
     let plate_window_m: f64 = window.iter().map(|(_, plate_m)| plate_m).sum();
+    let mut start_s = 0.0;
+    let cycles = run
+        .cycle_stats
+        .iter()
+        .zip(&plate_m)
+        .map(|(stats, plate_m)| {
+            let point = CyclePoint {
+                start_s,
+                duration_s: stats.duration_s,
+                part_velocity_mps: stats.mean_velocity_mps,
+                plate_velocity_mps: plate_m / stats.duration_s,
+            };
+            start_s += stats.duration_s;
+            point
+        })
+        .collect();
     PartReport {
         feed_rate_mps: mean(part_m),
         feed_rate_relative_mps: mean(part_m - plate_window_m),
@@ -592,6 +623,7 @@ pub fn simulate(edges: &[Edge], clock_hz: u32, contact: &Contact, times: EdgeTim
         plate_excursion_m: run.plate_excursion_m,
         plate_drift_m: plate_m.iter().sum(),
         duration_s: segments.iter().map(|segment| segment.duration_s).sum(),
+        cycles,
     }
 }
 

@@ -1,0 +1,234 @@
+//! `host-sim hil`: read a running firmware's decoded event stream, check every edge against the
+//! shared scheduler and simulate the part on the recorded edges.
+
+use std::io::BufReader;
+use std::path::PathBuf;
+
+use clap::Args;
+use host_sim::hil::{self, CheckReport, Checker, EdgeTimes, PartReport};
+use host_sim::SimError;
+use serde::Serialize;
+
+use crate::plot::{self, Labels, Mark, Series};
+use crate::{print_json, write_csv, ContactArgs, OutputArgs};
+
+#[derive(Args)]
+pub struct HilArgs {
+    /// Decoded event stream (defmt-print or probe-rs output); standard input by default.
+    #[arg(long, value_name = "FILE")]
+    input: Option<PathBuf>,
+    #[command(flatten)]
+    contact: ContactArgs,
+    #[command(flatten)]
+    output: OutputArgs,
+}
+
+#[derive(Serialize)]
+struct HilReport {
+    passed: bool,
+    edges: u64,
+    matched: u64,
+    missing: u64,
+    unexpected: u64,
+    glitches: u64,
+    motion_cycles: u64,
+    max_deviation_ticks: i64,
+    /// `[deviation in ticks, edges]`, ascending.
+    deviation_histogram: Vec<(i64, u64)>,
+    problems: Vec<String>,
+    firmware_errors: Vec<String>,
+    clock_hz: u32,
+    /// The part on the edges' actual times.
+    actual: PartSummary,
+    /// The part on the scheduler's planned ticks.
+    planned: PartSummary,
+}
+
+#[derive(Serialize)]
+struct PartSummary {
+    feed_rate_mps: f64,
+    feed_rate_relative_mps: f64,
+    steady_cycles: usize,
+    stick_fraction: f64,
+    part_travel_m: f64,
+    plate_excursion_m: f64,
+    plate_drift_m: f64,
+    duration_s: f64,
+}
+
+impl From<&PartReport> for PartSummary {
+    fn from(part: &PartReport) -> Self {
+        PartSummary {
+            feed_rate_mps: part.feed_rate_mps,
+            feed_rate_relative_mps: part.feed_rate_relative_mps,
+            steady_cycles: part.steady_cycles,
+            stick_fraction: part.stick_fraction,
+            part_travel_m: part.part_travel_m,
+            plate_excursion_m: part.plate_excursion_m,
+            plate_drift_m: part.plate_drift_m,
+            duration_s: part.duration_s,
+        }
+    }
+}
+
+pub fn hil(args: &HilArgs) -> Result<(), SimError> {
+    let contact = args.contact.contact()?;
+    let stream = match &args.input {
+        Some(path) => {
+            let file = std::fs::File::open(path).map_err(|error| SimError::Input {
+                source: path.display().to_string(),
+                reason: error.to_string(),
+            })?;
+            hil::read_stream(BufReader::new(file))
+        }
+        None => hil::read_stream(std::io::stdin().lock()),
+    }
+    .map_err(|error| SimError::Input {
+        source: "the event stream".into(),
+        reason: error.to_string(),
+    })?;
+    let mut checker = Checker::new();
+    for event in &stream.events {
+        checker.feed(event);
+    }
+    let (check, edges, clock_hz) = checker.finish();
+    let actual = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Actual);
+    let planned = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Planned);
+    let passed = check.passed() && stream.errors.is_empty();
+    let report = HilReport {
+        passed,
+        edges: check.edges,
+        matched: check.matched,
+        missing: check.missing,
+        unexpected: check.unexpected,
+        glitches: check.glitches,
+        motion_cycles: check.motion_cycles,
+        max_deviation_ticks: check.max_deviation_ticks(),
+        deviation_histogram: check
+            .deviation_histogram
+            .iter()
+            .map(|(d, n)| (*d, *n))
+            .collect(),
+        problems: check.problems.clone(),
+        firmware_errors: stream.errors.clone(),
+        clock_hz,
+        actual: PartSummary::from(&actual),
+        planned: PartSummary::from(&planned),
+    };
+    if let Some(path) = &args.output.csv {
+        write_csv(path, &actual.cycles)?;
+    }
+    if let Some(path) = &args.output.plot {
+        plot_run(path, &actual, &planned)?;
+    }
+    if args.output.json {
+        print_json(&report)?;
+    } else {
+        print_report(&report, &check);
+    }
+    if passed {
+        Ok(())
+    } else {
+        Err(SimError::CheckFailed {
+            problems: check.problems.len() + stream.errors.len(),
+        })
+    }
+}
+
+fn print_report(report: &HilReport, check: &CheckReport) {
+    let microseconds = |ticks: i64| ticks as f64 * 1e6 / f64::from(report.clock_hz.max(1));
+    println!(
+        "firmware in the loop: {}",
+        if report.passed { "PASSED" } else { "FAILED" }
+    );
+    println!(
+        "  edges           {} reported, {} exactly as planned, {} missing, {} unexpected, {} glitches",
+        report.edges, report.matched, report.missing, report.unexpected, report.glitches
+    );
+    println!("  motion cycles   {}", report.motion_cycles);
+    println!(
+        "  edge latency    max {} ticks ({:.1} µs) at {} Hz; histogram (ticks: edges) {}",
+        report.max_deviation_ticks,
+        microseconds(report.max_deviation_ticks),
+        report.clock_hz,
+        report
+            .deviation_histogram
+            .iter()
+            .map(|(ticks, edges)| format!("{ticks}: {edges}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    );
+    for (name, part) in [
+        ("actual edges ", &report.actual),
+        ("planned ticks", &report.planned),
+    ] {
+        println!(
+            "  {name}   feed {:.3} mm/s ({:.3} mm/s relative to the plate, last {} cycles), stick {:.1} %, \
+             part travel {:.1} mm, plate excursion {:.4} mm, plate drift {:+.6} mm over {:.2} s",
+            part.feed_rate_mps * 1e3,
+            part.feed_rate_relative_mps * 1e3,
+            part.steady_cycles,
+            part.stick_fraction * 100.0,
+            part.part_travel_m * 1e3,
+            part.plate_excursion_m * 1e3,
+            part.plate_drift_m * 1e3,
+            part.duration_s
+        );
+    }
+    for problem in &check.problems {
+        println!("  problem: {problem}");
+    }
+    for error in &report.firmware_errors {
+        println!("  firmware: {error}");
+    }
+}
+
+/// Per-cycle mean velocities through the run: the part on both timings and the plate's drift.
+fn plot_run(
+    path: &std::path::Path,
+    actual: &PartReport,
+    planned: &PartReport,
+) -> Result<(), SimError> {
+    let series =
+        |name: &str, part: &PartReport, value: fn(&hil::CyclePoint) -> f64, mark, color| Series {
+            name: name.into(),
+            points: part
+                .cycles
+                .iter()
+                .map(|cycle| (cycle.start_s, value(cycle) * 1e3))
+                .collect(),
+            mark,
+            color,
+        };
+    plot::chart(
+        path,
+        Labels {
+            title: "Firmware in the loop: mean velocity per cycle",
+            x: "time (s)",
+            y: "velocity (mm/s)",
+        },
+        &[
+            series(
+                "part, actual edges",
+                actual,
+                |c| c.part_velocity_mps,
+                Mark::Line,
+                0,
+            ),
+            series(
+                "part, planned ticks",
+                planned,
+                |c| c.part_velocity_mps,
+                Mark::DashedLine,
+                2,
+            ),
+            series(
+                "plate, actual edges",
+                actual,
+                |c| c.plate_velocity_mps,
+                Mark::Line,
+                1,
+            ),
+        ],
+    )
+}
