@@ -52,6 +52,8 @@ pub struct RunOptions {
     pub record_cycles: bool,
     /// Keep the event trace (plate and part velocity at every event).
     pub trace: bool,
+    /// Part velocity relative to the plate at the start (0: the part rests on the plate).
+    pub initial_rel_velocity_mps: f64,
 }
 
 impl RunOptions {
@@ -61,6 +63,7 @@ impl RunOptions {
             fixed_cycles: None,
             record_cycles: false,
             trace: false,
+            initial_rel_velocity_mps: 0.0,
         }
     }
 }
@@ -304,11 +307,11 @@ impl Observer for TraceObserver<'_> {
     }
 }
 
-/// Repeats `table` from a part at rest on the plate at rest.
+/// Repeats `table` from the plate at rest and the part at the initial relative velocity.
 pub fn run_table(table: &CycleTable, options: &RunOptions) -> RunResult {
     let mut recorder = Recorder::new(options);
     let mut trace = Vec::new();
-    let mut w = 0.0;
+    let mut w = options.initial_rel_velocity_mps;
     if options.trace {
         run_table_traced(table, &mut recorder, &mut w, &mut trace);
     } else {
@@ -377,8 +380,8 @@ fn run_table_traced(
 /// Up to this many distinct plate accelerations keep their [`Rates`] cached.
 const RATE_CACHE: usize = 8;
 
-/// Consumes `segments` (which must start a cycle with their first element) from a part at rest
-/// on the plate at rest. Stops at convergence, after the fixed cycle count, or when the segments
+/// Consumes `segments` (which must start a cycle with their first element) from the plate at
+/// rest and the part at the initial relative velocity. Stops at convergence, after the fixed cycle count, or when the segments
 /// run out.
 pub fn run_segments<I>(segments: I, contact: &Contact, options: &RunOptions) -> RunResult
 where
@@ -388,7 +391,7 @@ where
     let mut trace = Vec::new();
     let mut plate = PlateKinematics::default();
     let mut cache: Vec<(u64, Rates)> = Vec::with_capacity(RATE_CACHE);
-    let mut w = 0.0;
+    let mut w = options.initial_rel_velocity_mps;
     let mut cycle_open = false;
     let mut cycle_start_s = 0.0;
     let mut cycle_start_m = 0.0;

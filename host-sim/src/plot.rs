@@ -1,0 +1,152 @@
+//! Line and scatter charts as SVG or PNG (by file extension). PNG text is rendered with the
+//! embedded DejaVu Sans font, so no system font is needed.
+
+use std::path::Path;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::FontStyle;
+
+use host_sim::SimError;
+
+const SIZE: (u32, u32) = (960, 600);
+const FONT: &str = "sans-serif";
+const PALETTE: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(23, 190, 207),
+];
+
+/// How a series is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mark {
+    Line,
+    DashedLine,
+    Points,
+}
+
+/// One named series of `(x, y)` points with a palette colour index.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Series {
+    pub name: String,
+    pub points: Vec<(f64, f64)>,
+    pub mark: Mark,
+    pub color: usize,
+}
+
+/// Titles of a chart.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Labels<'a> {
+    pub title: &'a str,
+    pub x: &'a str,
+    pub y: &'a str,
+}
+
+/// Writes the chart to `path`: `.svg` or `.png`.
+pub fn chart(path: &Path, labels: Labels<'_>, series: &[Series]) -> Result<(), SimError> {
+    let failure = |reason: String| SimError::Output {
+        path: path.display().to_string(),
+        reason,
+    };
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    // Both backends lay text out with the embedded font's metrics.
+    plotters::style::register_font(FONT, FontStyle::Normal, dejavu::sans::regular())
+        .map_err(|_| failure("the embedded font is unreadable".into()))?;
+    match extension.as_deref() {
+        Some("svg") => {
+            let root = SVGBackend::new(path, SIZE).into_drawing_area();
+            draw(&root, labels, series).map_err(failure)?;
+            root.present().map_err(|e| failure(e.to_string()))
+        }
+        Some("png") => {
+            let root = BitMapBackend::new(path, SIZE).into_drawing_area();
+            draw(&root, labels, series).map_err(failure)?;
+            root.present().map_err(|e| failure(e.to_string()))
+        }
+        _ => Err(failure("the plot file must end in .svg or .png".into())),
+    }
+}
+
+fn draw<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    labels: Labels<'_>,
+    series: &[Series],
+) -> Result<(), String> {
+    let text = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    root.fill(&WHITE).map_err(text)?;
+    let (x_range, y_range) = bounds(series);
+    let mut chart = ChartBuilder::on(root)
+        .caption(labels.title, (FONT, 22))
+        .margin(16)
+        .x_label_area_size(48)
+        .y_label_area_size(72)
+        .build_cartesian_2d(x_range, y_range)
+        .map_err(text)?;
+    chart
+        .configure_mesh()
+        .x_desc(labels.x)
+        .y_desc(labels.y)
+        .label_style((FONT, 14))
+        .axis_desc_style((FONT, 16))
+        .light_line_style(RGBColor(235, 235, 235))
+        .draw()
+        .map_err(text)?;
+    for one in series {
+        let color = PALETTE[one.color % PALETTE.len()];
+        let points = one.points.iter().copied();
+        let drawn = match one.mark {
+            Mark::Line => chart.draw_series(LineSeries::new(points, color.stroke_width(2))),
+            Mark::DashedLine => {
+                chart.draw_series(DashedLineSeries::new(points, 8, 5, color.stroke_width(2)))
+            }
+            Mark::Points => {
+                chart.draw_series(points.map(|point| Circle::new(point, 3, color.filled())))
+            }
+        }
+        .map_err(text)?;
+        drawn
+            .label(one.name.as_str())
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], color.stroke_width(2)));
+    }
+    chart
+        .configure_series_labels()
+        .label_font((FONT, 14))
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(text)?;
+    Ok(())
+}
+
+/// Axis ranges covering every finite point, with a little margin.
+fn bounds(series: &[Series]) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
+    let points = series
+        .iter()
+        .flat_map(|s| s.points.iter())
+        .filter(|p| p.0.is_finite() && p.1.is_finite());
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+    for &(x, y) in points {
+        x0 = x0.min(x);
+        x1 = x1.max(x);
+        y0 = y0.min(y);
+        y1 = y1.max(y);
+    }
+    if x0 > x1 {
+        return (0.0..1.0, 0.0..1.0);
+    }
+    let pad = |low: f64, high: f64| {
+        let span = if high > low {
+            high - low
+        } else {
+            low.abs().max(1e-9)
+        };
+        (low - 0.04 * span)..(high + 0.04 * span)
+    };
+    (pad(x0, x1), pad(y0, y1))
+}
