@@ -551,7 +551,9 @@ fn viscosity(args: &ViscosityArgs) -> Result<(), SimError> {
         args.mass_kg,
         0.0,
     )?;
-    if args.points < 2 || !(args.force_max_n > args.force_min_n) {
+    if args.points < 2
+        || args.force_max_n.partial_cmp(&args.force_min_n) != Some(std::cmp::Ordering::Greater)
+    {
         return Err(SimError::BadRange {
             what: "the force range needs --points ≥ 2 and --force-max-n above --force-min-n",
         });
@@ -652,7 +654,10 @@ fn plot_viscosity(path: &Path, fit: &Viscosity) -> Result<(), SimError> {
 }
 
 fn saturation(args: &SaturationArgs) -> Result<(), SimError> {
-    if args.points < 2 || !(args.accel_max_mps2 > args.accel_min_mps2) {
+    if args.points < 2
+        || args.accel_max_mps2.partial_cmp(&args.accel_min_mps2)
+            != Some(std::cmp::Ordering::Greater)
+    {
         return Err(SimError::BadRange {
             what: "the a_max range needs --points ≥ 2 and --accel-max-mps2 above --accel-min-mps2",
         });
