@@ -17,6 +17,9 @@ pub struct HilArgs {
     /// Decoded event stream (defmt-print or probe-rs output); standard input by default.
     #[arg(long, value_name = "FILE")]
     input: Option<PathBuf>,
+    /// The log was cut off by hand (a board run): do not require the `end` event.
+    #[arg(long)]
+    open_ended: bool,
     #[command(flatten)]
     contact: ContactArgs,
     #[command(flatten)]
@@ -91,7 +94,7 @@ pub fn hil(args: &HilArgs) -> Result<(), SimError> {
     for event in &stream.events {
         checker.feed(event);
     }
-    let (check, edges, clock_hz) = checker.finish();
+    let (check, edges, clock_hz) = checker.finish(!args.open_ended);
     let actual = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Actual);
     let planned = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Planned);
     let passed = check.passed() && stream.errors.is_empty();

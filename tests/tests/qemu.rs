@@ -134,7 +134,7 @@ fn thousand_cycles(frequency_hz: &str, stroke_m: &str) {
     for event in &stream.events {
         checker.feed(event);
     }
-    let (report, edges, clock_hz) = checker.finish();
+    let (report, edges, clock_hz) = checker.finish(true);
     assert!(report.passed(), "edge check failed: {:?}", report.problems);
     assert_eq!(
         report.matched, report.edges,

@@ -1,7 +1,6 @@
 //! `cargo xtask <command>`: the project's two entry points and their helpers.
 //!
-//! * `run`  — the main job: the firmware under QEMU drives the simulated plate and part
-//!   (`run --board`: the firmware on a NUCLEO-G474RE through probe-rs instead).
+//! * `run`  — the main job: the firmware under QEMU drives the simulated plate and part.
 //! * `test` — the whole test suite: host tests, the `no_std` crate and the firmware for
 //!   `thumbv7em-none-eabihf`, the firmware size budget, and the firmware-in-the-loop scenarios
 //!   under QEMU.
@@ -14,7 +13,7 @@ mod qemu;
 mod size;
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, ExitCode, Stdio};
+use std::process::{Command, ExitCode};
 
 const THUMB_TARGET: &str = "thumbv7em-none-eabihf";
 
@@ -93,20 +92,17 @@ fn ensure_thumb_target() -> Result {
     exec(Command::new("rustup").args(["target", "add", THUMB_TARGET]))
 }
 
-/// The firmware (QEMU by default, the board with `--board`) piped through the defmt decoder into
-/// `host-sim hil`, which checks every edge and simulates the part on the actual edge times.
+/// The firmware under QEMU piped through the defmt decoder into `host-sim hil`, which checks
+/// every edge and simulates the part on the actual edge times. Scenario settings (`key=value`)
+/// come first, `hil` flags after `--`.
 fn run(args: &[String]) -> Result {
-    let (ours, hil_flags) = match args.iter().position(|arg| arg == "--") {
+    let (scenario, hil_flags) = match args.iter().position(|arg| arg == "--") {
         Some(split) => (&args[..split], &args[split + 1..]),
         None => (args, &[][..]),
     };
-    let on_board = ours.iter().any(|arg| arg == "--board");
-    let scenario: Vec<String> = ours
-        .iter()
-        .filter(|arg| *arg != "--board")
-        .cloned()
-        .collect();
     ensure_thumb_target()?;
+    qemu::ensure_tools()?;
+    let elf = qemu::build_firmware(qemu::Image::Scripted)?;
     exec(cargo().args(["build", "--release", "--locked", "--package", "host-sim"]))?;
     let mut hil = cargo();
     hil.args([
@@ -124,31 +120,13 @@ fn run(args: &[String]) -> Result {
             .arg(root().join("target").join("hil-run.svg"));
     }
     hil.args(hil_flags);
-    let (mut firmware, mut decoder) = if on_board {
-        let mut board = firmware_cargo();
-        board
-            .args(["run", "--release", "--locked", "--features", "hil-trace"])
-            .stdout(Stdio::piped());
-        let mut board = board
-            .spawn()
-            .map_err(|error| format!("cannot start the board run: {error}"))?;
-        let log = board.stdout.take().ok_or("no board output")?;
-        hil.stdin(log);
-        (board, None)
-    } else {
-        qemu::ensure_tools()?;
-        let elf = qemu::build_firmware(qemu::Image::Scripted)?;
-        let (emulator, mut decoder) = qemu::spawn_decoded(&elf, &scenario)?;
-        hil.stdin(decoder.stdout.take().ok_or("no decoder output")?);
-        (emulator, Some(decoder))
-    };
+    let (mut emulator, mut decoder) = qemu::spawn_decoded(&elf, scenario)?;
+    hil.stdin(decoder.stdout.take().ok_or("no decoder output")?);
     let report = hil
         .status()
         .map_err(|error| format!("cannot run host-sim hil: {error}"))?;
-    let firmware_status = firmware.wait().map_err(|error| error.to_string())?;
-    if let Some(decoder) = decoder.as_mut() {
-        decoder.wait().map_err(|error| error.to_string())?;
-    }
+    let firmware_status = emulator.wait().map_err(|error| error.to_string())?;
+    decoder.wait().map_err(|error| error.to_string())?;
     if !firmware_status.success() {
         return Err(format!("the firmware ended with {firmware_status}"));
     }
