@@ -92,9 +92,10 @@ fn ensure_thumb_target() -> Result {
     exec(Command::new("rustup").args(["target", "add", THUMB_TARGET]))
 }
 
-/// The firmware under QEMU piped through the defmt decoder into `host-sim hil`, which checks
-/// every edge and simulates the part on the actual edge times. Scenario settings (`key=value`)
-/// come first, `hil` flags after `--`.
+/// The prediction at the paper's operating point (`host-sim simulate`, with a plot), then the
+/// firmware under QEMU piped through the defmt decoder into `host-sim hil`, which checks every
+/// edge and simulates the part on the actual edge times. Scenario settings (`key=value`) come
+/// first, `hil` flags after `--`.
 fn run(args: &[String]) -> Result {
     let (scenario, hil_flags) = match args.iter().position(|arg| arg == "--") {
         Some(split) => (&args[..split], &args[split + 1..]),
@@ -104,6 +105,22 @@ fn run(args: &[String]) -> Result {
     qemu::ensure_tools()?;
     let elf = qemu::build_firmware(qemu::Image::Scripted)?;
     exec(cargo().args(["build", "--release", "--locked", "--package", "host-sim"]))?;
+    println!("Prediction at the paper's operating point (50 Hz, d = 0.586, 2.5 mm, μ = 1):");
+    exec(
+        cargo()
+            .args([
+                "run",
+                "--quiet",
+                "--release",
+                "--locked",
+                "--package",
+                "host-sim",
+                "--",
+            ])
+            .args(["simulate", "--plot"])
+            .arg(root().join("target").join("paper-operating-point.svg")),
+    )?;
+    println!("\nThe firmware under QEMU driving the simulated part:");
     let mut hil = cargo();
     hil.args([
         "run",
