@@ -5,28 +5,14 @@ use feeder_shared::number::{split_decimal, Fixed, Significant};
 use feeder_shared::protocol::{self, MAX_LINE_BYTES, REPLY_CAPACITY};
 use feeder_shared::recipe::{self, RECIPE_SLOTS, RECORD_LEN};
 use feeder_shared::{
-    Command, Drive, Error, Friction, Limits, LineAssembler, Machine, Param, Phase, Quantity,
-    RecipeSlot, Reply, ReplyError, Setting, Settings, Status, TickClock, Waveform, WaveformSpec,
+    Command, Drive, Error, Limits, LineAssembler, Machine, Param, Phase, Quantity, RecipeSlot,
+    Reply, ReplyError, Setting, Settings, Status, TickClock, Waveform, WaveformSpec,
 };
 use proptest::prelude::*;
+
+mod common;
+use common::{machine, slot};
 use std::fmt::Write as _;
-
-fn machine() -> Machine {
-    Machine {
-        limits: Limits {
-            min_frequency_hz: 20.0,
-            max_frequency_hz: 200.0,
-            max_accel_mps2: 500.0,
-            max_stroke_m: 0.005,
-        },
-        friction: Friction::new(1.0, 9.80665).unwrap(),
-        clock: TickClock::new(1_000_000),
-    }
-}
-
-fn slot(number: u8) -> RecipeSlot {
-    RecipeSlot::new(number).unwrap()
-}
 
 /// Feeds `input` and collects what each completed line asks for.
 fn feed(input: &[u8]) -> Vec<Result<Command, ReplyError>> {

@@ -1,27 +1,11 @@
 //! The recipe record: layout, CRC-32, versioning, and defaults for every unusable record.
 
 use feeder_shared::recipe::{self, crc32, FORMAT_VERSION, MAGIC, RECIPE_SLOTS, RECORD_LEN};
-use feeder_shared::{
-    Drive, Error, Friction, Limits, Machine, RecipeSlot, RecordError, Settings, TickClock,
-};
+use feeder_shared::{Drive, Error, Limits, Machine, RecipeSlot, RecordError, Settings};
 use proptest::prelude::*;
 
-fn machine() -> Machine {
-    Machine {
-        limits: Limits {
-            min_frequency_hz: 20.0,
-            max_frequency_hz: 200.0,
-            max_accel_mps2: 500.0,
-            max_stroke_m: 0.005,
-        },
-        friction: Friction::new(1.0, 9.80665).unwrap(),
-        clock: TickClock::new(1_000_000),
-    }
-}
-
-fn slot(number: u8) -> RecipeSlot {
-    RecipeSlot::new(number).unwrap()
-}
+mod common;
+use common::{machine, slot};
 
 fn sample() -> Settings {
     Settings {

@@ -78,6 +78,21 @@ fn firmware_cargo() -> Command {
     command
 }
 
+/// `host-sim` (release build) with the arguments that follow.
+fn host_sim() -> Command {
+    let mut command = cargo();
+    command.args([
+        "run",
+        "--quiet",
+        "--release",
+        "--locked",
+        "--package",
+        "host-sim",
+        "--",
+    ]);
+    command
+}
+
 fn ensure_thumb_target() -> Result {
     let installed = Command::new("rustup")
         .args(["target", "list", "--installed"])
@@ -107,31 +122,13 @@ fn run(args: &[String]) -> Result {
     exec(cargo().args(["build", "--release", "--locked", "--package", "host-sim"]))?;
     println!("Prediction at the paper's operating point (50 Hz, d = 0.586, 2.5 mm, μ = 1):");
     exec(
-        cargo()
-            .args([
-                "run",
-                "--quiet",
-                "--release",
-                "--locked",
-                "--package",
-                "host-sim",
-                "--",
-            ])
+        host_sim()
             .args(["simulate", "--plot"])
             .arg(root().join("target").join("paper-operating-point.svg")),
     )?;
     println!("\nThe firmware under QEMU driving the simulated part:");
-    let mut hil = cargo();
-    hil.args([
-        "run",
-        "--quiet",
-        "--release",
-        "--locked",
-        "--package",
-        "host-sim",
-        "--",
-        "hil",
-    ]);
+    let mut hil = host_sim();
+    hil.arg("hil");
     if !hil_flags.iter().any(|flag| flag == "--plot") {
         hil.arg("--plot")
             .arg(root().join("target").join("hil-run.svg"));
