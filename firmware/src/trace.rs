@@ -54,7 +54,8 @@ mod stream {
         defmt::println!("EVT {=str} tick={=u64}", name, tick);
     }
 
-    #[cfg(not(feature = "console"))]
+    /// The end of a scripted run (QEMU without the console).
+    #[cfg(all(feature = "board-qemu", not(feature = "console")))]
     pub fn end(tick: u64) {
         defmt::println!("EVT end tick={=u64}", tick);
     }
