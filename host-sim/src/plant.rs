@@ -188,20 +188,45 @@ pub struct Step {
     pub stick_s: f64,
 }
 
-/// Advances the relative velocity `w` through a segment of `duration_s` with `rates`, solving the
-/// meeting time in closed form, and returns the segment's integrals.
+/// A segment as [`advance`] consumes it: its duration, its [`Rates`], and the change of a sliding
+/// part's relative velocity over the whole segment on either side.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Span {
+    pub duration_s: f64,
+    pub rates: Rates,
+    /// `behind_mps2 · duration_s`.
+    pub behind_change_mps: f64,
+    /// `ahead_mps2 · duration_s`.
+    pub ahead_change_mps: f64,
+}
+
+impl Span {
+    #[inline(always)]
+    pub fn new(duration_s: f64, rates: Rates) -> Self {
+        Span {
+            duration_s,
+            rates,
+            behind_change_mps: rates.behind_mps2 * duration_s,
+            ahead_change_mps: rates.ahead_mps2 * duration_s,
+        }
+    }
+}
+
+/// Advances the relative velocity `w` through `span`, solving the meeting time in closed form,
+/// and returns the segment's integrals.
 #[inline(always)]
-pub fn advance<O: Observer>(w: &mut f64, duration_s: f64, rates: &Rates, observer: &mut O) -> Step {
+pub fn advance<O: Observer>(w: &mut f64, span: &Span, observer: &mut O) -> Step {
+    let (duration_s, rates) = (span.duration_s, &span.rates);
     let w0 = *w;
     if w0 == 0.0 {
         return release(w, 0.0, duration_s, rates, observer);
     }
-    let (rate, inv_rate) = if w0 < 0.0 {
-        (rates.behind_mps2, rates.inv_behind_s2pm)
+    let (change, inv_rate) = if w0 < 0.0 {
+        (span.behind_change_mps, rates.inv_behind_s2pm)
     } else {
-        (rates.ahead_mps2, rates.inv_ahead_s2pm)
+        (span.ahead_change_mps, rates.inv_ahead_s2pm)
     };
-    let w1 = w0 + rate * duration_s;
+    let w1 = w0 + change;
     if w1 * w0 > 0.0 {
         *w = w1;
         return Step {
@@ -209,7 +234,14 @@ pub fn advance<O: Observer>(w: &mut f64, duration_s: f64, rates: &Rates, observe
             stick_s: 0.0,
         };
     }
-    let meet_s = (-w0 * inv_rate).min(duration_s);
+    // The side's rate is not 0 here (else `w1 = w0`), so the quotient is never NaN and a plain
+    // comparison serves as the minimum.
+    let to_meet_s = -w0 * inv_rate;
+    let meet_s = if to_meet_s < duration_s {
+        to_meet_s
+    } else {
+        duration_s
+    };
     let before = 0.5 * w0 * meet_s;
     let mut step = release(w, meet_s, duration_s - meet_s, rates, observer);
     step.rel_displacement_m += before;

@@ -9,7 +9,7 @@
 
 use serde::Serialize;
 
-use crate::plant::{advance, Contact, EventKind, Observer, PlateSegment, Rates};
+use crate::plant::{advance, Contact, EventKind, Observer, PlateSegment, Rates, Span};
 
 /// When a run counts as converged.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -108,9 +108,8 @@ pub struct RunResult {
 /// One segment of a [`CycleTable`] with its precomputed rates and plate state at its start.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Entry {
-    duration_s: f64,
+    span: Span,
     accel_mps2: f64,
-    rates: Rates,
     start_offset_s: f64,
     start_plate_velocity_mps: f64,
 }
@@ -134,9 +133,8 @@ impl CycleTable {
         let mut plate = PlateKinematics::default();
         for segment in segments {
             entries.push(Entry {
-                duration_s: segment.duration_s,
+                span: Span::new(segment.duration_s, Rates::new(contact, segment.accel_mps2)),
                 accel_mps2: segment.accel_mps2,
-                rates: Rates::new(contact, segment.accel_mps2),
                 start_offset_s: plate.time_s,
                 start_plate_velocity_mps: plate.velocity_mps,
             });
@@ -200,6 +198,10 @@ struct Recorder {
     criteria: Criteria,
     fixed_cycles: Option<u64>,
     record_cycles: bool,
+    /// Blocks closing at this cycle count or later are evaluated. A run of fixed length reports
+    /// only its last block and the convergence test of the last three, so earlier blocks just
+    /// restart the sums.
+    evaluate_from_cycle: u64,
     cycles: u64,
     block_displacement_m: f64,
     block_time_s: f64,
@@ -215,10 +217,15 @@ struct Recorder {
 
 impl Recorder {
     fn new(options: &RunOptions) -> Self {
+        let evaluate_from_cycle = options.fixed_cycles.map_or(0, |cycles| {
+            let block_cycles = u64::from(options.criteria.block_cycles.max(1));
+            (cycles / block_cycles).saturating_sub(3) * block_cycles + 1
+        });
         Recorder {
             criteria: options.criteria,
             fixed_cycles: options.fixed_cycles,
             record_cycles: options.record_cycles,
+            evaluate_from_cycle,
             cycles: 0,
             block_displacement_m: 0.0,
             block_time_s: 0.0,
@@ -255,9 +262,21 @@ impl Recorder {
         self.block_stick_s += stick_s;
         self.block_len += 1;
         if self.block_len >= self.criteria.block_cycles {
-            self.close_block();
+            if self.cycles >= self.evaluate_from_cycle {
+                self.close_block();
+            } else {
+                self.restart_block();
+            }
         }
         (self.converged && self.fixed_cycles.is_none()) || self.cycles >= self.limit()
+    }
+
+    #[inline(always)]
+    fn restart_block(&mut self) {
+        self.block_displacement_m = 0.0;
+        self.block_time_s = 0.0;
+        self.block_stick_s = 0.0;
+        self.block_len = 0;
     }
 
     #[inline(never)]
@@ -265,10 +284,7 @@ impl Recorder {
         let mean = self.block_displacement_m / self.block_time_s;
         self.feed_rate_mps = mean;
         self.stick_fraction = self.block_stick_s / self.block_time_s;
-        self.block_displacement_m = 0.0;
-        self.block_time_s = 0.0;
-        self.block_stick_s = 0.0;
-        self.block_len = 0;
+        self.restart_block();
         let Some(last) = self.last_mean_mps.replace(mean) else {
             return;
         };
@@ -329,7 +345,7 @@ fn run_table_fast(table: &CycleTable, recorder: &mut Recorder, w: &mut f64) {
         let mut displacement = table.plate_displacement_m;
         let mut stick = 0.0;
         for entry in &table.entries {
-            let step = advance(w, entry.duration_s, &entry.rates, &mut ());
+            let step = advance(w, &entry.span, &mut ());
             displacement += step.rel_displacement_m;
             stick += step.stick_s;
         }
@@ -360,7 +376,7 @@ fn run_table_traced(
                 accel_mps2: entry.accel_mps2,
             };
             observer.event(EventKind::Edge, 0.0, *w);
-            let step = advance(w, entry.duration_s, &entry.rates, &mut observer);
+            let step = advance(w, &entry.span, &mut observer);
             displacement += step.rel_displacement_m;
             stick += step.stick_s;
         }
@@ -414,7 +430,10 @@ where
             }
         }
         cycle_open = true;
-        let rates = cached_rates(&mut cache, contact, segment.accel_mps2);
+        let span = Span::new(
+            segment.duration_s,
+            cached_rates(&mut cache, contact, segment.accel_mps2),
+        );
         let step = if options.trace {
             let mut observer = TraceObserver {
                 points: &mut trace,
@@ -423,9 +442,9 @@ where
                 accel_mps2: segment.accel_mps2,
             };
             observer.event(EventKind::Edge, 0.0, w);
-            advance(&mut w, segment.duration_s, &rates, &mut observer)
+            advance(&mut w, &span, &mut observer)
         } else {
-            advance(&mut w, segment.duration_s, &rates, &mut ())
+            advance(&mut w, &span, &mut ())
         };
         rel_displacement += step.rel_displacement_m;
         stick += step.stick_s;
