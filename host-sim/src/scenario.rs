@@ -30,6 +30,11 @@ pub const TICK_REL_TOL: f64 = 1e-6;
 /// rounded to one tick in 10⁴–10⁵ move a 64-cycle mean by about 10⁻⁵.
 pub const TICK_REL_NOISE: f64 = 1e-4;
 
+/// Below this share of the velocity scale `a_max·T/4` a tick plan's noise allowance no longer
+/// shrinks with the feed rate: saturated parts feeding at a few percent of the scale still see
+/// quantization noise of the scale's order.
+pub const TICK_NOISE_FLOOR: f64 = 0.1;
+
 /// Everything needed to simulate one operating point.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OperatingPoint {
@@ -71,6 +76,7 @@ impl OperatingPoint {
                 rel_tol: TICK_REL_TOL,
                 abs_tol_mps: TICK_REL_TOL * 1e-3 * scale,
                 rel_noise: TICK_REL_NOISE,
+                noise_floor_mps: TICK_NOISE_FLOOR * scale,
                 block_cycles: TICK_BLOCK_CYCLES,
                 max_cycles: 1_000_000,
             },

@@ -18,6 +18,9 @@ pub struct Criteria {
     pub rel_tol: f64,
     /// Absolute floor of the tolerance, for feed rates at or near zero.
     pub abs_tol_mps: f64,
+    /// Velocity below which the noise allowance stops shrinking with the mean (slow, sticking
+    /// parts on a tick plan vary by a share of the waveform's velocity scale, not of their mean).
+    pub noise_floor_mps: f64,
     /// Relative block-to-block change accepted as noise rather than transient (two blocks in a
     /// row); 0 for a strictly periodic waveform.
     pub rel_noise: f64,
@@ -36,6 +39,7 @@ impl Criteria {
             rel_tol,
             abs_tol_mps: rel_tol * 1e-3 * velocity_scale_mps,
             rel_noise: 0.0,
+            noise_floor_mps: 0.0,
             block_cycles: 1,
             max_cycles: 1_000_000,
         }
@@ -290,7 +294,7 @@ impl Recorder {
         };
         let delta = (mean - last).abs();
         let tol = (self.criteria.rel_tol * mean.abs()).max(self.criteria.abs_tol_mps);
-        let noise = self.criteria.rel_noise * mean.abs();
+        let noise = self.criteria.rel_noise * mean.abs().max(self.criteria.noise_floor_mps);
         // A geometric approach (ratio ρ) has at most |Δ|·ρ/(1 − ρ) left to go.
         self.converged = delta == 0.0
             || self.last_delta_mps.is_some_and(|previous| {
