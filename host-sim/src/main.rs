@@ -464,14 +464,10 @@ fn sweep(args: &SweepArgs) -> Result<(), SimError> {
         &|| progress.inc(1),
     )?;
     progress.finish_and_clear();
-    if let Some(path) = &args.output.csv {
-        write_csv(path, &points)?;
-    }
-    if let Some(path) = &args.output.plot {
-        plot_sweep(path, args, &points)?;
-    }
-    if args.output.json {
-        return print_json(&points);
+    if emit(&args.output, &points, |path| {
+        plot_sweep(path, args, &points)
+    })? {
+        return Ok(());
     }
     println!(
         "{:>10} {:>7} {:>12} {:>12} {:>12} {:>8} {:>7}",
@@ -674,14 +670,10 @@ fn saturation(args: &SaturationArgs) -> Result<(), SimError> {
         progress.inc(1)
     })?;
     progress.finish_and_clear();
-    if let Some(path) = &args.output.csv {
-        write_csv(path, &points)?;
-    }
-    if let Some(path) = &args.output.plot {
-        plot_saturation(path, args, &points)?;
-    }
-    if args.output.json {
-        return print_json(&points);
+    if emit(&args.output, &points, |path| {
+        plot_saturation(path, args, &points)
+    })? {
+        return Ok(());
     }
     println!(
         "{:>6} {:>10} {:>12} {:>12}",
@@ -826,6 +818,25 @@ fn progress(total: usize, json: bool) -> ProgressBar {
         bar.set_style(style);
     }
     bar
+}
+
+/// Writes the CSV and the plot a command asked for, and prints the JSON; `true` when the JSON
+/// replaces the human-readable report.
+fn emit<T: Serialize>(
+    output: &OutputArgs,
+    rows: &[T],
+    plot: impl FnOnce(&Path) -> Result<(), SimError>,
+) -> Result<bool, SimError> {
+    if let Some(path) = &output.csv {
+        write_csv(path, rows)?;
+    }
+    if let Some(path) = &output.plot {
+        plot(path)?;
+    }
+    if output.json {
+        print_json(rows)?;
+    }
+    Ok(output.json)
 }
 
 fn print_json<T: Serialize + ?Sized>(value: &T) -> Result<(), SimError> {

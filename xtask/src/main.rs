@@ -174,38 +174,29 @@ fn test() -> Result {
     firmware_size()?;
     qemu::ensure_tools()?;
     let scripted = qemu::build_firmware(qemu::Image::Scripted)?;
-    exec(
-        cargo()
-            .args([
-                "test",
-                "--locked",
-                "--package",
-                "feeder-tests",
-                "--test",
-                "qemu",
-                "--",
-                "--ignored",
-            ])
-            .env("FEEDER_QEMU_ELF", &scripted),
-    )?;
+    ignored_tests("feeder-tests", "qemu", &scripted)?;
     let console = qemu::build_firmware(qemu::Image::Console)?;
+    ignored_tests("feeder-ctl", "qemu_session", &console)
+}
+
+/// Runs the tests of `package`'s `test` target that need the QEMU firmware `elf`.
+fn ignored_tests(package: &str, test: &str, elf: &Path) -> Result {
     exec(
         cargo()
             .args([
                 "test",
                 "--locked",
                 "--package",
-                "feeder-ctl",
+                package,
                 "--test",
-                "qemu_session",
+                test,
                 "--",
                 "--ignored",
             ])
-            .env("FEEDER_QEMU_ELF", &console),
+            .env("FEEDER_QEMU_ELF", elf),
     )
 }
 
-/// The board images against their budgets: the default one and the one with the console.
 fn firmware_size() -> Result {
     for (image, directory, budget) in [
         ("default", "target", size::DEFAULT_BUDGET),
