@@ -547,19 +547,11 @@ fn viscosity(args: &ViscosityArgs) -> Result<(), SimError> {
         args.mass_kg,
         0.0,
     )?;
-    if args.points < 2
-        || args.force_max_n.partial_cmp(&args.force_min_n) != Some(std::cmp::Ordering::Greater)
-    {
-        return Err(SimError::BadRange {
+    let forces = evenly_spaced(args.force_min_n, args.force_max_n, args.points).ok_or(
+        SimError::BadRange {
             what: "the force range needs --points ≥ 2 and --force-max-n above --force-min-n",
-        });
-    }
-    let forces: Vec<f64> = (0..args.points)
-        .map(|i| {
-            let fraction = i as f64 / (args.points - 1) as f64;
-            args.force_min_n + fraction * (args.force_max_n - args.force_min_n)
-        })
-        .collect();
+        },
+    )?;
     let spec = WaveformSpec::from_frequency(
         args.freq_hz,
         args.duty,
@@ -649,21 +641,26 @@ fn plot_viscosity(path: &Path, fit: &Viscosity) -> Result<(), SimError> {
     plot::chart(path, labels, &series)
 }
 
-fn saturation(args: &SaturationArgs) -> Result<(), SimError> {
-    if args.points < 2
-        || args.accel_max_mps2.partial_cmp(&args.accel_min_mps2)
-            != Some(std::cmp::Ordering::Greater)
-    {
-        return Err(SimError::BadRange {
-            what: "the a_max range needs --points ≥ 2 and --accel-max-mps2 above --accel-min-mps2",
-        });
+/// `points` values from `low` to `high`, both included; `None` unless `points ≥ 2` and
+/// `high > low` (NaN bounds included).
+fn evenly_spaced(low: f64, high: f64, points: usize) -> Option<Vec<f64>> {
+    if points < 2 || high.partial_cmp(&low) != Some(std::cmp::Ordering::Greater) {
+        return None;
     }
-    let accels: Vec<f64> = (0..args.points)
-        .map(|i| {
-            let fraction = i as f64 / (args.points - 1) as f64;
-            args.accel_min_mps2 + fraction * (args.accel_max_mps2 - args.accel_min_mps2)
-        })
-        .collect();
+    let span = high - low;
+    Some(
+        (0..points)
+            .map(|i| low + span * (i as f64 / (points - 1) as f64))
+            .collect(),
+    )
+}
+
+fn saturation(args: &SaturationArgs) -> Result<(), SimError> {
+    let accels = evenly_spaced(args.accel_min_mps2, args.accel_max_mps2, args.points).ok_or(
+        SimError::BadRange {
+            what: "the a_max range needs --points ≥ 2 and --accel-max-mps2 above --accel-min-mps2",
+        },
+    )?;
     let contact = Contact::new(1.0, 1.0, args.gravity_mps2, 1e-4, 0.0)?;
     let progress = progress(accels.len() * args.mu.len(), args.output.json);
     let points = figures::saturation(1.0 / args.freq_hz, &accels, &args.mu, &contact, &|| {
