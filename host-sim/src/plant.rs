@@ -214,18 +214,47 @@ impl Span {
 
 /// Advances the relative velocity `w` through `span`, solving the meeting time in closed form,
 /// and returns the segment's integrals.
+///
+/// Each side of the plate has its own branch: the side a part slides on is well predicted, and a
+/// branch keeps it off the dependency chain through `w` that a selected operand would lengthen.
 #[inline(always)]
 pub fn advance<O: Observer>(w: &mut f64, span: &Span, observer: &mut O) -> Step {
-    let (duration_s, rates) = (span.duration_s, &span.rates);
     let w0 = *w;
     if w0 == 0.0 {
-        return release(w, 0.0, duration_s, rates, observer);
-    }
-    let (change, inv_rate) = if w0 < 0.0 {
-        (span.behind_change_mps, rates.inv_behind_s2pm)
+        release(w, 0.0, span.duration_s, &span.rates, observer)
+    } else if w0 < 0.0 {
+        slide(
+            w,
+            w0,
+            span.behind_change_mps,
+            span.rates.inv_behind_s2pm,
+            span,
+            observer,
+        )
     } else {
-        (span.ahead_change_mps, rates.inv_ahead_s2pm)
-    };
+        slide(
+            w,
+            w0,
+            span.ahead_change_mps,
+            span.rates.inv_ahead_s2pm,
+            span,
+            observer,
+        )
+    }
+}
+
+/// A part sliding at `w0 ≠ 0` through `span` on the side whose velocity change over the whole
+/// segment is `change` and whose reciprocal rate is `inv_rate`.
+#[inline(always)]
+fn slide<O: Observer>(
+    w: &mut f64,
+    w0: f64,
+    change: f64,
+    inv_rate: f64,
+    span: &Span,
+    observer: &mut O,
+) -> Step {
+    let duration_s = span.duration_s;
     let w1 = w0 + change;
     if w1 * w0 > 0.0 {
         *w = w1;
@@ -243,7 +272,7 @@ pub fn advance<O: Observer>(w: &mut f64, span: &Span, observer: &mut O) -> Step 
         duration_s
     };
     let before = 0.5 * w0 * meet_s;
-    let mut step = release(w, meet_s, duration_s - meet_s, rates, observer);
+    let mut step = release(w, meet_s, duration_s - meet_s, &span.rates, observer);
     step.rel_displacement_m += before;
     step
 }
