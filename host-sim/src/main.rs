@@ -18,6 +18,14 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use plot::{Labels, Mark, Series};
 use serde::Serialize;
 
+/// Prints a line to stdout; a closed pipe (`host-sim … | head`) ends the output quietly.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout().lock(), $($arg)*);
+    }};
+}
+
 /// Timer clock of the tick plan when neither `--clock-hz` nor `--exact-times` is given.
 const DEFAULT_CLOCK_HZ: u32 = 1_000_000;
 /// Upper end of the swept duties: closer to 1 the first `+a` segment, `T(1 − d)²/(2(d + P/T))`,
@@ -134,6 +142,14 @@ impl TimingArgs {
 }
 
 #[derive(Args, Clone)]
+struct AnalysisTimingArgs {
+    /// Drive the plate with the shared scheduler's tick plan at this timer clock instead of the
+    /// waveform's exact switching times.
+    #[arg(long)]
+    clock_hz: Option<u32>,
+}
+
+#[derive(Args, Clone)]
 struct OutputArgs {
     /// Print one JSON document instead of the human-readable report.
     #[arg(long)]
@@ -174,7 +190,7 @@ struct SweepArgs {
     #[command(flatten)]
     contact: ContactArgs,
     #[command(flatten)]
-    timing: TimingArgs,
+    timing: AnalysisTimingArgs,
     #[command(flatten)]
     output: OutputArgs,
 }
@@ -207,7 +223,7 @@ struct ViscosityArgs {
     #[arg(long, default_value_t = 31)]
     points: usize,
     #[command(flatten)]
-    timing: TimingArgs,
+    timing: AnalysisTimingArgs,
     #[command(flatten)]
     output: OutputArgs,
 }
@@ -381,19 +397,25 @@ fn print_simulation(report: &SimulateReport, point: &OperatingPoint, output: &Ou
         report.accel_mps2,
         report.accel_mps2 / report.gravity_mps2
     );
-    println!(
+    say!(
         "operating point   {} Hz, d = {}, {drive}",
-        report.freq_hz, report.duty
+        report.freq_hz,
+        report.duty
     );
-    println!(
+    say!(
         "contact           μ = {}, μ_s = {}, g = {} m/s², m = {} kg, f_ext = {} N",
-        report.mu, report.mu_static, report.gravity_mps2, report.mass_kg, report.force_n
+        report.mu,
+        report.mu_static,
+        report.gravity_mps2,
+        report.mass_kg,
+        report.force_n
     );
     match point.timing {
-        Timing::Exact => println!("timing            exact switching times"),
-        Timing::Ticks(plan) => println!(
+        Timing::Exact => say!("timing            exact switching times"),
+        Timing::Ticks(plan) => say!(
             "timing            tick plan, {} Hz clock, {} ticks per period",
-            plan.clock_hz, plan.period_ticks
+            plan.clock_hz,
+            plan.period_ticks
         ),
     }
     let equation = match point.model().regime {
@@ -401,36 +423,37 @@ fn print_simulation(report: &SimulateReport, point: &OperatingPoint, output: &Ou
         Regime::Sliding => "Eq. 15",
         Regime::Saturated => "Eq. 18",
     };
-    println!(
+    say!(
         "feed rate         {:.6} mm/s (simulated)",
         report.feed_rate_mps * 1e3
     );
     match report.model_feed_rate_mps {
         Some(model) => {
-            println!(
+            say!(
                 "model             {:.6} mm/s ({equation}, {} regime, d_sat,nqs = {:.4})",
                 model * 1e3,
                 report.regime,
                 report.duty_sat_nqs
             );
             if model != 0.0 {
-                println!(
+                say!(
                     "difference        {:.2e} relative",
                     report.feed_rate_mps / model - 1.0
                 );
             }
         }
-        None => println!("model             outside the linear viscous law (the part sticks)"),
+        None => say!("model             outside the linear viscous law (the part sticks)"),
     }
-    println!(
+    say!(
         "quasi-static      {:.6} mm/s (Eq. 9)",
         report.quasi_static_feed_rate_mps * 1e3
     );
-    println!(
+    say!(
         "stick fraction    {:.6} (model {:.6})",
-        report.stick_fraction, report.model_stick_fraction
+        report.stick_fraction,
+        report.model_stick_fraction
     );
-    println!(
+    say!(
         "cycles            {} ({})",
         report.cycles,
         if report.converged {
@@ -439,14 +462,14 @@ fn print_simulation(report: &SimulateReport, point: &OperatingPoint, output: &Ou
             "not converged"
         }
     );
-    println!("plate excursion   {:.6} mm", report.plate_excursion_m * 1e3);
-    println!(
+    say!("plate excursion   {:.6} mm", report.plate_excursion_m * 1e3);
+    say!(
         "speed             {:.3e} simulated cycles/s",
         report.cycles_per_s
     );
     for (what, path) in [("csv", &output.csv), ("plot", &output.plot)] {
         if let Some(path) = path {
-            println!("{what:<18}{}", path.display());
+            say!("{what:<18}{}", path.display());
         }
     }
 }
@@ -460,7 +483,7 @@ fn sweep(args: &SweepArgs) -> Result<(), SimError> {
         &args.accel_mps2,
         &duties,
         &contact,
-        args.timing.clock_hz(),
+        args.timing.clock_hz,
         &|| progress.inc(1),
     )?;
     progress.finish_and_clear();
@@ -469,12 +492,18 @@ fn sweep(args: &SweepArgs) -> Result<(), SimError> {
     })? {
         return Ok(());
     }
-    println!(
+    say!(
         "{:>10} {:>7} {:>12} {:>12} {:>12} {:>8} {:>7}",
-        "a_max", "duty", "sim mm/s", "nqs mm/s", "qs mm/s", "stick", "cycles"
+        "a_max",
+        "duty",
+        "sim mm/s",
+        "nqs mm/s",
+        "qs mm/s",
+        "stick",
+        "cycles"
     );
     for point in &points {
-        println!(
+        say!(
             "{:>10.1} {:>7.4} {:>12.5} {:>12} {:>12.5} {:>8.4} {:>7}{}",
             point.accel_mps2,
             point.duty,
@@ -559,7 +588,7 @@ fn viscosity(args: &ViscosityArgs) -> Result<(), SimError> {
             accel_mps2: args.accel_mps2,
         },
     );
-    let fit = figures::viscosity(spec, &contact, &forces, args.timing.clock_hz())?;
+    let fit = figures::viscosity(spec, &contact, &forces, args.timing.clock_hz)?;
     if let Some(path) = &args.output.csv {
         write_csv(path, &fit.points)?;
     }
@@ -569,12 +598,15 @@ fn viscosity(args: &ViscosityArgs) -> Result<(), SimError> {
     if args.output.json {
         return print_json(&fit);
     }
-    println!(
+    say!(
         "{:>12} {:>14} {:>14} {:>8}",
-        "force mN", "sim mm/s", "model mm/s", "stick"
+        "force mN",
+        "sim mm/s",
+        "model mm/s",
+        "stick"
     );
     for point in &fit.points {
-        println!(
+        say!(
             "{:>12.5} {:>14.6} {:>14} {:>8.4}{}",
             point.force_n * 1e3,
             point.velocity_mps * 1e3,
@@ -589,7 +621,7 @@ fn viscosity(args: &ViscosityArgs) -> Result<(), SimError> {
             }
         );
     }
-    println!(
+    say!(
         "K fitted {:.9e} N·s/m, Eq. 10 {:.9e} N·s/m ({:.2e} relative); intercept {:.6e} N",
         fit.k_ns_per_m,
         fit.model_k_ns_per_m,
@@ -672,14 +704,20 @@ fn saturation(args: &SaturationArgs) -> Result<(), SimError> {
     })? {
         return Ok(());
     }
-    println!(
+    say!(
         "{:>6} {:>10} {:>12} {:>12}",
-        "μ", "a_max", "Eq. 16", "simulated"
+        "μ",
+        "a_max",
+        "Eq. 16",
+        "simulated"
     );
     for point in &points {
-        println!(
+        say!(
             "{:>6} {:>10.2} {:>12.8} {:>12.8}",
-            point.mu, point.accel_mps2, point.model_duty, point.duty
+            point.mu,
+            point.accel_mps2,
+            point.model_duty,
+            point.duty
         );
     }
     Ok(())
@@ -742,12 +780,14 @@ fn trace(args: &TraceArgs) -> Result<(), SimError> {
     if args.output.json {
         return print_json(&run.trace);
     }
-    println!(
+    say!(
         "{:>12} {:>14} {:>14}  event",
-        "time ms", "plate mm/s", "part mm/s"
+        "time ms",
+        "plate mm/s",
+        "part mm/s"
     );
     for p in &run.trace {
-        println!(
+        say!(
             "{:>12.6} {:>14.6} {:>14.6}  {:?}",
             p.time_s * 1e3,
             p.plate_velocity_mps * 1e3,
@@ -841,7 +881,7 @@ fn print_json<T: Serialize + ?Sized>(value: &T) -> Result<(), SimError> {
         path: "stdout".into(),
         reason: e.to_string(),
     })?;
-    println!("{text}");
+    say!("{text}");
     Ok(())
 }
 
