@@ -140,16 +140,16 @@ pub fn hil(args: &HilArgs) -> Result<(), SimError> {
 
 fn print_report(report: &HilReport, check: &CheckReport) {
     let microseconds = |ticks: i64| ticks as f64 * 1e6 / f64::from(report.clock_hz.max(1));
-    println!(
+    say!(
         "firmware in the loop: {}",
         if report.passed { "PASSED" } else { "FAILED" }
     );
-    println!(
+    say!(
         "  edges           {} reported, {} exactly as planned, {} missing, {} unexpected, {} glitches",
         report.edges, report.matched, report.missing, report.unexpected, report.glitches
     );
-    println!("  motion cycles   {}", report.motion_cycles);
-    println!(
+    say!("  motion cycles   {}", report.motion_cycles);
+    say!(
         "  edge latency    max {} ticks ({:.1} µs) at {} Hz; histogram (ticks: edges) {}",
         report.max_deviation_ticks,
         microseconds(report.max_deviation_ticks),
@@ -165,7 +165,7 @@ fn print_report(report: &HilReport, check: &CheckReport) {
         ("actual edges ", &report.actual),
         ("planned ticks", &report.planned),
     ] {
-        println!(
+        say!(
             "  {name}   feed {:.3} mm/s ({:.3} mm/s relative to the plate, last {} cycles), stick {:.1} %, \
              part travel {:.1} mm, plate excursion {:.4} mm, plate drift {:+.6} mm over {:.2} s",
             part.feed_rate_mps * 1e3,
@@ -179,10 +179,10 @@ fn print_report(report: &HilReport, check: &CheckReport) {
         );
     }
     for problem in &check.problems {
-        println!("  problem: {problem}");
+        say!("  problem: {problem}");
     }
     for error in &report.firmware_errors {
-        println!("  firmware: {error}");
+        say!("  firmware: {error}");
     }
 }
 

@@ -1,5 +1,13 @@
 //! `host-sim`: predict a feeder before building it, and reproduce the paper's figures.
 
+/// Prints a line to stdout; a closed pipe (`host-sim … | head`) ends the output quietly.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout().lock(), $($arg)*);
+    }};
+}
+
 mod hil_cli;
 mod plot;
 
@@ -17,14 +25,6 @@ use host_sim::{Contact, OperatingPoint, RunOptions, SimError, Timing};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use plot::{Labels, Mark, Series};
 use serde::Serialize;
-
-/// Prints a line to stdout; a closed pipe (`host-sim … | head`) ends the output quietly.
-macro_rules! say {
-    ($($arg:tt)*) => {{
-        use std::io::Write as _;
-        let _ = writeln!(std::io::stdout().lock(), $($arg)*);
-    }};
-}
 
 /// Timer clock of the tick plan when neither `--clock-hz` nor `--exact-times` is given.
 const DEFAULT_CLOCK_HZ: u32 = 1_000_000;
@@ -142,14 +142,6 @@ impl TimingArgs {
 }
 
 #[derive(Args, Clone)]
-struct AnalysisTimingArgs {
-    /// Drive the plate with the shared scheduler's tick plan at this timer clock instead of the
-    /// waveform's exact switching times.
-    #[arg(long)]
-    clock_hz: Option<u32>,
-}
-
-#[derive(Args, Clone)]
 struct OutputArgs {
     /// Print one JSON document instead of the human-readable report.
     #[arg(long)]
@@ -190,7 +182,7 @@ struct SweepArgs {
     #[command(flatten)]
     contact: ContactArgs,
     #[command(flatten)]
-    timing: AnalysisTimingArgs,
+    timing: TimingArgs,
     #[command(flatten)]
     output: OutputArgs,
 }
@@ -223,7 +215,7 @@ struct ViscosityArgs {
     #[arg(long, default_value_t = 31)]
     points: usize,
     #[command(flatten)]
-    timing: AnalysisTimingArgs,
+    timing: TimingArgs,
     #[command(flatten)]
     output: OutputArgs,
 }
@@ -483,7 +475,7 @@ fn sweep(args: &SweepArgs) -> Result<(), SimError> {
         &args.accel_mps2,
         &duties,
         &contact,
-        args.timing.clock_hz,
+        args.timing.clock_hz(),
         &|| progress.inc(1),
     )?;
     progress.finish_and_clear();
@@ -588,7 +580,7 @@ fn viscosity(args: &ViscosityArgs) -> Result<(), SimError> {
             accel_mps2: args.accel_mps2,
         },
     );
-    let fit = figures::viscosity(spec, &contact, &forces, args.timing.clock_hz)?;
+    let fit = figures::viscosity(spec, &contact, &forces, args.timing.clock_hz())?;
     if let Some(path) = &args.output.csv {
         write_csv(path, &fit.points)?;
     }
