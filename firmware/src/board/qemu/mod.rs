@@ -141,6 +141,18 @@ pub fn init() -> (SendSpawner, Board) {
     (task_spawner, board)
 }
 
+/// Reads the 32-bit register at `address`, one of this machine's CMSDK APB peripherals.
+fn register_read(address: usize) -> u32 {
+    // SAFETY: callers pass aligned word registers of peripherals only this board module uses.
+    unsafe { core::ptr::read_volatile(address as *const u32) }
+}
+
+/// Writes the 32-bit register at `address` (see [`register_read`]).
+fn register_write(address: usize, value: u32) {
+    // SAFETY: as in `register_read`.
+    unsafe { core::ptr::write_volatile(address as *mut u32, value) }
+}
+
 /// Sets an interrupt's priority (lower is more urgent) without taking the core peripherals,
 /// which the application's cycle counter needs.
 fn set_priority(irq: Irq, priority: u8) {

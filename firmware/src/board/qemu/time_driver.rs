@@ -10,7 +10,7 @@ use critical_section::{CriticalSection, Mutex};
 use embassy_time_driver::Driver;
 use embassy_time_queue_utils::Queue;
 
-use super::Irq;
+use super::{register_read, register_write, Irq};
 
 /// Base addresses of the CMSDK APB timers.
 const ALARM_TIMER: usize = 0x4000_0000;
@@ -29,13 +29,11 @@ const CYCLES_PER_TICK: u64 = TIMER_HZ / embassy_time_driver::TICK_HZ;
 const MAX_ALARM_CYCLES: u64 = 1 << 31;
 
 fn write(base: usize, offset: usize, value: u32) {
-    // SAFETY: `base + offset` is a register of a CMSDK APB timer on this machine.
-    unsafe { core::ptr::write_volatile((base + offset) as *mut u32, value) }
+    register_write(base + offset, value)
 }
 
 fn read(base: usize, offset: usize) -> u32 {
-    // SAFETY: as in `write`.
-    unsafe { core::ptr::read_volatile((base + offset) as *const u32) }
+    register_read(base + offset)
 }
 
 struct CmsdkTimeDriver {

@@ -7,13 +7,12 @@
 
 use core::convert::Infallible;
 use core::future::poll_fn;
-use core::ptr;
 use core::task::Poll;
 
 use cortex_m::peripheral::NVIC;
 use embassy_sync::waitqueue::AtomicWaker;
 
-use super::{set_priority, Irq};
+use super::{register_read, register_write, set_priority, Irq};
 
 const BASE: usize = 0x4000_4000;
 const DATA: usize = 0x00;
@@ -39,13 +38,11 @@ static RX_WAKER: AtomicWaker = AtomicWaker::new();
 static TX_WAKER: AtomicWaker = AtomicWaker::new();
 
 fn read(offset: usize) -> u32 {
-    // SAFETY: an aligned word register of UART0, which only this module touches.
-    unsafe { ptr::read_volatile((BASE + offset) as *const u32) }
+    register_read(BASE + offset)
 }
 
 fn write(offset: usize, value: u32) {
-    // SAFETY: as in `read`.
-    unsafe { ptr::write_volatile((BASE + offset) as *mut u32, value) }
+    register_write(BASE + offset, value)
 }
 
 /// RX interrupt: a byte has arrived.
