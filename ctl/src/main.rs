@@ -14,69 +14,69 @@ use std::net::TcpStream;
 use std::process::ExitCode;
 use std::time::Duration;
 
-const USAGE: &str =
-    "usage: feeder-ctl (--port PATH [--baud N] | --tcp HOST:PORT) [--timeout-ms N] [COMMAND...]
-  --port PATH     serial port, e.g. /dev/ttyACM0 (NUCLEO ST-LINK virtual COM port)
-  --baud N        baud rate of the serial port (default 115200)
-  --tcp HOST:PORT TCP serial, e.g. QEMU's -serial tcp:127.0.0.1:4444,server=on,wait=off
-  --timeout-ms N  how long to wait for a reply (default 3000)
-  COMMAND...      one command (e.g. `set feed 30`); without it, commands are read from stdin";
+use clap::{ArgGroup, Parser};
 
 /// Longest reply line accepted, in bytes.
 const MAX_REPLY_BYTES: usize = 1024;
+/// Longest reply timeout accepted: an hour.
+const MAX_TIMEOUT_MS: u32 = 3_600_000;
 
-/// Where the console is.
-enum Target {
-    Serial { path: String, baud: u32 },
-    Tcp(String),
-}
-
+/// Talks to the feeder's serial console: one command per line, one `OK …` or `ERR …` reply.
+#[derive(Parser)]
+#[command(
+    name = "feeder-ctl",
+    version,
+    allow_negative_numbers = true,
+    group(ArgGroup::new("target").required(true).args(["port", "tcp"]))
+)]
 struct Options {
-    target: Target,
-    timeout: Duration,
+    /// Serial port, e.g. /dev/ttyACM0 (the NUCLEO's ST-LINK virtual COM port).
+    #[arg(long, value_name = "PATH")]
+    port: Option<String>,
+    /// Baud rate of the serial port.
+    #[arg(long, value_name = "N", default_value_t = 115_200, requires = "port",
+          value_parser = clap::value_parser!(u32).range(1..))]
+    baud: u32,
+    /// TCP serial, e.g. QEMU's `-serial tcp:127.0.0.1:4444,server=on,wait=off`.
+    #[arg(long, value_name = "HOST:PORT")]
+    tcp: Option<String>,
+    /// How long to wait for a reply, in milliseconds.
+    #[arg(long, value_name = "N", default_value_t = 3000,
+          value_parser = clap::value_parser!(u32).range(1..=i64::from(MAX_TIMEOUT_MS)))]
+    timeout_ms: u32,
+    /// One command (e.g. `set feed 30`, `set duty -0.5`); without it, commands are read from
+    /// standard input. Exit code 0 for `OK`, 1 for `ERR`, 2 for bad arguments, a connection
+    /// error or no reply in time.
+    #[arg(trailing_var_arg = true, allow_hyphen_values = true, value_name = "COMMAND")]
     command: Vec<String>,
 }
 
-fn parse_options(mut args: impl Iterator<Item = String>) -> Result<Options, String> {
-    let mut port = None;
-    let mut tcp = None;
-    let mut baud = 115_200;
-    let mut timeout = Duration::from_millis(3000);
-    let mut command = Vec::new();
-    while let Some(arg) = args.next() {
-        let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
-        match arg.as_str() {
-            "--port" => port = Some(value("--port")?),
-            "--tcp" => tcp = Some(value("--tcp")?),
-            "--baud" => {
-                baud = value("--baud")?
-                    .parse()
-                    .map_err(|_| "--baud needs a number".to_string())?
-            }
-            "--timeout-ms" => {
-                timeout = Duration::from_millis(
-                    value("--timeout-ms")?
-                        .parse()
-                        .map_err(|_| "--timeout-ms needs a number".to_string())?,
-                )
-            }
-            "-h" | "--help" => return Err(String::new()),
-            _ => {
-                command.push(arg);
-                command.extend(args.by_ref());
-            }
+/// Where the console is.
+enum Target<'a> {
+    Serial { path: &'a str, baud: u32 },
+    Tcp(&'a str),
+}
+
+impl std::fmt::Display for Target<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Target::Serial { path, baud } => write!(f, "serial port {path} at {baud} baud"),
+            Target::Tcp(address) => write!(f, "TCP {address}"),
         }
     }
-    let target = match (port, tcp) {
-        (Some(path), None) => Target::Serial { path, baud },
-        (None, Some(address)) => Target::Tcp(address),
-        _ => return Err("give exactly one of --port and --tcp".to_string()),
-    };
-    Ok(Options {
-        target,
-        timeout,
-        command,
-    })
+}
+
+impl Options {
+    fn target(&self) -> Target<'_> {
+        match (&self.port, &self.tcp) {
+            (Some(path), _) => Target::Serial {
+                path,
+                baud: self.baud,
+            },
+            (None, Some(address)) => Target::Tcp(address),
+            (None, None) => unreachable!("clap requires one of --port and --tcp"),
+        }
+    }
 }
 
 /// A connection to the console: one command line out, one reply line back.
@@ -89,9 +89,9 @@ impl<T: Read + Write> Link for T {}
 
 impl Console {
     fn open(target: &Target, timeout: Duration) -> io::Result<Self> {
-        let link: Box<dyn Link> = match target {
+        let link: Box<dyn Link> = match *target {
             Target::Serial { path, baud } => {
-                let port = serialport::new(path, *baud).timeout(timeout).open()?;
+                let port = serialport::new(path, baud).timeout(timeout).open()?;
                 port.clear(serialport::ClearBuffer::Input)?;
                 Box::new(port)
             }
@@ -168,25 +168,24 @@ fn interactive(console: &mut Console) -> io::Result<()> {
 }
 
 fn main() -> ExitCode {
-    let options = match parse_options(std::env::args().skip(1)) {
-        Ok(options) => options,
-        Err(message) => {
-            if !message.is_empty() {
-                eprintln!("feeder-ctl: {message}");
-            }
-            eprintln!("{USAGE}");
+    let options = Options::parse();
+    let timeout = Duration::from_millis(options.timeout_ms.into());
+    let target = options.target();
+    let mut console = match Console::open(&target, timeout) {
+        Ok(console) => console,
+        Err(error) => {
+            eprintln!("feeder-ctl: cannot open {target}: {error}");
             return ExitCode::from(2);
         }
     };
-    let result = Console::open(&options.target, options.timeout).and_then(|mut console| {
-        if options.command.is_empty() {
-            interactive(&mut console).map(|()| true)
-        } else {
-            let reply = console.command(&options.command.join(" "))?;
+    let result = if options.command.is_empty() {
+        interactive(&mut console).map(|()| true)
+    } else {
+        console.command(&options.command.join(" ")).map(|reply| {
             println!("{reply}");
-            Ok(reply.starts_with("OK"))
-        }
-    });
+            reply.starts_with("OK")
+        })
+    };
     match result {
         Ok(true) => ExitCode::SUCCESS,
         Ok(false) => ExitCode::FAILURE,

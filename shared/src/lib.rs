@@ -20,6 +20,7 @@ pub mod number;
 pub mod plan;
 pub mod protocol;
 pub mod recipe;
+pub mod scenario;
 pub mod scheduler;
 pub mod supervisor;
 pub mod waveform;
@@ -35,6 +36,7 @@ pub use protocol::{
     Applied, Command, LineAssembler, Machine, Param, Reply, ReplyError, Setting, Settings, Status,
 };
 pub use recipe::{Loaded, RecipeSlot, RecordError};
+pub use scenario::{ScenarioError, ScenarioSetting};
 pub use scheduler::{Amplitude, Phase, Scheduler, Segment};
 pub use supervisor::{Fault, Led, MotionRequest, RunState, Supervisor, SupervisorEvent};
 pub use waveform::{Drive, ExactSegment, Level, Limits, Waveform, WaveformSpec};

@@ -6,27 +6,83 @@
 //!   under QEMU.
 //! * `size` — the firmware's flash and static RAM use against the budget.
 //!
-//! Each command installs what it needs (the thumb target, qemu-system-arm, defmt-print) so it
-//! works on a fresh machine.
+//! Each command installs what it needs (the thumb target, flip-link, qemu-system-arm,
+//! defmt-print; see `tools`) so it works on a fresh machine.
 
 mod qemu;
 mod size;
+mod tools;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
+
+use clap::{Args, Parser, Subcommand};
+use feeder_shared::scenario::{parse_setting, SCENARIO_KEYS};
 
 const THUMB_TARGET: &str = "thumbv7em-none-eabihf";
 
 type Result<T = ()> = std::result::Result<T, String>;
 
+#[derive(Parser)]
+#[command(
+    name = "cargo xtask",
+    bin_name = "cargo xtask",
+    about = "The feeder's main job, its whole test suite and the firmware size report",
+    allow_negative_numbers = true
+)]
+struct Cli {
+    #[command(subcommand)]
+    task: Task,
+}
+
+#[derive(Subcommand)]
+enum Task {
+    /// The main job: the prediction at the paper's operating point, then the firmware under
+    /// QEMU driving the simulated part, checked edge by edge by `host-sim hil`.
+    Run(RunArgs),
+    /// The whole test suite: host tests, the thumb builds, size budgets, QEMU scenarios.
+    Test,
+    /// Flash and static RAM of both board images against their budgets.
+    Size,
+}
+
+#[derive(Args)]
+#[command(after_help = scenario_help())]
+struct RunArgs {
+    /// Settings of the emulated run's scripted operator (keys below).
+    #[arg(value_name = "KEY=VALUE", value_parser = scenario_word)]
+    scenario: Vec<String>,
+    /// Flags for `host-sim hil`, after `--` (e.g. `-- --json`).
+    #[arg(last = true, value_name = "HIL FLAGS")]
+    hil_flags: Vec<String>,
+}
+
+fn scenario_help() -> String {
+    let mut help = String::from("Scenario keys:");
+    for (key, meaning) in SCENARIO_KEYS {
+        help.push_str(&format!("\n  {key:<10} {meaning}"));
+    }
+    help
+}
+
+/// A scenario word, checked by the parser the firmware uses.
+fn scenario_word(word: &str) -> Result<String> {
+    parse_setting(word)
+        .map(|_| word.to_string())
+        .map_err(|error| error.to_string())
+}
+
 fn main() -> ExitCode {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let outcome = match args.first().map(String::as_str) {
-        Some("run") => run(&args[1..]),
-        Some("test") => test(),
-        Some("size") => firmware_size(),
-        _ => Err(USAGE.to_string()),
-    };
+    let cli = Cli::parse();
+    let launch_path = std::env::var_os("PATH").unwrap_or_default();
+    let outcome = tools::isolate().and_then(|()| {
+        tools::ensure_thumb_target(&launch_path)?;
+        match cli.task {
+            Task::Run(args) => run(&args),
+            Task::Test => test(),
+            Task::Size => firmware_size(),
+        }
+    });
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
         Err(message) => {
@@ -35,9 +91,6 @@ fn main() -> ExitCode {
         }
     }
 }
-
-const USAGE: &str =
-    "usage: cargo xtask <run [--board] [scenario key=value…] [-- hil flags…] | test | size>";
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -93,31 +146,14 @@ fn host_sim() -> Command {
     command
 }
 
-fn ensure_thumb_target() -> Result {
-    let installed = Command::new("rustup")
-        .args(["target", "list", "--installed"])
-        .output()
-        .map_err(|error| format!("cannot run rustup: {error}"))?;
-    if String::from_utf8_lossy(&installed.stdout)
-        .lines()
-        .any(|line| line.trim() == THUMB_TARGET)
-    {
-        return Ok(());
-    }
-    exec(Command::new("rustup").args(["target", "add", THUMB_TARGET]))
-}
-
 /// The prediction at the paper's operating point (`host-sim simulate`, with a plot), then the
 /// firmware under QEMU piped through the defmt decoder into `host-sim hil`, which checks every
 /// edge and simulates the part on the actual edge times. Scenario settings (`key=value`) come
 /// first, `hil` flags after `--`.
-fn run(args: &[String]) -> Result {
-    let (scenario, hil_flags) = match args.iter().position(|arg| arg == "--") {
-        Some(split) => (&args[..split], &args[split + 1..]),
-        None => (args, &[][..]),
-    };
-    ensure_thumb_target()?;
-    qemu::ensure_tools()?;
+fn run(args: &RunArgs) -> Result {
+    let (scenario, hil_flags) = (&args.scenario, &args.hil_flags);
+    tools::ensure_linker()?;
+    tools::ensure_emulation()?;
     let elf = qemu::build_firmware(qemu::Image::Scripted)?;
     exec(cargo().args(["build", "--release", "--locked", "--package", "host-sim"]))?;
     println!("Prediction at the paper's operating point (50 Hz, d = 0.586, 2.5 mm, μ = 1):");
@@ -151,7 +187,6 @@ fn run(args: &[String]) -> Result {
 }
 
 fn test() -> Result {
-    ensure_thumb_target()?;
     exec(cargo().args(["test", "--workspace", "--locked"]))?;
     for features in ["", "defmt"] {
         exec(cargo().args([
@@ -165,6 +200,7 @@ fn test() -> Result {
             features,
         ]))?;
     }
+    tools::ensure_linker()?;
     exec(firmware_cargo().args(["build", "--release", "--locked"]))?;
     exec(
         firmware_cargo()
@@ -172,7 +208,7 @@ fn test() -> Result {
             .args(["--target-dir", "target/console"]),
     )?;
     firmware_size()?;
-    qemu::ensure_tools()?;
+    tools::ensure_emulation()?;
     let scripted = qemu::build_firmware(qemu::Image::Scripted)?;
     ignored_tests("feeder-tests", "qemu", &scripted)?;
     let console = qemu::build_firmware(qemu::Image::Console)?;
@@ -214,4 +250,36 @@ fn firmware_size() -> Result {
             .map_err(|error| format!("{image} image: {error}"))?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(args: &[&str]) -> std::result::Result<Cli, clap::Error> {
+        Cli::try_parse_from(std::iter::once("cargo xtask").chain(args.iter().copied()))
+    }
+
+    #[test]
+    fn negative_values_after_a_space_reach_hil_as_typed() {
+        let Task::Run(args) = parse(&["run", "cycles=50", "--", "--force-n", "-0.0001"])
+            .expect("accepted")
+            .task
+        else {
+            panic!("not a run");
+        };
+        assert_eq!(args.scenario, ["cycles=50"]);
+        assert_eq!(args.hil_flags, ["--force-n", "-0.0001"]);
+    }
+
+    #[test]
+    fn a_negative_scenario_value_is_refused_with_the_word_named() {
+        let error = parse(&["run", "cycles=-5"]).err().expect("refused").to_string();
+        assert!(
+            error.contains("cycles=-5: cycles must be a whole number from 1"),
+            "{error}"
+        );
+        let error = parse(&["run", "duty=-inf"]).err().expect("refused").to_string();
+        assert!(error.contains("duty=-inf"), "{error}");
+    }
 }

@@ -1,5 +1,5 @@
-//! The emulated board: installing QEMU and defmt-print when missing, building the QEMU firmware
-//! and running it with its decoded log piped onward.
+//! The emulated board: building the QEMU firmware and running it with its decoded log piped
+//! onward.
 
 use std::path::PathBuf;
 use std::process::{Child, Command, Stdio};
@@ -8,39 +8,6 @@ use crate::{exec, firmware_cargo, firmware_dir, Result, THUMB_TARGET};
 
 /// `-icount shift=4`: one instruction is 16 ns of virtual time, so runs are deterministic.
 const ICOUNT_SHIFT: &str = "4";
-
-fn available(program: &str, version_flag: &str) -> bool {
-    Command::new(program)
-        .arg(version_flag)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|status| status.success())
-}
-
-/// Installs `qemu-system-arm` (Debian package) and `defmt-print` (crates.io) if missing.
-pub fn ensure_tools() -> Result {
-    if !available("qemu-system-arm", "--version") {
-        exec(Command::new("apt-get").arg("update"))?;
-        exec(Command::new("apt-get").args([
-            "install",
-            "-y",
-            "--no-install-recommends",
-            "qemu-system-arm",
-        ]))
-        .map_err(|error| format!("{error}: install qemu-system-arm (needs root)"))?;
-    }
-    if !available("defmt-print", "--version") {
-        exec(
-            Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into())).args([
-                "install",
-                "defmt-print",
-                "--locked",
-            ]),
-        )?;
-    }
-    Ok(())
-}
 
 /// The QEMU firmware with the scripted operator, or with the serial console instead.
 #[derive(Clone, Copy)]

@@ -2,6 +2,9 @@
 //! QEMU's command line
 //! (`-semihosting-config enable=on,target=native,arg=cycles=1000,arg=freq_hz=100`):
 //!
+//! Keys and values are read by `feeder_shared::scenario`, which refuses unknown keys and malformed
+//! values (the run then ends with a failure code):
+//!
 //! | argument     | meaning                                                   | default              |
 //! |--------------|-----------------------------------------------------------|----------------------|
 //! | `cycles=N`   | request the soft stop once N cycles have begun            | 300                  |
@@ -17,10 +20,11 @@
 
 use cortex_m_semihosting::debug::{self, EXIT_SUCCESS};
 use cortex_m_semihosting::nr::GET_CMDLINE;
-use defmt::{info, unwrap, warn};
+use defmt::{info, unwrap};
 use embassy_executor::SendSpawner;
 use embassy_time::{Instant, Timer};
-use feeder_shared::{Drive, WaveformSpec};
+use feeder_shared::scenario::parse_setting;
+use feeder_shared::{Drive, ScenarioError, ScenarioSetting, Waveform, WaveformSpec};
 
 use super::{after_fault, sleep_forever};
 use crate::app::{self, OperatorRequest, OperatorView};
@@ -40,8 +44,9 @@ struct Scenario {
 }
 
 impl Scenario {
-    /// Reads `key=value` words; unknown or malformed words are reported and ignored.
-    fn parse(command_line: &str) -> Self {
+    /// Reads the `key=value` words of the command line with the shared parser; the first word it
+    /// refuses ends the run.
+    fn parse(command_line: &str) -> Result<Self, ScenarioError<'_>> {
         let mut scenario = Scenario {
             stop_after_cycles: 300,
             spec: config::WAVEFORM,
@@ -50,39 +55,22 @@ impl Scenario {
             panic_at_cycle: None,
         };
         for word in command_line.split_whitespace() {
-            let Some((key, value)) = word.split_once('=') else {
-                continue;
-            };
-            let understood = match key {
-                "cycles" => value
-                    .parse()
-                    .map(|n| scenario.stop_after_cycles = n)
-                    .is_ok(),
-                "freq_hz" => value
-                    .parse::<f64>()
-                    .map(|f| scenario.spec.period_s = 1.0 / f)
-                    .is_ok(),
-                "duty" => value.parse().map(|d| scenario.spec.duty = d).is_ok(),
-                "stroke_m" => value
-                    .parse()
-                    .map(|stroke_m| scenario.spec.drive = Drive::Stroke { stroke_m })
-                    .is_ok(),
-                "new_duty" => value.parse().map(|d| scenario.new_duty = d).is_ok(),
-                "ramp" => value.parse().map(|r| scenario.ramp_cycles = r).is_ok(),
-                "panic_at" => value
-                    .parse()
-                    .map(|c| scenario.panic_at_cycle = Some(c))
-                    .is_ok(),
-                _ => false,
-            };
-            if !understood {
-                warn!("scenario: ignored `{=str}`", word);
+            match parse_setting(word)? {
+                ScenarioSetting::Cycles(n) => scenario.stop_after_cycles = n,
+                ScenarioSetting::FreqHz(f) => scenario.spec.period_s = 1.0 / f,
+                ScenarioSetting::Duty(d) => scenario.spec.duty = d,
+                ScenarioSetting::StrokeM(stroke_m) => {
+                    scenario.spec.drive = Drive::Stroke { stroke_m }
+                }
+                ScenarioSetting::NewDuty(d) => scenario.new_duty = d,
+                ScenarioSetting::Ramp(r) => scenario.ramp_cycles = r,
+                ScenarioSetting::PanicAt(c) => scenario.panic_at_cycle = Some(c),
             }
         }
         if scenario.new_duty.is_nan() {
             scenario.new_duty = scenario.spec.duty + 0.02;
         }
-        scenario
+        Ok(scenario)
     }
 }
 
@@ -132,7 +120,19 @@ async fn until_cycle(cycle: u32, panic_at_cycle: Option<u32>) {
 #[embassy_executor::task]
 async fn operator_task() {
     let mut buffer = [0u8; 256];
-    let scenario = Scenario::parse(command_line(&mut buffer));
+    let scenario = match Scenario::parse(command_line(&mut buffer)) {
+        Ok(scenario) => scenario,
+        Err(error) => {
+            defmt::error!("scenario: {}", error);
+            after_fault();
+        }
+    };
+    for duty in [scenario.spec.duty, scenario.new_duty] {
+        if let Err(error) = Waveform::new(WaveformSpec { duty, ..scenario.spec }, &config::LIMITS) {
+            defmt::error!("scenario: waveform refused: {}", error);
+            after_fault();
+        }
+    }
     let half = scenario.stop_after_cycles / 2;
     info!(
         "scenario: {=u32} cycles, duty {=f64} then {=f64} at cycle {=u32}, ramp {=u16}",

@@ -1,0 +1,125 @@
+//! The settings of an emulated run's scripted operator: `key=value` words such as `cycles=1000`
+//! or `freq_hz=100`. The QEMU firmware reads them from its semihosting command line and
+//! `cargo xtask run` checks them with this same parser before it starts the emulator, so a word
+//! is refused with the same explanation in both places.
+//!
+//! Numbers are checked here for form (a count is a whole number of at least one, a physical value
+//! is finite); whether a waveform is possible is the waveform's own check ([`crate::Waveform`]).
+
+use core::fmt;
+
+use crate::number::split_decimal;
+
+/// The keys, each with its meaning, in the order a help text lists them.
+pub const SCENARIO_KEYS: [(&str, &str); 7] = [
+    ("cycles", "request the soft stop once N cycles have begun (N ≥ 1)"),
+    ("freq_hz", "waveform frequency"),
+    ("duty", "duty at start"),
+    ("stroke_m", "stroke (peak-to-peak plate travel)"),
+    ("new_duty", "duty of the live change at half the cycles"),
+    ("ramp", "soft start and stop cycles"),
+    ("panic_at", "panic once this many cycles have begun (tests the fault path)"),
+];
+
+/// One setting of the scripted operator.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ScenarioSetting {
+    /// `cycles=N`: request the soft stop once `N` cycles have begun.
+    Cycles(u32),
+    /// `freq_hz=F`: the waveform frequency.
+    FreqHz(f64),
+    /// `duty=D`: the duty at start.
+    Duty(f64),
+    /// `stroke_m=X`: the peak-to-peak stroke.
+    StrokeM(f64),
+    /// `new_duty=D`: the duty of the live change at half the cycles.
+    NewDuty(f64),
+    /// `ramp=R`: soft start and stop cycles.
+    Ramp(u16),
+    /// `panic_at=C`: panic once `C` cycles have begun.
+    PanicAt(u32),
+}
+
+/// Why a scenario word was refused; each names the word or value as typed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ScenarioError<'a> {
+    /// The word has no `=`.
+    NotKeyValue(&'a str),
+    /// The key is not one of [`SCENARIO_KEYS`].
+    UnknownKey(&'a str),
+    /// The value is not a whole number in the key's range.
+    NotACount {
+        key: &'static str,
+        value: &'a str,
+        min: u32,
+        max: u32,
+    },
+    /// The value is not a finite decimal number.
+    NotFinite { key: &'static str, value: &'a str },
+}
+
+impl fmt::Display for ScenarioError<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ScenarioError::NotKeyValue(word) => {
+                write!(f, "scenario setting `{word}` is not of the form key=value")
+            }
+            ScenarioError::UnknownKey(key) => write!(
+                f,
+                "unknown scenario key `{key}` (known: cycles, freq_hz, duty, stroke_m, new_duty, \
+                 ramp, panic_at)"
+            ),
+            ScenarioError::NotACount {
+                key,
+                value,
+                min,
+                max,
+            } => write!(
+                f,
+                "{key}={value}: {key} must be a whole number from {min} to {max}"
+            ),
+            ScenarioError::NotFinite { key, value } => {
+                write!(f, "{key}={value}: {key} must be a finite decimal number")
+            }
+        }
+    }
+}
+
+/// Reads one `key=value` word.
+pub fn parse_setting(word: &str) -> Result<ScenarioSetting, ScenarioError<'_>> {
+    let (key, value) = word
+        .split_once('=')
+        .ok_or(ScenarioError::NotKeyValue(word))?;
+    let count = |key: &'static str, min: u32, max: u32| {
+        value
+            .parse::<u32>()
+            .ok()
+            .filter(|n| (min..=max).contains(n))
+            .ok_or(ScenarioError::NotACount {
+                key,
+                value,
+                min,
+                max,
+            })
+    };
+    let finite = |key: &'static str| match split_decimal(value) {
+        Some((number, "")) if number.is_finite() => Ok(number),
+        _ => Err(ScenarioError::NotFinite { key, value }),
+    };
+    Ok(match key {
+        "cycles" => ScenarioSetting::Cycles(count("cycles", 1, u32::MAX)?),
+        "freq_hz" => ScenarioSetting::FreqHz(finite("freq_hz")?),
+        "duty" => ScenarioSetting::Duty(finite("duty")?),
+        "stroke_m" => ScenarioSetting::StrokeM(finite("stroke_m")?),
+        "new_duty" => ScenarioSetting::NewDuty(finite("new_duty")?),
+        "ramp" => ScenarioSetting::Ramp(value.parse().map_err(|_| ScenarioError::NotACount {
+            key: "ramp",
+            value,
+            min: 0,
+            max: u16::MAX.into(),
+        })?),
+        "panic_at" => ScenarioSetting::PanicAt(count("panic_at", 0, u32::MAX)?),
+        _ => return Err(ScenarioError::UnknownKey(key)),
+    })
+}

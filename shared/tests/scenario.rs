@@ -1,0 +1,76 @@
+//! The scripted operator's `key=value` words: what each key accepts, and that every other word is
+//! refused with the word or value named.
+
+use feeder_shared::scenario::{parse_setting, SCENARIO_KEYS};
+use feeder_shared::{ScenarioError, ScenarioSetting};
+use proptest::prelude::*;
+
+#[test]
+fn each_key_reads_its_value() {
+    assert_eq!(parse_setting("cycles=1000"), Ok(ScenarioSetting::Cycles(1000)));
+    assert_eq!(parse_setting("freq_hz=100"), Ok(ScenarioSetting::FreqHz(100.0)));
+    assert_eq!(parse_setting("duty=0.606"), Ok(ScenarioSetting::Duty(0.606)));
+    assert_eq!(parse_setting("stroke_m=6e-4"), Ok(ScenarioSetting::StrokeM(6e-4)));
+    assert_eq!(parse_setting("new_duty=-0.5"), Ok(ScenarioSetting::NewDuty(-0.5)));
+    assert_eq!(parse_setting("ramp=0"), Ok(ScenarioSetting::Ramp(0)));
+    assert_eq!(parse_setting("ramp=65535"), Ok(ScenarioSetting::Ramp(u16::MAX)));
+    assert_eq!(parse_setting("panic_at=0"), Ok(ScenarioSetting::PanicAt(0)));
+}
+
+#[test]
+fn counts_are_whole_numbers_in_range() {
+    for word in ["cycles=0", "cycles=-5", "cycles=1.5", "cycles=4294967296", "cycles="] {
+        let error = parse_setting(word).unwrap_err();
+        assert!(matches!(error, ScenarioError::NotACount { key: "cycles", min: 1, .. }), "{word}");
+        assert!(error.to_string().starts_with(word), "{error}");
+    }
+    assert_eq!(
+        parse_setting("ramp=65536").unwrap_err().to_string(),
+        "ramp=65536: ramp must be a whole number from 0 to 65535"
+    );
+}
+
+#[test]
+fn physical_values_are_finite_decimals() {
+    for word in ["freq_hz=inf", "duty=NaN", "stroke_m=2.5mm", "freq_hz=", "duty=1e400"] {
+        let error = parse_setting(word).unwrap_err();
+        assert!(matches!(error, ScenarioError::NotFinite { .. }), "{word}: {error:?}");
+        assert!(error.to_string().ends_with("must be a finite decimal number"), "{error}");
+    }
+}
+
+#[test]
+fn malformed_words_and_unknown_keys_are_named() {
+    assert_eq!(parse_setting("cycles"), Err(ScenarioError::NotKeyValue("cycles")));
+    assert_eq!(parse_setting("speed=3"), Err(ScenarioError::UnknownKey("speed")));
+    assert!(parse_setting("speed=3").unwrap_err().to_string().contains("`speed`"));
+}
+
+proptest! {
+    #[test]
+    fn every_listed_key_takes_a_whole_number(n in 1u16..) {
+        for (key, _) in SCENARIO_KEYS {
+            let word = format!("{key}={n}");
+            prop_assert!(parse_setting(&word).is_ok(), "{word}");
+        }
+    }
+
+    #[test]
+    fn any_word_is_read_or_refused_without_panic(word in "\\PC{0,24}") {
+        if let Err(error) = parse_setting(&word) {
+            prop_assert!(!error.to_string().is_empty());
+        }
+    }
+
+    /// Up to 15 significant digits, as an operator types them, read as `str::parse` reads them.
+    #[test]
+    fn typed_values_read_as_core_reads_them(
+        mantissa in -999_999_999_999_999i64..=999_999_999_999_999,
+        exponent in -22i32..=22,
+    ) {
+        let value = format!("{mantissa}e{exponent}");
+        let word = format!("stroke_m={value}");
+        let expected: f64 = value.parse().unwrap();
+        prop_assert_eq!(parse_setting(&word), Ok(ScenarioSetting::StrokeM(expected)));
+    }
+}

@@ -1,0 +1,210 @@
+//! The external programs the commands run, installed when missing, and the environment every
+//! child process gets.
+//!
+//! Cargo-installed tools go into the project's own `target/tools` (`cargo install --root`), at
+//! pinned versions, and every command xtask starts sees a `PATH` of that directory, the active
+//! toolchain and the system's programs, but not `$CARGO_HOME/bin`. A tool that only a
+//! developer's machine happens to have is therefore invisible here too, so a missing install
+//! step fails on every machine, not only on a fresh one.
+
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+
+use crate::{exec, root, Result, THUMB_TARGET};
+
+/// A tool from crates.io, installed with `cargo install --locked` at a pinned version.
+struct CargoTool {
+    /// The executable, as `.cargo/config.toml` and the tests call it.
+    program: &'static str,
+    package: &'static str,
+    version: &'static str,
+    /// An argument it answers with success: flip-link has no `--version`.
+    probe: &'static str,
+    /// What needs it, for the error message when it cannot be installed.
+    needed_by: &'static str,
+}
+
+/// The firmware's linker (`firmware/.cargo/config.toml`): stack-overflow protection.
+const FLIP_LINK: CargoTool = CargoTool {
+    program: "flip-link",
+    package: "flip-link",
+    version: "0.1.12",
+    probe: "--help",
+    needed_by: "linking every firmware image (firmware/.cargo/config.toml)",
+};
+
+/// Decodes the firmware's defmt log under QEMU.
+const DEFMT_PRINT: CargoTool = CargoTool {
+    program: "defmt-print",
+    package: "defmt-print",
+    version: "1.2.0",
+    probe: "--version",
+    needed_by: "decoding the emulated firmware's log",
+};
+
+/// A program from a Debian package, installed with `apt-get` (as root).
+struct AptTool {
+    program: &'static str,
+    package: &'static str,
+    needed_by: &'static str,
+}
+
+const QEMU: AptTool = AptTool {
+    program: "qemu-system-arm",
+    package: "qemu-system-arm",
+    needed_by: "running the firmware without a board (machine mps2-an386)",
+};
+
+/// Where the cargo-installed tools live: `target/tools/bin`.
+fn tools_root() -> PathBuf {
+    root().join("target").join("tools")
+}
+
+/// The cargo home whose `bin` holds globally installed tools (hidden from child processes).
+fn cargo_home_bin() -> Option<PathBuf> {
+    std::env::var_os("CARGO_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|home| Path::new(&home).join(".cargo")))
+        .map(|home| home.join("bin"))
+}
+
+/// The directory of the toolchain's `cargo` and `rustc` that runs this xtask.
+fn toolchain_bin() -> Result<PathBuf> {
+    let cargo = std::env::var_os("CARGO").ok_or("CARGO is not set: run me as `cargo xtask`")?;
+    Path::new(&cargo)
+        .parent()
+        .filter(|dir| dir.join("rustc").exists() || dir.join("rustc.exe").exists())
+        .map(Path::to_path_buf)
+        .ok_or_else(|| format!("no rustc beside {}", Path::new(&cargo).display()))
+}
+
+/// Sets this process's `PATH` (inherited by every command it starts) to `target/tools/bin`,
+/// the active toolchain and the rest of `PATH` without `$CARGO_HOME/bin`, and points `CARGO`
+/// at the toolchain's cargo rather than the rustup proxy.
+pub fn isolate() -> Result {
+    let toolchain = toolchain_bin()?;
+    let hidden = cargo_home_bin();
+    let inherited = std::env::var_os("PATH").unwrap_or_default();
+    let mut directories = vec![tools_root().join("bin"), toolchain.clone()];
+    directories.extend(
+        std::env::split_paths(&inherited)
+            .filter(|dir| hidden.as_deref().is_none_or(|hidden| !same_dir(dir, hidden))),
+    );
+    let path: OsString = std::env::join_paths(directories)
+        .map_err(|error| format!("cannot build PATH: {error}"))?;
+    // Single-threaded here: nothing else reads the environment concurrently.
+    std::env::set_var("PATH", path);
+    std::env::set_var("CARGO", toolchain.join("cargo"));
+    Ok(())
+}
+
+fn same_dir(a: &Path, b: &Path) -> bool {
+    a == b || matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b)
+}
+
+fn answers(program: &str, probe: &str) -> bool {
+    Command::new(program)
+        .arg(probe)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|status| status.success())
+}
+
+/// Adds the thumb target to the active toolchain if missing (rustup is looked up on the `PATH`
+/// xtask was started with, saved by `main` before [`isolate`]).
+pub fn ensure_thumb_target(rustup_path: &OsString) -> Result {
+    let rustup = |args: &[&str]| {
+        let mut command = Command::new("rustup");
+        command.args(args).env("PATH", rustup_path);
+        command
+    };
+    let installed = rustup(&["target", "list", "--installed"])
+        .output()
+        .map_err(|error| {
+            format!("cannot run rustup ({error}): add the target by hand with `rustup target add {THUMB_TARGET}`")
+        })?;
+    if String::from_utf8_lossy(&installed.stdout)
+        .lines()
+        .any(|line| line.trim() == THUMB_TARGET)
+    {
+        return Ok(());
+    }
+    exec(&mut rustup(&["target", "add", THUMB_TARGET]))
+}
+
+fn ensure_cargo_tool(tool: &CargoTool) -> Result {
+    if answers(tool.program, tool.probe) {
+        return Ok(());
+    }
+    let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+    exec(
+        Command::new(cargo)
+            .current_dir(root())
+            .args(["install", "--locked", "--root"])
+            .arg(tools_root())
+            .arg(tool.package)
+            .args(["--version", tool.version]),
+    )
+    .map_err(|error| {
+        format!(
+            "{} is needed for {} and could not be installed: {error}",
+            tool.program, tool.needed_by
+        )
+    })?;
+    if answers(tool.program, tool.probe) {
+        Ok(())
+    } else {
+        Err(format!(
+            "{} was installed into {} but does not run",
+            tool.program,
+            tools_root().display()
+        ))
+    }
+}
+
+fn is_root() -> bool {
+    Command::new("id")
+        .arg("-u")
+        .output()
+        .is_ok_and(|output| output.stdout.trim_ascii() == b"0")
+}
+
+fn ensure_apt_tool(tool: &AptTool) -> Result {
+    if answers(tool.program, "--version") {
+        return Ok(());
+    }
+    let by_hand = format!(
+        "{} is needed for {}: install it with `sudo apt-get install {}` (Debian/Ubuntu)",
+        tool.program, tool.needed_by, tool.package
+    );
+    if !is_root() {
+        return Err(format!("{by_hand}; xtask installs it itself only as root"));
+    }
+    exec(Command::new("apt-get").arg("update"))
+        .and_then(|()| {
+            exec(
+                Command::new("apt-get")
+                    .args(["install", "-y", "--no-install-recommends", tool.package])
+                    .env("DEBIAN_FRONTEND", "noninteractive"),
+            )
+        })
+        .map_err(|error| format!("{by_hand} ({error})"))?;
+    if answers(tool.program, "--version") {
+        Ok(())
+    } else {
+        Err(by_hand)
+    }
+}
+
+/// The linker every firmware build needs.
+pub fn ensure_linker() -> Result {
+    ensure_cargo_tool(&FLIP_LINK)
+}
+
+/// The emulator and the log decoder the QEMU runs need.
+pub fn ensure_emulation() -> Result {
+    ensure_apt_tool(&QEMU)?;
+    ensure_cargo_tool(&DEFMT_PRINT)
+}
