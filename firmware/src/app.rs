@@ -1,18 +1,20 @@
 //! The application: control loop, button, status LED and watchdog monitor. Board-independent;
 //! the board module supplies the output stage, pins and executors.
 
+use core::cell::Cell;
 use core::sync::atomic::{AtomicBool, AtomicU32, AtomicU8, Ordering};
 
 use defmt::{error, info, unwrap, warn};
 use embassy_executor::SendSpawner;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
 use embassy_time::{Duration, Ticker, Timer};
 use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_hal_async::digital::Wait;
 use feeder_shared::{
     Error, Fault, Led, MotionRequest, Phase, RunState, Scheduler, Segment, SegmentKind, Supervisor,
-    SupervisorEvent, TickPlan, Waveform, WaveformSpec,
+    SupervisorEvent, TickClock, TickPlan, Waveform, WaveformSpec,
 };
 
 use crate::board::{self, Board};
@@ -37,16 +39,24 @@ pub enum OperatorRequest {
     /// Acknowledge a latched fault.
     #[cfg(feature = "console")]
     Reset,
-    /// A new waveform and ramp length, validated first and applied at a cycle boundary.
-    #[cfg(any(feature = "board-qemu", feature = "console"))]
-    Configure {
-        spec: WaveformSpec,
-        ramp_cycles: u16,
-    },
+}
+
+/// A validated waveform planned on the output's clock, with its ramp length: all the arithmetic
+/// of a change, done by the task that received it, so that the control loop only swaps it in.
+#[derive(Clone, Copy)]
+pub struct ReadyPlan {
+    pub spec: WaveformSpec,
+    pub plan: TickPlan,
+    pub ramp_cycles: u16,
 }
 
 /// Operator requests, taken by the control loop at the next edge.
 static REQUESTS: Channel<CriticalSectionRawMutex, OperatorRequest, 4> = Channel::new();
+/// The newest plan the control loop has not taken yet. A newer one replaces it, so changes that
+/// arrive faster than edges coalesce: the last accepted one runs from the next cycle boundary.
+static NEXT_PLAN: Mutex<CriticalSectionRawMutex, Cell<Option<ReadyPlan>>> =
+    Mutex::new(Cell::new(None));
+
 /// What the status LED shows ([`Led`] as `u8`), published by the control loop.
 static LED: AtomicU8 = AtomicU8::new(LED_OFF);
 /// Cycles begun so far (low 32 bits), published by the control loop.
@@ -87,6 +97,35 @@ const PHASES: [Phase; 4] = [
 /// Queues a request for the control loop; `false` if the queue is full and it was dropped.
 pub fn request(request: OperatorRequest) -> bool {
     REQUESTS.try_send(request).is_ok()
+}
+
+/// Validates `spec` against the machine's limits and plans it on the output's `clock`, in the
+/// caller's task.
+pub fn plan(clock: TickClock, spec: &WaveformSpec, ramp_cycles: u16) -> Result<ReadyPlan, Error> {
+    let waveform = Waveform::new(*spec, &config::LIMITS)?;
+    let plan = TickPlan::new(&waveform, clock)?;
+    info!(
+        "plan: {=f64} Hz ({=u32} ticks of {=u32} Hz), d = {=f64}, a_max = {=f64} m/s², \
+         x_max = {=f64} m, drift bound {=f64} m",
+        plan.realized_frequency_hz(),
+        plan.period_ticks,
+        plan.clock_hz,
+        waveform.duty,
+        waveform.accel_mps2,
+        waveform.stroke_m,
+        plan.drift_bound_m
+    );
+    Ok(ReadyPlan {
+        spec: *spec,
+        plan,
+        ramp_cycles,
+    })
+}
+
+/// Hands a ready plan to the control loop, replacing any it has not taken yet.
+#[cfg(any(feature = "board-qemu", feature = "console"))]
+pub fn offer(ready: ReadyPlan) {
+    NEXT_PLAN.lock(|next| next.set(Some(ready)));
 }
 
 /// Queues a request for the control loop, waiting for room in the queue.
@@ -167,10 +206,9 @@ fn index_of<T: PartialEq, const N: usize>(table: &[T; N], value: T) -> u8 {
 }
 
 /// Spawns the tasks: the control loop on the board's high-priority executor, the rest on
-/// `spawner`.
-pub fn start(spawner: SendSpawner, board: Board) {
-    #[cfg(feature = "console")]
-    let console_clock = board.output.clock();
+/// `spawner`. Returns the output's tick clock, on which every plan must be made.
+pub fn start(spawner: SendSpawner, board: Board) -> TickClock {
+    let clock = board.output.clock();
     let control = ControlLoop {
         output: board.output,
         driver_enable: board.driver_enable,
@@ -182,7 +220,8 @@ pub fn start(spawner: SendSpawner, board: Board) {
     spawner.spawn(unwrap!(led_task(board.led)));
     spawner.spawn(unwrap!(monitor_task(board.watchdog)));
     #[cfg(feature = "console")]
-    spawner.spawn(unwrap!(board::console_task(board.console, console_clock)));
+    spawner.spawn(unwrap!(board::console_task(board.console, clock)));
+    clock
 }
 
 #[embassy_executor::task]
@@ -337,8 +376,8 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
 
     /// The configured waveform planned on the output's clock, or `None` if it is refused.
     fn plan(&mut self) -> Option<TickPlan> {
-        let plan = match self.make_plan(&config::WAVEFORM) {
-            Ok(plan) => plan,
+        let plan = match plan(self.output.clock(), &config::WAVEFORM, config::RAMP_CYCLES) {
+            Ok(ready) => ready.plan,
             Err(err) => {
                 error!("waveform refused: {}", err);
                 return None;
@@ -350,24 +389,6 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         }
         trace::plan(0, &config::WAVEFORM, plan.clock_hz, config::RAMP_CYCLES);
         Some(plan)
-    }
-
-    /// Validates `spec` against the machine's limits and plans it on the output's clock.
-    fn make_plan(&self, spec: &WaveformSpec) -> Result<TickPlan, Error> {
-        let waveform = Waveform::new(*spec, &config::LIMITS)?;
-        let plan = TickPlan::new(&waveform, self.output.clock())?;
-        info!(
-            "plan: {=f64} Hz ({=u32} ticks of {=u32} Hz), d = {=f64}, a_max = {=f64} m/s², \
-             x_max = {=f64} m, drift bound {=f64} m",
-            plan.realized_frequency_hz(),
-            plan.period_ticks,
-            plan.clock_hz,
-            waveform.duty,
-            waveform.accel_mps2,
-            waveform.stroke_m,
-            plan.drift_bound_m
-        );
-        Ok(plan)
     }
 
     /// Invalid settings: stay at zero with the driver disabled; only a reset helps.
@@ -458,28 +479,27 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
                 OperatorRequest::Stop => SupervisorEvent::StopRequested,
                 #[cfg(feature = "console")]
                 OperatorRequest::Reset => SupervisorEvent::ResetRequested,
-                #[cfg(any(feature = "board-qemu", feature = "console"))]
-                OperatorRequest::Configure { spec, ramp_cycles } => {
-                    self.configure(&spec, ramp_cycles, scheduler);
-                    continue;
-                }
             };
             self.handle(event, Some(scheduler));
         }
+        if let Some(ready) = NEXT_PLAN.lock(Cell::take) {
+            self.adopt(&ready, scheduler);
+        }
     }
 
-    /// Validates and queues a new waveform; a refused one changes nothing.
-    #[cfg(any(feature = "board-qemu", feature = "console"))]
-    fn configure(&mut self, spec: &WaveformSpec, ramp_cycles: u16, scheduler: &mut Scheduler) {
-        match self.make_plan(spec) {
-            Ok(plan) => match scheduler.set_plan(plan) {
-                Ok(()) => {
-                    scheduler.set_ramp_cycles(ramp_cycles);
-                    trace::plan(scheduler.next_tick(), spec, plan.clock_hz, ramp_cycles);
-                }
-                Err(err) => warn!("new waveform refused: {}", err),
-            },
-            Err(err) => warn!("new waveform refused: {}", err),
+    /// Queues a ready plan for the next cycle boundary: O(1), no arithmetic.
+    fn adopt(&mut self, ready: &ReadyPlan, scheduler: &mut Scheduler) {
+        match scheduler.set_plan(ready.plan) {
+            Ok(()) => {
+                scheduler.set_ramp_cycles(ready.ramp_cycles);
+                trace::plan(
+                    scheduler.next_tick(),
+                    &ready.spec,
+                    ready.plan.clock_hz,
+                    ready.ramp_cycles,
+                );
+            }
+            Err(err) => warn!("new plan refused: {}", err),
         }
     }
 

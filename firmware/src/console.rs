@@ -1,15 +1,16 @@
 //! The operator's serial console: bytes in, one reply line out per command line.
 //!
 //! Received bytes go through the shared [`LineAssembler`] and [`Controller`]; the reply is written
-//! back followed by `\r\n`, and the controller's action is queued for the control loop, which
-//! applies it at the next segment start. The console runs below the control loop: waiting for
+//! back followed by `\r\n`. The controller validates and plans every change here, below the
+//! control loop; the control loop only takes the newest ready plan at its next edge and runs it
+//! from the next cycle boundary, and start, stop and reset are queued for it. The console runs below the control loop: waiting for
 //! bytes, for room in the request queue or for the transmitter only ever delays the console.
 
 use defmt::{error, info, warn};
 use embedded_io_async::{Read, Write};
 use feeder_shared::{Action, Controller, LineAssembler, Machine, RecipeStore, Settings, TickClock};
 
-use crate::app::{self, OperatorRequest};
+use crate::app::{self, OperatorRequest, ReadyPlan};
 use crate::config;
 
 /// Bytes taken from the port per read.
@@ -57,26 +58,25 @@ pub async fn serve<P: Read + Write, S: RecipeStore>(mut port: P, mut recipes: S,
                 continue;
             };
             let outcome = controller.handle(line, &app::snapshot(), &mut recipes);
-            if let Some(request) = request_for(outcome.action) {
-                app::submit(request).await;
+            match outcome.action {
+                Action::None => {}
+                Action::Start => app::submit(OperatorRequest::Start).await,
+                Action::Stop => app::submit(OperatorRequest::Stop).await,
+                Action::Reset => app::submit(OperatorRequest::Reset).await,
+                Action::Configure {
+                    spec,
+                    plan,
+                    ramp_cycles,
+                } => app::offer(ReadyPlan {
+                    spec,
+                    plan,
+                    ramp_cycles,
+                }),
             }
             let sent = port.write_all(outcome.reply.as_str().as_bytes()).await;
             if sent.is_err() || port.write_all(b"\r\n").await.is_err() {
                 warn!("console: transmit error, reply lost");
             }
-        }
-    }
-}
-
-/// The control-loop request carrying out `action`, if any.
-fn request_for(action: Action) -> Option<OperatorRequest> {
-    match action {
-        Action::None => None,
-        Action::Start => Some(OperatorRequest::Start),
-        Action::Stop => Some(OperatorRequest::Stop),
-        Action::Reset => Some(OperatorRequest::Reset),
-        Action::Configure { spec, ramp_cycles } => {
-            Some(OperatorRequest::Configure { spec, ramp_cycles })
         }
     }
 }

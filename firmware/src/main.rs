@@ -24,7 +24,7 @@ async fn main(spawner: embassy_executor::Spawner) {
         "feeder firmware up: output {}, stopped",
         config::OUTPUT_STAGE
     );
-    app::start(spawner.make_send(), board);
+    let _ = app::start(spawner.make_send(), board);
 }
 
 #[cfg(feature = "board-qemu")]
@@ -33,8 +33,7 @@ fn main() -> ! {
     let (spawner, board) = board::init();
     app::enable_cycle_counter();
     defmt::info!("feeder firmware up on QEMU mps2-an386: output reported as events, stopped");
-    app::start(spawner, board);
-    #[cfg(not(feature = "console"))]
-    board::spawn_operator(spawner);
+    let clock = app::start(spawner, board);
+    board::spawn_operator(spawner, clock);
     board::sleep_forever()
 }

@@ -19,6 +19,7 @@
 //! `start` right after `reset` is accepted.
 
 use crate::error::Error;
+use crate::plan::TickPlan;
 use crate::protocol::{Applied, Command, Machine, Reply, ReplyError, Settings, Status};
 use crate::recipe::{self, RecipeSlot, RecordError, RECIPE_SLOTS, RECORD_LEN};
 use crate::scheduler::Phase;
@@ -64,9 +65,11 @@ pub enum Action {
     Stop,
     /// Acknowledge the latched fault.
     Reset,
-    /// Run this validated waveform and ramp length from the next cycle boundary.
+    /// Run this validated waveform, already planned on the machine's clock, and ramp length
+    /// from the next cycle boundary.
     Configure {
         spec: WaveformSpec,
+        plan: TickPlan,
         ramp_cycles: u16,
     },
 }
@@ -223,6 +226,7 @@ impl Controller {
                     settings.duty,
                     settings.drive,
                 ),
+                plan: applied.plan,
                 ramp_cycles: settings.ramp_cycles,
             },
         }

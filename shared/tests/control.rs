@@ -95,6 +95,7 @@ fn run(controller: &mut Controller, line: &str, at: &Snapshot, store: &mut Memor
 fn configure(settings: &Settings) -> Action {
     Action::Configure {
         spec: WaveformSpec::from_frequency(settings.frequency_hz, settings.duty, settings.drive),
+        plan: settings.validate(&machine()).unwrap().plan,
         ramp_cycles: settings.ramp_cycles,
     }
 }
@@ -226,8 +227,14 @@ fn set_is_applied_through_configure_and_reported_by_get() {
     let outcome = run(&mut controller, "set freq 55", &at, &mut store);
     assert_eq!(controller.settings().frequency_hz, 55.0);
     match outcome.action {
-        Action::Configure { spec, ramp_cycles } => {
+        Action::Configure {
+            spec,
+            plan,
+            ramp_cycles,
+        } => {
             assert!((spec.period_s - 1.0 / 55.0).abs() < 1e-15);
+            assert_eq!(plan.waveform.period_s, spec.period_s);
+            assert_eq!(plan.period_ticks, 18_182, "1 MHz / 55 Hz, rounded");
             assert_eq!(spec.duty, Settings::DEFAULT.duty);
             assert_eq!(ramp_cycles, Settings::DEFAULT.ramp_cycles);
         }

@@ -44,6 +44,10 @@ use crate::output::{EdgeMissed, SegmentOutput};
 #[cfg(not(feature = "console"))]
 pub use scenario::spawn_operator;
 
+/// With the console the operator is on the serial port: there is no script to spawn.
+#[cfg(feature = "console")]
+pub fn spawn_operator(_: SendSpawner, _: TickClock) {}
+
 pub type Output = ReportingOutput;
 pub type DriverEnable = EmulatedPin;
 pub type Led = EmulatedPin;

@@ -24,7 +24,7 @@ use defmt::{info, unwrap};
 use embassy_executor::SendSpawner;
 use embassy_time::{Instant, Timer};
 use feeder_shared::scenario::parse_setting;
-use feeder_shared::{Drive, ScenarioError, ScenarioSetting, Waveform, WaveformSpec};
+use feeder_shared::{Drive, ScenarioError, ScenarioSetting, TickClock, WaveformSpec};
 
 use super::{after_fault, sleep_forever};
 use crate::app::{self, OperatorRequest, OperatorView};
@@ -89,8 +89,9 @@ fn command_line(buffer: &mut [u8]) -> &str {
     core::str::from_utf8(&buffer[..length]).unwrap_or("")
 }
 
-pub fn spawn_operator(spawner: SendSpawner) {
-    spawner.spawn(unwrap!(operator_task()));
+/// Spawns the scripted operator, which plans on the output's `clock`.
+pub fn spawn_operator(spawner: SendSpawner, clock: TickClock) {
+    spawner.spawn(unwrap!(operator_task(clock)));
 }
 
 /// Ends the run with a failure code if the firmware faulted.
@@ -118,7 +119,7 @@ async fn until_cycle(cycle: u32, panic_at_cycle: Option<u32>) {
 }
 
 #[embassy_executor::task]
-async fn operator_task() {
+async fn operator_task(clock: TickClock) {
     let mut buffer = [0u8; 256];
     let scenario = match Scenario::parse(command_line(&mut buffer)) {
         Ok(scenario) => scenario,
@@ -127,12 +128,21 @@ async fn operator_task() {
             after_fault();
         }
     };
-    for duty in [scenario.spec.duty, scenario.new_duty] {
-        if let Err(error) = Waveform::new(WaveformSpec { duty, ..scenario.spec }, &config::LIMITS) {
+    let plan = |duty| match app::plan(
+        clock,
+        &WaveformSpec {
+            duty,
+            ..scenario.spec
+        },
+        scenario.ramp_cycles,
+    ) {
+        Ok(ready) => ready,
+        Err(error) => {
             defmt::error!("scenario: waveform refused: {}", error);
             after_fault();
         }
-    }
+    };
+    let (first, second) = (plan(scenario.spec.duty), plan(scenario.new_duty));
     let half = scenario.stop_after_cycles / 2;
     info!(
         "scenario: {=u32} cycles, duty {=f64} then {=f64} at cycle {=u32}, ramp {=u16}",
@@ -142,17 +152,10 @@ async fn operator_task() {
         half,
         scenario.ramp_cycles
     );
-    let configure = |duty| OperatorRequest::Configure {
-        spec: WaveformSpec {
-            duty,
-            ..scenario.spec
-        },
-        ramp_cycles: scenario.ramp_cycles,
-    };
-    app::request(configure(scenario.spec.duty));
+    app::offer(first);
     app::request(OperatorRequest::Start);
     until_cycle(half, scenario.panic_at_cycle).await;
-    app::request(configure(scenario.new_duty));
+    app::offer(second);
     until_cycle(scenario.stop_after_cycles, scenario.panic_at_cycle).await;
     app::request(OperatorRequest::Stop);
     let deadline = scenario.stop_after_cycles + u32::from(scenario.ramp_cycles) + STOP_GRACE_CYCLES;
