@@ -83,6 +83,8 @@ pub struct Scheduler {
     ramp_steps: u16,
     pending_ramp_steps: Option<u16>,
     run_requested: bool,
+    /// A controlled stop is requested: the next boundary idles without a ramp.
+    quick_stop: bool,
     step: u16,
     phase: Phase,
     cycle: u64,
@@ -103,6 +105,7 @@ impl Scheduler {
             ramp_steps: ramp_cycles.max(1),
             pending_ramp_steps: None,
             run_requested: false,
+            quick_stop: false,
             step: 0,
             phase: Phase::Stopped,
             cycle: 0,
@@ -121,6 +124,15 @@ impl Scheduler {
     /// Request a soft stop; it begins at the next cycle boundary.
     pub fn stop(&mut self) {
         self.run_requested = false;
+    }
+
+    /// Controlled stop (stop category 1): the cycle in progress runs to its end, where the plate
+    /// is at rest within the plan's drift bound, and the output idles from there, without the
+    /// soft stop's ramp. For faults that leave the output working; [`Self::halt`] is for an
+    /// output that no longer can be timed.
+    pub fn quick_stop(&mut self) {
+        self.run_requested = false;
+        self.quick_stop = true;
     }
 
     /// Replace the plan at the next cycle boundary. The clock must be the running one.
@@ -145,6 +157,7 @@ impl Scheduler {
     /// the last emitted segment ended. Not for normal stops, which use [`Self::stop`].
     pub fn halt(&mut self) {
         self.run_requested = false;
+        self.quick_stop = false;
         self.step = 0;
         self.phase = Phase::Stopped;
         self.residual = 0;
@@ -219,7 +232,10 @@ impl Scheduler {
             }
             self.residual = round(residual_m / self.residual_unit_m()) as i64;
         }
-        self.step = if self.run_requested {
+        self.step = if self.quick_stop {
+            self.quick_stop = false;
+            0
+        } else if self.run_requested {
             (self.step + 1).min(self.ramp_steps)
         } else {
             self.step.saturating_sub(1)

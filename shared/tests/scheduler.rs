@@ -278,3 +278,66 @@ proptest! {
         }
     }
 }
+
+proptest! {
+    /// A controlled stop requested after any segment, at full amplitude or mid-ramp, lets the
+    /// cycle in progress end (velocity exactly zero in integer ticks, position within the drift
+    /// bound) and idles from the next boundary on, without a ramp.
+    #[test]
+    fn a_controlled_stop_at_any_moment_leaves_the_plate_at_rest(
+        ramp_cycles in 1u16..8,
+        cycles_before in 0u64..12,
+        segments_into_cycle in 0usize..4,
+        duty in 0.52f64..0.9,
+    ) {
+        let plan = plan(50.0, duty, 0.0025, 1_000_000);
+        let mut scheduler = Scheduler::new(plan, ramp_cycles);
+        scheduler.next_segment();
+        scheduler.start();
+        let mut plate = Plate::default();
+        for _ in 0..(cycles_before * 4 + segments_into_cycle as u64) {
+            let segment = scheduler.next_segment();
+            prop_assert_eq!(segment.amplitude.steps, ramp_cycles);
+            plate.apply(&segment);
+        }
+        scheduler.quick_stop();
+        let mut after_stop = 0;
+        loop {
+            let segment = scheduler.next_segment();
+            if segment.kind == SegmentKind::Idle {
+                prop_assert_eq!(segment.phase, Phase::Stopped);
+                prop_assert_eq!(segment.level, Level::Zero);
+                break;
+            }
+            prop_assert!(segment.amplitude.step > 0);
+            plate.apply(&segment);
+            after_stop += 1;
+            prop_assert!(after_stop <= 4, "the stop took more than the cycle in progress");
+        }
+        prop_assert_eq!((after_stop + segments_into_cycle) % 4, 0);
+        prop_assert_eq!(plate.velocity, 0);
+        let unit_m = plan.residual_unit_m() / f64::from(ramp_cycles);
+        let position_m = plate.twice_position as f64 / 2.0 * unit_m;
+        prop_assert!(
+            position_m.abs() <= plan.drift_bound_m * (1.0 + 1e-9),
+            "left at {position_m} m, bound {} m", plan.drift_bound_m
+        );
+        for _ in 0..3 {
+            prop_assert_eq!(scheduler.next_segment().kind, SegmentKind::Idle);
+        }
+    }
+}
+
+#[test]
+fn a_start_after_a_controlled_stop_ramps_up_from_rest() {
+    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 3);
+    scheduler.start();
+    for _ in 0..9 {
+        scheduler.next_segment();
+    }
+    scheduler.quick_stop();
+    while scheduler.next_segment().kind != SegmentKind::Idle {}
+    scheduler.start();
+    let first = scheduler.next_segment();
+    assert_eq!((first.kind, first.amplitude.step, first.phase), (SegmentKind::Accelerate, 1, Phase::Starting));
+}
