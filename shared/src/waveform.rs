@@ -28,8 +28,9 @@ pub struct WaveformSpec {
 }
 
 impl WaveformSpec {
-    /// A spec given by frequency instead of period. A non-positive or non-finite frequency is
-    /// reported as such by [`Waveform::new`].
+    /// A spec given by frequency instead of period. A non-positive or non-finite frequency gives
+    /// a period that [`Waveform::new`] refuses in terms of the period, so callers that want the
+    /// frequency named in the refusal check it first.
     pub fn from_frequency(frequency_hz: f64, duty: f64, drive: Drive) -> Self {
         Self {
             period_s: 1.0 / frequency_hz,
