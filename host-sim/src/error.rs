@@ -3,7 +3,8 @@
 
 use core::fmt;
 
-use feeder_shared::Error;
+use feeder_shared::number::Significant;
+use feeder_shared::{Error, Quantity};
 
 #[derive(Debug, Clone, PartialEq)]
 pub enum SimError {
@@ -13,10 +14,19 @@ pub enum SimError {
     StaticBelowKinetic { mu: f64, mu_static: f64 },
     /// A sweep, fit or search was asked for with too few or inconsistent points.
     BadRange { what: &'static str },
+    /// A frequency without a period: NaN, infinite, zero or negative.
+    BadFrequency { frequency_hz: f64 },
+    /// A request the command line cannot run as given; the text names the flags and values.
+    Request(String),
     /// Writing an output file failed.
     Output { path: String, reason: String },
     /// Reading an input (file or stream) failed.
     Input { source: String, reason: String },
+    /// An event stream without a single segment event, with the firmware's first error line.
+    NoSegments {
+        source: String,
+        firmware_error: Option<String>,
+    },
     /// A firmware-in-the-loop run did not match the shared plan (details in the report).
     CheckFailed { problems: usize },
 }
@@ -27,12 +37,36 @@ impl fmt::Display for SimError {
             SimError::Shared(error) => error.fmt(f),
             SimError::StaticBelowKinetic { mu, mu_static } => write!(
                 f,
-                "static friction coefficient μ_s = {mu_static} must not be below the kinetic \
-                 coefficient μ = {mu}"
+                "static friction coefficient μ_s = {} must not be below the kinetic coefficient \
+                 μ = {}",
+                Significant(*mu_static),
+                Significant(*mu)
             ),
             SimError::BadRange { what } => write!(f, "{what}"),
+            SimError::BadFrequency { frequency_hz } => write!(
+                f,
+                "{} must be finite and greater than zero, got {}",
+                Quantity::FrequencyHz.name(),
+                Significant(*frequency_hz)
+            ),
+            SimError::Request(what) => write!(f, "{what}"),
             SimError::Output { path, reason } => write!(f, "cannot write {path}: {reason}"),
             SimError::Input { source, reason } => write!(f, "cannot read {source}: {reason}"),
+            SimError::NoSegments {
+                source,
+                firmware_error: None,
+            } => write!(
+                f,
+                "{source} holds no segments (`EVT seg` lines): is it the firmware's decoded event \
+                 log?"
+            ),
+            SimError::NoSegments {
+                source,
+                firmware_error: Some(line),
+            } => write!(
+                f,
+                "{source} holds no segments; the firmware reported: {line}"
+            ),
             SimError::CheckFailed { problems } => write!(
                 f,
                 "the firmware-in-the-loop check failed with {problems} problem(s), listed above"

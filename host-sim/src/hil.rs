@@ -19,7 +19,7 @@
 
 use std::collections::BTreeMap;
 use std::fmt;
-use std::io::BufRead;
+use std::io::{BufRead, Read};
 
 use serde::Serialize;
 
@@ -78,9 +78,25 @@ pub struct ParseError {
     pub reason: String,
 }
 
+/// Characters of a log line a message shows.
+pub const SHOWN_LINE_CHARS: usize = 120;
+
 impl fmt::Display for ParseError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "unreadable event ({}): {}", self.reason, self.line)
+        write!(
+            f,
+            "unreadable event ({}): {}",
+            self.reason,
+            excerpt(&self.line)
+        )
+    }
+}
+
+/// `line` as a message shows it: at most [`SHOWN_LINE_CHARS`] characters, then `…`.
+pub fn excerpt(line: &str) -> String {
+    match line.char_indices().nth(SHOWN_LINE_CHARS) {
+        Some((end, _)) => format!("{}…", &line[..end]),
+        None => line.to_string(),
     }
 }
 
@@ -239,6 +255,10 @@ impl CheckReport {
 /// Problems listed in full; further ones are only counted.
 const MAX_PROBLEMS: usize = 20;
 
+/// Planned segments the replay passes over to reach one reported edge before the stream counts
+/// as out of step and the replay stops: a garbled tick far ahead would otherwise replay for ages.
+const MAX_SKIPPED_SEGMENTS: u64 = 100_000;
+
 /// A reported edge with what the replay knows about it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Edge {
@@ -259,6 +279,8 @@ pub struct Checker {
     edges: Vec<Edge>,
     plan_index: usize,
     clock_hz: u32,
+    /// A reported edge lay too far past the plan; later edges are counted, not replayed.
+    out_of_step: bool,
 }
 
 impl Checker {
@@ -346,7 +368,8 @@ impl Checker {
 
     fn segment(&mut self, reported: &SegmentEvent) {
         self.report.edges += 1;
-        let deviation = reported.actual_tick as i64 - reported.planned_tick as i64;
+        let deviation = (i128::from(reported.actual_tick) - i128::from(reported.planned_tick))
+            .clamp(-i128::from(i64::MAX), i128::from(i64::MAX)) as i64;
         *self
             .report
             .deviation_histogram
@@ -364,11 +387,16 @@ impl Checker {
             }
         }
         self.previous = Some(*reported);
+        if self.out_of_step {
+            self.report.unexpected += 1;
+            return;
+        }
         if self.replay.is_none() {
             self.report.unexpected += 1;
             self.problem("segment before the initial plan".into());
             return;
         }
+        let mut skipped = 0;
         loop {
             self.apply_requests();
             let Some(replay) = self.replay.as_mut() else {
@@ -382,6 +410,18 @@ impl Checker {
             let expected = replay.next_segment();
             if expected.start_tick < reported.planned_tick {
                 self.report.missing += 1;
+                skipped += 1;
+                if skipped == MAX_SKIPPED_SEGMENTS {
+                    self.report.unexpected += 1;
+                    self.out_of_step = true;
+                    // Listed even past MAX_PROBLEMS: the missing edges before it fill the list.
+                    self.report.problems.push(format!(
+                        "edge at tick {} lies over {MAX_SKIPPED_SEGMENTS} segments past the plan: \
+                         the stream is out of step, later edges are not replayed",
+                        reported.planned_tick
+                    ));
+                    return;
+                }
                 self.problem(format!("missing edge at tick {}", expected.start_tick));
                 continue;
             }
@@ -448,32 +488,64 @@ pub struct Stream {
     pub errors: Vec<String>,
 }
 
-/// Reads a decoded log (defmt-print's or probe-rs's output).
-pub fn read_stream(reader: impl BufRead) -> Result<Stream, HilError> {
+/// Longest line read: decoded event lines are a few hundred bytes at most, so a longer one means
+/// the input is not a decoded log.
+pub const MAX_LINE_BYTES: usize = 64 * 1024;
+
+/// Reads a decoded log (defmt-print's or probe-rs's output): UTF-8 lines of at most
+/// [`MAX_LINE_BYTES`].
+pub fn read_stream(mut reader: impl BufRead) -> Result<Stream, HilError> {
     let mut stream = Stream::default();
-    for line in reader.lines() {
-        let line = line.map_err(|error| HilError::Read(error.to_string()))?;
-        if let Some(event) = parse_line(&line).map_err(HilError::Parse)? {
-            stream.events.push(event);
-        } else if line.contains("ERROR") || line.contains("panic") {
-            stream.errors.push(line.trim_end().to_string());
+    let mut bytes = Vec::new();
+    for number in 1.. {
+        bytes.clear();
+        let read = (&mut reader)
+            .take(MAX_LINE_BYTES as u64 + 1)
+            .read_until(b'\n', &mut bytes)
+            .map_err(|error| HilError::Read(error.to_string()))?;
+        if read == 0 {
+            break;
+        }
+        let text = bytes.strip_suffix(b"\n").unwrap_or(&bytes);
+        if text.len() > MAX_LINE_BYTES {
+            return Err(HilError::Read(format!(
+                "line {number} is longer than {MAX_LINE_BYTES} bytes"
+            )));
+        }
+        let text = text.strip_suffix(b"\r").unwrap_or(text);
+        let line = std::str::from_utf8(text)
+            .map_err(|_| HilError::Read(format!("line {number} is not UTF-8 text")))?;
+        match parse_line(line) {
+            Ok(Some(event)) => stream.events.push(event),
+            Ok(None) if line.contains("ERROR") || line.contains("panic") => {
+                stream.errors.push(line.trim_end().to_string())
+            }
+            Ok(None) => {}
+            Err(error) => {
+                return Err(HilError::Parse {
+                    line: number,
+                    error,
+                })
+            }
         }
     }
     Ok(stream)
 }
 
-/// Why a stream could not be analysed.
+/// Why a stream could not be analysed; the message leaves naming the stream to the caller.
 #[derive(Debug, Clone, PartialEq)]
 pub enum HilError {
+    /// The reader failed, or a line is not text or too long.
     Read(String),
-    Parse(ParseError),
+    /// A line (counted from 1) carries the event marker but cannot be read.
+    Parse { line: usize, error: ParseError },
 }
 
 impl fmt::Display for HilError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            HilError::Read(reason) => write!(f, "cannot read the event stream: {reason}"),
-            HilError::Parse(error) => error.fmt(f),
+            HilError::Read(reason) => f.write_str(reason),
+            HilError::Parse { line, error } => write!(f, "line {line}: {error}"),
         }
     }
 }
@@ -545,7 +617,7 @@ pub fn simulate(edges: &[Edge], clock_hz: u32, contact: &Contact, times: EdgeTim
             let start_tick = tick(edge);
             let end_tick = edges
                 .get(index + 1)
-                .map_or(start_tick + u64::from(edge.event.ticks), tick);
+                .map_or(start_tick.saturating_add(u64::from(edge.event.ticks)), tick);
             let amplitude = f64::from(edge.event.step) / f64::from(edge.event.steps.max(1));
             PlateSegment {
                 duration_s: end_tick.saturating_sub(start_tick) as f64 / clock_hz,

@@ -1,11 +1,12 @@
 //! `host-sim hil`: read a running firmware's decoded event stream, check every edge against the
 //! shared scheduler and simulate the part on the recorded edges.
 
+use std::fs::File;
 use std::io::BufReader;
 use std::path::PathBuf;
 
 use clap::Args;
-use host_sim::hil::{self, CheckReport, Checker, EdgeTimes, PartReport};
+use host_sim::hil::{self, CheckReport, Checker, EdgeTimes, Event, PartReport};
 use host_sim::SimError;
 use serde::Serialize;
 
@@ -75,21 +76,34 @@ impl From<&PartReport> for PartSummary {
 }
 
 pub fn hil(args: &HilArgs) -> Result<(), SimError> {
+    args.output.check()?;
     let contact = args.contact.contact()?;
+    let source = args
+        .input
+        .as_ref()
+        .map_or("standard input".into(), |path| path.display().to_string());
+    let unreadable = |reason: String| SimError::Input {
+        source: source.clone(),
+        reason,
+    };
     let stream = match &args.input {
         Some(path) => {
-            let file = std::fs::File::open(path).map_err(|error| SimError::Input {
-                source: path.display().to_string(),
-                reason: error.to_string(),
-            })?;
+            let file = File::open(path).map_err(|error| unreadable(error.to_string()))?;
             hil::read_stream(BufReader::new(file))
         }
         None => hil::read_stream(std::io::stdin().lock()),
     }
-    .map_err(|error| SimError::Input {
-        source: "the event stream".into(),
-        reason: error.to_string(),
-    })?;
+    .map_err(|error| unreadable(error.to_string()))?;
+    if !stream
+        .events
+        .iter()
+        .any(|event| matches!(event, Event::Segment(_)))
+    {
+        return Err(SimError::NoSegments {
+            source,
+            firmware_error: stream.errors.first().map(|line| hil::excerpt(line)),
+        });
+    }
     let mut checker = Checker::new();
     for event in &stream.events {
         checker.feed(event);

@@ -11,13 +11,17 @@ macro_rules! say {
 mod hil_cli;
 mod plot;
 
-use std::io::IsTerminal;
+use std::fmt::Display;
+use std::io::{IsTerminal, Write as _};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::str::FromStr;
 use std::time::Instant;
 
+use clap::error::ErrorKind;
 use clap::{Args, Parser, Subcommand};
 use feeder_shared::model::{Regime, STANDARD_GRAVITY_MPS2};
+use feeder_shared::number::Significant;
 use feeder_shared::{Drive, WaveformSpec};
 use host_sim::figures::{self, SaturationPoint, SweepPoint, Viscosity};
 use host_sim::sim::TracePoint;
@@ -33,6 +37,13 @@ const DEFAULT_CLOCK_HZ: u32 = 1_000_000;
 const SWEEP_MAX_DUTY: f64 = 0.98;
 /// Cycles of steady motion drawn by `simulate --plot`.
 const PLOT_CYCLES: u64 = 3;
+/// Most operating points one command simulates to steady state: a_max values × duties for
+/// `sweep`, forces for `viscosity`, a_max values × μ values for `saturation` (40 runs each).
+const MAX_POINTS: usize = 10_000;
+/// Most cycles of `simulate --cycles`: about a second of simulation, a few more with `--csv`.
+const MAX_SIMULATE_CYCLES: u64 = 10_000_000;
+/// Most cycles of `trace`, which keeps every event for the report and the plot.
+const MAX_TRACE_CYCLES: u64 = 10_000;
 
 #[derive(Parser)]
 #[command(
@@ -65,46 +76,85 @@ enum Command {
 #[derive(Args, Clone)]
 struct WaveArgs {
     /// Vibration frequency 1/T.
-    #[arg(long, default_value_t = 50.0)]
+    #[arg(long, default_value_t = 50.0, allow_hyphen_values = true)]
     freq_hz: f64,
     /// Duty cycle d = F/T of the plate's velocity profile, in (0.5, 1).
-    #[arg(long, default_value_t = 0.586)]
+    #[arg(long, default_value_t = 0.586, allow_hyphen_values = true)]
     duty: f64,
     /// Peak-to-peak plate stroke x_max (a_max follows from Eq. 5); default 2.5 mm.
-    #[arg(long, conflicts_with = "accel_mps2")]
+    #[arg(long, conflicts_with = "accel_mps2", allow_hyphen_values = true)]
     stroke_m: Option<f64>,
     /// Peak plate acceleration a_max (the stroke follows from Eq. 5).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     accel_mps2: Option<f64>,
 }
 
 impl WaveArgs {
-    fn spec(&self) -> WaveformSpec {
+    fn spec(&self) -> Result<WaveformSpec, SimError> {
         let drive = match (self.accel_mps2, self.stroke_m) {
             (Some(accel_mps2), _) => Drive::Accel { accel_mps2 },
             (None, stroke_m) => Drive::Stroke {
                 stroke_m: stroke_m.unwrap_or(0.0025),
             },
         };
-        WaveformSpec::from_frequency(self.freq_hz, self.duty, drive)
+        Ok(WaveformSpec {
+            period_s: period_s(self.freq_hz)?,
+            duty: self.duty,
+            drive,
+        })
     }
+}
+
+/// The period of a frequency from the command line, which must be finite and above zero.
+fn period_s(frequency_hz: f64) -> Result<f64, SimError> {
+    if frequency_hz.is_finite() && frequency_hz > 0.0 {
+        Ok(1.0 / frequency_hz)
+    } else {
+        Err(SimError::BadFrequency { frequency_hz })
+    }
+}
+
+/// A clap parser for a count from `min` to `max`; a refusal names the range.
+fn count<T>(min: T, max: T) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static
+where
+    T: FromStr + PartialOrd + Display + Copy + Send + Sync + 'static,
+{
+    move |text| {
+        text.parse()
+            .ok()
+            .filter(|count| (min..=max).contains(count))
+            .ok_or_else(|| format!("expected a whole number from {min} to {max}"))
+    }
+}
+
+/// Refuses `rows × columns` operating points beyond [`MAX_POINTS`]; `what` names the two flags.
+fn check_grid(rows: usize, columns: usize, what: [&str; 2]) -> Result<(), SimError> {
+    let points = rows.saturating_mul(columns);
+    if points <= MAX_POINTS {
+        return Ok(());
+    }
+    Err(SimError::Request(format!(
+        "{rows} {} values × {} {columns} make {points} operating points; a run computes at most \
+         {MAX_POINTS}",
+        what[0], what[1]
+    )))
 }
 
 #[derive(Args, Clone)]
 struct ContactArgs {
     /// Kinetic friction coefficient μ.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
     mu: f64,
     /// Static friction coefficient μ_s ≥ μ (default μ).
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     mu_static: Option<f64>,
-    #[arg(long, default_value_t = STANDARD_GRAVITY_MPS2)]
+    #[arg(long, default_value_t = STANDARD_GRAVITY_MPS2, allow_hyphen_values = true)]
     gravity_mps2: f64,
     /// Part mass (the paper's 0.1 g by default).
-    #[arg(long, default_value_t = 1e-4)]
+    #[arg(long, default_value_t = 1e-4, allow_hyphen_values = true)]
     mass_kg: f64,
     /// Constant external force on the part along the feed direction.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     force_n: f64,
 }
 
@@ -124,7 +174,7 @@ impl ContactArgs {
 #[derive(Args, Clone)]
 struct TimingArgs {
     /// Drive the plate with the shared scheduler's tick plan at this timer clock (default 1 MHz).
-    #[arg(long, conflicts_with = "exact_times")]
+    #[arg(long, conflicts_with = "exact_times", allow_hyphen_values = true)]
     clock_hz: Option<u32>,
     /// Use the waveform's exact real-valued switching times instead of a tick plan.
     #[arg(long)]
@@ -154,6 +204,13 @@ struct OutputArgs {
     plot: Option<PathBuf>,
 }
 
+impl OutputArgs {
+    /// Refuses a plot file format that cannot be written, before anything is computed.
+    fn check(&self) -> Result<(), SimError> {
+        self.plot.as_deref().map_or(Ok(()), plot::check_path)
+    }
+}
+
 #[derive(Args)]
 struct SimulateArgs {
     #[command(flatten)]
@@ -162,8 +219,13 @@ struct SimulateArgs {
     contact: ContactArgs,
     #[command(flatten)]
     timing: TimingArgs,
-    /// Run exactly N cycles instead of detecting steady state.
-    #[arg(long, value_name = "N")]
+    /// Run exactly N cycles (at most 10 000 000) instead of detecting steady state.
+    #[arg(
+        long,
+        value_name = "N",
+        value_parser = count(1, MAX_SIMULATE_CYCLES),
+        allow_hyphen_values = true
+    )]
     cycles: Option<u64>,
     #[command(flatten)]
     output: OutputArgs,
@@ -171,13 +233,24 @@ struct SimulateArgs {
 
 #[derive(Args)]
 struct SweepArgs {
-    #[arg(long, default_value_t = 50.0)]
+    #[arg(long, default_value_t = 50.0, allow_hyphen_values = true)]
     freq_hz: f64,
-    /// Peak accelerations to sweep (the paper's Fig. 9 by default).
-    #[arg(long, num_args = 1.., value_delimiter = ',', default_values_t = [100.0, 150.0, 200.0])]
+    /// Peak accelerations to sweep, comma-separated (the paper's Fig. 9 by default).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "100,150,200",
+        allow_hyphen_values = true
+    )]
     accel_mps2: Vec<f64>,
-    /// Number of duties, evenly spaced strictly inside (0.5, 0.98).
-    #[arg(long, default_value_t = 50)]
+    /// Number of duties, evenly spaced strictly inside (0.5, 0.98); at most 10 000 points in all.
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 50,
+        value_parser = count(1, MAX_POINTS),
+        allow_hyphen_values = true
+    )]
     duties: usize,
     #[command(flatten)]
     contact: ContactArgs,
@@ -190,20 +263,20 @@ struct SweepArgs {
 #[derive(Args)]
 struct ViscosityArgs {
     /// The paper's Section IV.C: T = 0.01 s.
-    #[arg(long, default_value_t = 100.0)]
+    #[arg(long, default_value_t = 100.0, allow_hyphen_values = true)]
     freq_hz: f64,
     /// d ≈ 0.5484, implied by the paper's fitted intercept (errata 10).
-    #[arg(long, default_value_t = 0.5484)]
+    #[arg(long, default_value_t = 0.5484, allow_hyphen_values = true)]
     duty: f64,
-    #[arg(long, default_value_t = 100.0)]
+    #[arg(long, default_value_t = 100.0, allow_hyphen_values = true)]
     accel_mps2: f64,
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, allow_hyphen_values = true)]
     mu: f64,
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     mu_static: Option<f64>,
-    #[arg(long, default_value_t = STANDARD_GRAVITY_MPS2)]
+    #[arg(long, default_value_t = STANDARD_GRAVITY_MPS2, allow_hyphen_values = true)]
     gravity_mps2: f64,
-    #[arg(long, default_value_t = 1e-4)]
+    #[arg(long, default_value_t = 1e-4, allow_hyphen_values = true)]
     mass_kg: f64,
     /// Smallest force (−15 dyn by default).
     #[arg(long, default_value_t = -1.5e-4, allow_hyphen_values = true)]
@@ -211,8 +284,14 @@ struct ViscosityArgs {
     /// Largest force (15 dyn by default).
     #[arg(long, default_value_t = 1.5e-4, allow_hyphen_values = true)]
     force_max_n: f64,
-    /// Number of forces, evenly spaced including both ends.
-    #[arg(long, default_value_t = 31)]
+    /// Number of forces (2 to 10 000), evenly spaced including both ends.
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 31,
+        value_parser = count(2, MAX_POINTS),
+        allow_hyphen_values = true
+    )]
     points: usize,
     #[command(flatten)]
     timing: TimingArgs,
@@ -222,19 +301,31 @@ struct ViscosityArgs {
 
 #[derive(Args)]
 struct SaturationArgs {
-    #[arg(long, default_value_t = 50.0)]
+    #[arg(long, default_value_t = 50.0, allow_hyphen_values = true)]
     freq_hz: f64,
-    /// Friction coefficients, one curve each (the paper's Fig. 7 by default).
-    #[arg(long, num_args = 1.., value_delimiter = ',', default_values_t = [1.0, 0.5, 0.25])]
+    /// Friction coefficients, comma-separated, one curve each (the paper's Fig. 7 by default).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "1,0.5,0.25",
+        allow_hyphen_values = true
+    )]
     mu: Vec<f64>,
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_hyphen_values = true)]
     accel_min_mps2: f64,
-    #[arg(long, default_value_t = 200.0)]
+    #[arg(long, default_value_t = 200.0, allow_hyphen_values = true)]
     accel_max_mps2: f64,
-    /// Number of a_max values, evenly spaced including both ends.
-    #[arg(long, default_value_t = 20)]
+    /// Number of a_max values (2 or more), evenly spaced including both ends; at most 10 000
+    /// points in all.
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 20,
+        value_parser = count(2, MAX_POINTS),
+        allow_hyphen_values = true
+    )]
     points: usize,
-    #[arg(long, default_value_t = STANDARD_GRAVITY_MPS2)]
+    #[arg(long, default_value_t = STANDARD_GRAVITY_MPS2, allow_hyphen_values = true)]
     gravity_mps2: f64,
     #[command(flatten)]
     output: OutputArgs,
@@ -248,15 +339,30 @@ struct TraceArgs {
     contact: ContactArgs,
     #[command(flatten)]
     timing: TimingArgs,
-    /// Cycles to trace from rest.
-    #[arg(long, default_value_t = 5)]
+    /// Cycles to trace from rest (at most 10 000).
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 5,
+        value_parser = count(1, MAX_TRACE_CYCLES),
+        allow_hyphen_values = true
+    )]
     cycles: u64,
     #[command(flatten)]
     output: OutputArgs,
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(error)
+            if error.use_stderr()
+                && error.kind() != ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand =>
+        {
+            return refuse(&usage_error(&error));
+        }
+        Err(error) => error.exit(),
+    };
     let outcome = match cli.command {
         Command::Simulate(args) => simulate(&args),
         Command::Sweep(args) => sweep(&args),
@@ -267,11 +373,41 @@ fn main() -> ExitCode {
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
-        Err(error) => {
-            eprintln!("error: {error}");
-            ExitCode::from(2)
+        Err(error) => refuse(&format!("error: {error}")),
+    }
+}
+
+/// Prints `message` as one line on stderr, control characters escaped, and exits with code 2.
+fn refuse(message: &str) -> ExitCode {
+    let mut line = String::with_capacity(message.len());
+    for c in message.chars() {
+        if c.is_control() {
+            line.extend(c.escape_default());
+        } else {
+            line.push(c);
         }
     }
+    let _ = writeln!(std::io::stderr().lock(), "{line}");
+    ExitCode::from(2)
+}
+
+/// Clap's refusal as one line: the message and its tips, without the usage and the pointer to
+/// `--help` that follow.
+fn usage_error(error: &clap::Error) -> String {
+    let rendered = error.render().to_string();
+    let mut line = String::new();
+    for part in rendered
+        .lines()
+        .map(str::trim)
+        .take_while(|part| !part.starts_with("Usage:") && !part.starts_with("For more information"))
+        .filter(|part| !part.is_empty())
+    {
+        if !line.is_empty() {
+            line.push_str(if line.ends_with(':') { " " } else { "; " });
+        }
+        line.push_str(part);
+    }
+    line
 }
 
 #[derive(Serialize)]
@@ -300,8 +436,9 @@ struct SimulateReport {
 }
 
 fn simulate(args: &SimulateArgs) -> Result<(), SimError> {
+    args.output.check()?;
     let point = OperatingPoint::new(
-        args.wave.spec(),
+        args.wave.spec()?,
         args.contact.contact()?,
         args.timing.clock_hz(),
     )?;
@@ -467,11 +604,18 @@ fn print_simulation(report: &SimulateReport, point: &OperatingPoint, output: &Ou
 }
 
 fn sweep(args: &SweepArgs) -> Result<(), SimError> {
+    args.output.check()?;
+    let period_s = period_s(args.freq_hz)?;
+    check_grid(
+        args.accel_mps2.len(),
+        args.duties,
+        ["--accel-mps2", "--duties"],
+    )?;
     let contact = args.contact.contact()?;
     let duties = figures::duty_grid(0.5, SWEEP_MAX_DUTY, args.duties);
     let progress = progress(args.accel_mps2.len() * duties.len(), args.output.json);
     let points = figures::sweep(
-        1.0 / args.freq_hz,
+        period_s,
         &args.accel_mps2,
         &duties,
         &contact,
@@ -561,6 +705,14 @@ fn plot_sweep(path: &Path, args: &SweepArgs, points: &[SweepPoint]) -> Result<()
 }
 
 fn viscosity(args: &ViscosityArgs) -> Result<(), SimError> {
+    args.output.check()?;
+    let spec = WaveformSpec {
+        period_s: period_s(args.freq_hz)?,
+        duty: args.duty,
+        drive: Drive::Accel {
+            accel_mps2: args.accel_mps2,
+        },
+    };
     let contact = Contact::new(
         args.mu,
         args.mu_static.unwrap_or(args.mu),
@@ -568,18 +720,14 @@ fn viscosity(args: &ViscosityArgs) -> Result<(), SimError> {
         args.mass_kg,
         0.0,
     )?;
-    let forces = evenly_spaced(args.force_min_n, args.force_max_n, args.points).ok_or(
-        SimError::BadRange {
-            what: "the force range needs --points ≥ 2 and --force-max-n above --force-min-n",
-        },
-    )?;
-    let spec = WaveformSpec::from_frequency(
-        args.freq_hz,
-        args.duty,
-        Drive::Accel {
-            accel_mps2: args.accel_mps2,
-        },
-    );
+    let forces =
+        evenly_spaced(args.force_min_n, args.force_max_n, args.points).ok_or_else(|| {
+            SimError::Request(format!(
+                "--force-max-n {} must be above --force-min-n {}",
+                Significant(args.force_max_n),
+                Significant(args.force_min_n)
+            ))
+        })?;
     let fit = figures::viscosity(spec, &contact, &forces, args.timing.clock_hz())?;
     if let Some(path) = &args.output.csv {
         write_csv(path, &fit.points)?;
@@ -680,16 +828,20 @@ fn evenly_spaced(low: f64, high: f64, points: usize) -> Option<Vec<f64>> {
 }
 
 fn saturation(args: &SaturationArgs) -> Result<(), SimError> {
-    let accels = evenly_spaced(args.accel_min_mps2, args.accel_max_mps2, args.points).ok_or(
-        SimError::BadRange {
-            what: "the a_max range needs --points ≥ 2 and --accel-max-mps2 above --accel-min-mps2",
-        },
-    )?;
+    args.output.check()?;
+    let period_s = period_s(args.freq_hz)?;
+    check_grid(args.mu.len(), args.points, ["--mu", "--points"])?;
+    let accels =
+        evenly_spaced(args.accel_min_mps2, args.accel_max_mps2, args.points).ok_or_else(|| {
+            SimError::Request(format!(
+                "--accel-max-mps2 {} must be above --accel-min-mps2 {}",
+                Significant(args.accel_max_mps2),
+                Significant(args.accel_min_mps2)
+            ))
+        })?;
     let contact = Contact::new(1.0, 1.0, args.gravity_mps2, 1e-4, 0.0)?;
     let progress = progress(accels.len() * args.mu.len(), args.output.json);
-    let points = figures::saturation(1.0 / args.freq_hz, &accels, &args.mu, &contact, &|| {
-        progress.inc(1)
-    })?;
+    let points = figures::saturation(period_s, &accels, &args.mu, &contact, &|| progress.inc(1))?;
     progress.finish_and_clear();
     if emit(&args.output, &points, |path| {
         plot_saturation(path, args, &points)
@@ -745,8 +897,9 @@ fn plot_saturation(
 }
 
 fn trace(args: &TraceArgs) -> Result<(), SimError> {
+    args.output.check()?;
     let point = OperatingPoint::new(
-        args.wave.spec(),
+        args.wave.spec()?,
         args.contact.contact()?,
         args.timing.clock_hz(),
     )?;
@@ -887,4 +1040,32 @@ fn write_csv<T: Serialize>(path: &Path, rows: &[T]) -> Result<(), SimError> {
         writer.serialize(row).map_err(|e| failure(e.to_string()))?;
     }
     writer.flush().map_err(|e| failure(e.to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::CommandFactory;
+
+    /// Every flag that takes a number reads a negative one after a space (`--force-n -1e-5`);
+    /// only file names are left to clap's usual reading.
+    #[test]
+    fn every_numeric_flag_takes_hyphen_values() {
+        let cli = super::Cli::command();
+        cli.clone().debug_assert();
+        for command in cli.get_subcommands() {
+            for arg in command.get_arguments() {
+                let file = arg
+                    .get_value_names()
+                    .is_some_and(|names| names.iter().any(|name| name == "FILE"));
+                if arg.get_action().takes_values() && !file {
+                    assert!(
+                        arg.is_allow_hyphen_values_set(),
+                        "{} --{}",
+                        command.get_name(),
+                        arg.get_id()
+                    );
+                }
+            }
+        }
+    }
 }

@@ -45,31 +45,56 @@ pub struct Labels<'a> {
     pub y: &'a str,
 }
 
+/// Chart file formats, by extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Format {
+    Svg,
+    Png,
+}
+
+fn format(path: &Path) -> Result<Format, SimError> {
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    match extension.as_deref() {
+        Some("svg") => Ok(Format::Svg),
+        Some("png") => Ok(Format::Png),
+        _ => Err(SimError::Output {
+            path: path.display().to_string(),
+            reason: "the plot file must end in .svg or .png".into(),
+        }),
+    }
+}
+
+/// Refuses a chart path of a format [`chart`] cannot write, before anything is computed.
+pub fn check_path(path: &Path) -> Result<(), SimError> {
+    format(path).map(|_| ())
+}
+
 /// Writes the chart to `path`: `.svg` or `.png`.
 pub fn chart(path: &Path, labels: Labels<'_>, series: &[Series]) -> Result<(), SimError> {
     let failure = |reason: String| SimError::Output {
         path: path.display().to_string(),
         reason,
     };
-    let extension = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
+    let format = format(path)?;
+    // Creating the file first reports an unwritable path in the system's words, not the backend's.
+    std::fs::File::create(path).map_err(|e| failure(e.to_string()))?;
     // Both backends lay text out with the embedded font's metrics.
     plotters::style::register_font(FONT, FontStyle::Normal, dejavu::sans::regular())
         .map_err(|_| failure("the embedded font is unreadable".into()))?;
-    match extension.as_deref() {
-        Some("svg") => {
+    match format {
+        Format::Svg => {
             let root = SVGBackend::new(path, SIZE).into_drawing_area();
             draw(&root, labels, series).map_err(failure)?;
             root.present().map_err(|e| failure(e.to_string()))
         }
-        Some("png") => {
+        Format::Png => {
             let root = BitMapBackend::new(path, SIZE).into_drawing_area();
             draw(&root, labels, series).map_err(failure)?;
             root.present().map_err(|e| failure(e.to_string()))
         }
-        _ => Err(failure("the plot file must end in .svg or .png".into())),
     }
 }
 
