@@ -1,0 +1,401 @@
+//! The command line's answers to a new user's input: negative numbers after a space, and one
+//! clear `error:` line with exit code 2 for everything it cannot run.
+
+mod support;
+
+use std::time::Duration;
+
+use support::{golden_log, run, scratch_dir, Outcome, REFUSAL_TIME};
+
+/// Time allowed to runs that do compute something.
+const RUN_TIME: Duration = Duration::from_secs(30);
+
+fn refusal(args: &[&str]) -> Outcome {
+    run(args, REFUSAL_TIME * 5)
+}
+
+fn json(outcome: &Outcome) -> serde_json::Value {
+    assert_eq!(outcome.code(), Some(0), "{outcome:#?}");
+    serde_json::from_str(&outcome.stdout).expect("the output is JSON")
+}
+
+#[test]
+fn negative_force_after_a_space_gives_a_negative_force_result() {
+    let outcome = run(&["simulate", "--force-n", "-0.0001", "--json"], RUN_TIME);
+    let report = json(&outcome);
+    assert_eq!(report["force_n"], -0.0001);
+    assert!(report["feed_rate_mps"].as_f64().is_some(), "{report}");
+    assert_eq!(outcome.stderr, "");
+}
+
+#[test]
+fn negative_exponent_forms_after_a_space_are_numbers() {
+    let report = json(&run(
+        &[
+            "simulate",
+            "--force-n",
+            "-1.5e-5",
+            "--exact-times",
+            "--json",
+        ],
+        RUN_TIME,
+    ));
+    assert_eq!(report["force_n"], -1.5e-5);
+    let fit = json(&run(
+        &[
+            "viscosity",
+            "--force-min-n",
+            "-1e-4",
+            "--force-max-n",
+            "1e-4",
+            "--points",
+            "5",
+            "--exact-times",
+            "--json",
+        ],
+        RUN_TIME,
+    ));
+    assert_eq!(fit["points"][0]["force_n"], -1e-4);
+}
+
+/// Every numeric flag of every subcommand, after the subcommand and a size that keeps its run
+/// short.
+const NUMERIC_FLAGS: &[(&str, &[&str], &[&str])] = &[
+    (
+        "simulate",
+        &[],
+        &[
+            "--freq-hz",
+            "--duty",
+            "--stroke-m",
+            "--accel-mps2",
+            "--mu",
+            "--mu-static",
+            "--gravity-mps2",
+            "--mass-kg",
+            "--force-n",
+            "--clock-hz",
+            "--cycles",
+        ],
+    ),
+    (
+        "sweep",
+        &["--duties", "2"],
+        &[
+            "--freq-hz",
+            "--accel-mps2",
+            "--duties",
+            "--mu",
+            "--mu-static",
+            "--gravity-mps2",
+            "--mass-kg",
+            "--force-n",
+            "--clock-hz",
+        ],
+    ),
+    (
+        "viscosity",
+        &["--points", "3"],
+        &[
+            "--freq-hz",
+            "--duty",
+            "--accel-mps2",
+            "--mu",
+            "--mu-static",
+            "--gravity-mps2",
+            "--mass-kg",
+            "--force-min-n",
+            "--force-max-n",
+            "--points",
+            "--clock-hz",
+        ],
+    ),
+    (
+        "saturation",
+        &["--points", "2"],
+        &[
+            "--freq-hz",
+            "--mu",
+            "--accel-min-mps2",
+            "--accel-max-mps2",
+            "--points",
+            "--gravity-mps2",
+        ],
+    ),
+    (
+        "trace",
+        &[],
+        &[
+            "--freq-hz",
+            "--duty",
+            "--stroke-m",
+            "--accel-mps2",
+            "--mu",
+            "--mu-static",
+            "--gravity-mps2",
+            "--mass-kg",
+            "--force-n",
+            "--clock-hz",
+            "--cycles",
+        ],
+    ),
+    (
+        "hil",
+        &[],
+        &[
+            "--mu",
+            "--mu-static",
+            "--gravity-mps2",
+            "--mass-kg",
+            "--force-n",
+        ],
+    ),
+];
+
+#[test]
+fn every_numeric_flag_reads_a_negative_number_after_a_space() {
+    for (command, size, flags) in NUMERIC_FLAGS {
+        for flag in *flags {
+            for value in ["-0.0001", "-1e-5", "-inf"] {
+                let mut args = vec![*command, flag, value];
+                if !size.contains(flag) {
+                    args.extend(*size);
+                }
+                let outcome = run(&args, RUN_TIME);
+                let stderr = &outcome.stderr;
+                assert!(
+                    !stderr.contains("unexpected argument")
+                        && !stderr.contains("value is required"),
+                    "{args:?}: {stderr}"
+                );
+                assert!(
+                    matches!(outcome.code(), Some(0 | 2)) && outcome.stderr_lines().len() <= 1,
+                    "{outcome:#?}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn counts_beyond_their_limits_are_refused_up_front() {
+    refusal(&["viscosity", "--points", "100000000"]).assert_refused(&[
+        "--points",
+        "100000000",
+        "10000",
+    ]);
+    refusal(&["saturation", "--points", "100000000"]).assert_refused(&["--points", "10000"]);
+    refusal(&["sweep", "--duties", "100000000"]).assert_refused(&["--duties", "10000"]);
+    refusal(&["simulate", "--cycles", "100000000"]).assert_refused(&["--cycles", "10000000"]);
+    refusal(&["simulate", "--cycles", "18446744073709551616"]).assert_refused(&["--cycles"]);
+    refusal(&["sweep", "--accel-mps2", "100,150,200", "--duties", "5000"]).assert_refused(&[
+        "--accel-mps2",
+        "--duties 5000",
+        "15000",
+        "10000",
+    ]);
+    refusal(&["saturation", "--mu", "1,0.5", "--points", "6000"]).assert_refused(&[
+        "--mu",
+        "--points 6000",
+        "10000",
+    ]);
+}
+
+#[test]
+fn trace_beyond_its_limit_is_refused_before_anything_is_drawn() {
+    let dir = scratch_dir("trace-limit");
+    let plot = dir.join("x.png");
+    let plot = plot.to_str().expect("UTF-8 path");
+    refusal(&["trace", "--cycles", "100000000", "--plot", plot]).assert_refused(&[
+        "--cycles",
+        "100000000",
+        "10000",
+    ]);
+    assert!(!dir.join("x.png").exists());
+}
+
+#[test]
+fn counts_at_their_limits_run() {
+    let report = json(&run(
+        &[
+            "simulate",
+            "--cycles",
+            "10000000",
+            "--exact-times",
+            "--json",
+        ],
+        RUN_TIME,
+    ));
+    assert_eq!(report["cycles"], 10_000_000);
+    let trace = json(&run(&["trace", "--cycles", "10000", "--json"], RUN_TIME));
+    assert!(trace.as_array().is_some_and(|events| events.len() > 10_000));
+}
+
+#[test]
+fn zero_counts_are_refused_naming_the_flag() {
+    for (command, flag) in [
+        ("simulate", "--cycles"),
+        ("trace", "--cycles"),
+        ("sweep", "--duties"),
+        ("viscosity", "--points"),
+        ("saturation", "--points"),
+    ] {
+        refusal(&[command, flag, "0"]).assert_refused(&[flag, "'0'"]);
+        refusal(&[command, flag, "-3"]).assert_refused(&[flag, "'-3'"]);
+    }
+}
+
+#[test]
+fn frequencies_without_a_period_are_refused_naming_the_frequency() {
+    for command in ["simulate", "sweep", "viscosity", "saturation", "trace"] {
+        for (typed, shown) in [
+            ("inf", "got inf"),
+            ("-inf", "got -inf"),
+            ("nan", "got NaN"),
+            ("0", "got 0"),
+            ("-50", "got -50"),
+        ] {
+            refusal(&[command, "--freq-hz", typed])
+                .assert_refused(&["frequency (Hz) must be finite and greater than zero", shown]);
+        }
+    }
+}
+
+#[test]
+fn unreadable_hil_inputs_end_with_one_line() {
+    let dir = scratch_dir("hil-inputs");
+    let garbage = dir.join("garbage.bin");
+    std::fs::write(&garbage, [0u8, 0xff, 0xfe, b'\n', 0x80, 0x81]).expect("write");
+    let long = dir.join("long.log");
+    std::fs::write(&long, vec![b'x'; 100_000]).expect("write");
+    let broken = dir.join("broken.log");
+    std::fs::write(&broken, "EVT seg cycle=1 kind=sideways planned=0\n").expect("write");
+    let directory = dir.to_str().expect("UTF-8 path");
+    let missing = dir.join("missing.log");
+    for (path, words) in [
+        (&garbage, &["garbage.bin", "line 1 is not UTF-8 text"][..]),
+        (&long, &["long.log", "line 1 is longer than"][..]),
+        (
+            &broken,
+            &["broken.log", "line 1", "unknown segment kind `sideways`"][..],
+        ),
+        (&missing, &["missing.log", "No such file"][..]),
+    ] {
+        let path = path.to_str().expect("UTF-8 path");
+        refusal(&["hil", "--input", path]).assert_refused(words);
+    }
+    let outcome = refusal(&["hil", "--input", directory]);
+    outcome.assert_refused(&["cannot read", "directory"]);
+    assert_eq!(
+        outcome.stderr.matches("cannot read").count(),
+        1,
+        "{outcome:#?}"
+    );
+}
+
+#[test]
+fn a_hil_stream_without_segments_says_so() {
+    let dir = scratch_dir("hil-empty");
+    let empty = dir.join("empty.log");
+    std::fs::write(&empty, "").expect("write");
+    let chatter = dir.join("chatter.log");
+    std::fs::write(&chatter, "INFO  booting\nINFO  stopped\n").expect("write");
+    let panicked = dir.join("panicked.log");
+    std::fs::write(
+        &panicked,
+        "INFO  booting\nERROR panicked at src/main.rs:1:1\n",
+    )
+    .expect("write");
+    for path in [&empty, &chatter] {
+        let path = path.to_str().expect("UTF-8 path");
+        for open_ended in [false, true] {
+            let mut args = vec!["hil", "--input", path];
+            if open_ended {
+                args.push("--open-ended");
+            }
+            let outcome = refusal(&args);
+            outcome.assert_refused(&["holds no segments", "decoded event log"]);
+            assert!(!outcome.stderr.contains("problem(s)"), "{outcome:#?}");
+        }
+    }
+    let panicked = panicked.to_str().expect("UTF-8 path");
+    refusal(&["hil", "--input", panicked])
+        .assert_refused(&["holds no segments", "the firmware reported: ERROR panicked"]);
+    refusal(&["hil"]).assert_refused(&["standard input holds no segments"]);
+}
+
+#[test]
+fn a_passing_hil_log_still_passes() {
+    let log = golden_log();
+    let outcome = run(
+        &[
+            "hil",
+            "--input",
+            log.to_str().expect("UTF-8 path"),
+            "--json",
+        ],
+        RUN_TIME,
+    );
+    assert_eq!(json(&outcome)["passed"], true);
+}
+
+#[test]
+fn unwritable_outputs_end_with_one_line() {
+    let dir = scratch_dir("outputs");
+    let directory = dir.to_str().expect("UTF-8 path").to_string();
+    let log = golden_log();
+    let log = log.to_str().expect("UTF-8 path");
+    let missing_dir = dir.join("no/such/dir");
+    let missing_dir = missing_dir.to_str().expect("UTF-8 path");
+    let plot_in_missing = format!("{missing_dir}/x.svg");
+    let csv_in_missing = format!("{missing_dir}/x.csv");
+    let plot_is_dir = format!("{directory}/sub.svg");
+    std::fs::create_dir_all(&plot_is_dir).expect("directory named like a plot");
+    let wrong_format = format!("{directory}/x.jpg");
+    for command in [
+        &["simulate", "--exact-times"][..],
+        &["trace"][..],
+        &["sweep", "--duties", "2", "--exact-times"][..],
+        &["viscosity", "--points", "3", "--exact-times"][..],
+        &["saturation", "--points", "2", "--mu", "1"][..],
+        &["hil", "--input", log][..],
+    ] {
+        for (flag, path, words) in [
+            (
+                "--csv",
+                &csv_in_missing,
+                &["cannot write", "No such file"][..],
+            ),
+            (
+                "--plot",
+                &plot_in_missing,
+                &["cannot write", "No such file"][..],
+            ),
+            ("--plot", &plot_is_dir, &["cannot write", "directory"][..]),
+            ("--plot", &wrong_format, &["x.jpg", ".svg or .png"][..]),
+            ("--csv", &directory, &["cannot write"][..]),
+        ] {
+            let mut args = command.to_vec();
+            args.extend([flag, path.as_str()]);
+            let outcome = run(&args, RUN_TIME);
+            assert_eq!(outcome.code(), Some(2), "{outcome:#?}");
+            let lines = outcome.stderr_lines();
+            assert_eq!(lines.len(), 1, "{outcome:#?}");
+            assert!(lines[0].starts_with("error: "), "{outcome:#?}");
+            for word in words {
+                assert!(lines[0].contains(word), "no {word:?} in {:?}", lines[0]);
+            }
+        }
+    }
+}
+
+#[test]
+fn usage_errors_are_one_line() {
+    refusal(&["simulate", "--frq-hz", "60"]).assert_refused(&["'--frq-hz'", "'--freq-hz'"]);
+    refusal(&["simulate", "--stroke-m", "0.002", "--accel-mps2", "100"])
+        .assert_refused(&["--stroke-m", "--accel-mps2"]);
+    refusal(&["simulate", "--duty", "half"]).assert_refused(&["'half'", "--duty"]);
+    refusal(&["simulate", "--mu"]).assert_refused(&["--mu"]);
+    refusal(&["simulate", "--duty", "0.6\n0.7"]).assert_refused(&["--duty"]);
+    refusal(&["feed"]).assert_refused(&["'feed'"]);
+}
