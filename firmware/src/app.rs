@@ -13,8 +13,8 @@ use embassy_time::{Duration, Ticker, Timer};
 use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_hal_async::digital::Wait;
 use feeder_shared::{
-    Error, Fault, Led, MotionRequest, Phase, RunState, Scheduler, Segment, SegmentKind, Supervisor,
-    SupervisorEvent, TickClock, TickPlan, Waveform, WaveformSpec,
+    Error, Fault, Led, MotionRequest, Phase, RunState, Scheduler, Segment, SegmentKind,
+    StopCategory, Supervisor, SupervisorEvent, TickClock, TickPlan, Waveform, WaveformSpec,
 };
 
 use crate::board::{self, Board};
@@ -407,13 +407,13 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             let edge = self.output.wait_edge().await;
             let work_start = cycles();
             if edge.is_err() {
-                queued = self.fail(Fault::EdgeMissed, &mut scheduler);
+                queued = self.fail(Fault::EdgeMissed, queued, &mut scheduler);
                 continue;
             }
             self.begin(&queued, &mut scheduler);
             queued = scheduler.next_segment();
             if let Err(fault) = self.prepare(&queued) {
-                queued = self.fail(fault, &mut scheduler);
+                queued = self.fail(fault, queued, &mut scheduler);
                 continue;
             }
             COST.record(cycles().wrapping_sub(work_start));
@@ -446,12 +446,27 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         queued
     }
 
-    /// Fault stop: zero output, driver off, fault latched, then idle output from a fresh start.
-    fn fail(&mut self, fault: Fault, scheduler: &mut Scheduler) -> Segment {
+    /// Fault stop in the fault's category (see [`Fault::stop_category`]), with the fault
+    /// latched. Immediate: zero output and driver off now, then idle output from a fresh start.
+    /// Controlled: `queued`, the segment that could not be prepared, is preloaded at zero (the
+    /// stage outputs zero while its levels are refused), so the segment playing ends as planned
+    /// and the plate comes to rest at the next cycle boundary, where the scheduler idles.
+    /// Returns the segment now preloaded.
+    fn fail(&mut self, fault: Fault, queued: Segment, scheduler: &mut Scheduler) -> Segment {
+        if fault.stop_category() == StopCategory::Immediate {
+            self.output.halt();
+            self.set_driver(false);
+        }
+        error!("fault: {} (stop: {})", fault, fault.stop_category());
+        if self.handle(SupervisorEvent::Fault(fault), Some(scheduler)) == MotionRequest::QuickStop {
+            if self.output.preload(&queued).is_ok() {
+                return queued;
+            }
+            // Not even a zero segment could be preloaded: nothing is left to finish the cycle.
+            self.handle(SupervisorEvent::Fault(Fault::EdgeMissed), Some(scheduler));
+        }
         self.output.halt();
         self.set_driver(false);
-        error!("fault: {}", fault);
-        self.handle(SupervisorEvent::Fault(fault), Some(scheduler));
         self.resync(scheduler)
     }
 
@@ -503,8 +518,8 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         }
     }
 
-    /// Feeds `event` to the supervisor and carries out its decision.
-    fn handle(&mut self, event: SupervisorEvent, scheduler: Option<&mut Scheduler>) {
+    /// Feeds `event` to the supervisor, carries out its decision and returns it.
+    fn handle(&mut self, event: SupervisorEvent, scheduler: Option<&mut Scheduler>) -> MotionRequest {
         let before = self.supervisor.state();
         let request = self.supervisor.handle(event);
         if let Some(scheduler) = scheduler {
@@ -522,6 +537,10 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
                     scheduler.halt();
                     Some(trace::Request::Halt)
                 }
+                MotionRequest::QuickStop => {
+                    scheduler.quick_stop();
+                    Some(trace::Request::QuickStop)
+                }
             };
             if let Some(traced) = traced {
                 trace::request(scheduler.next_tick(), traced);
@@ -533,6 +552,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             info!("{} -> {}", before, after);
             self.publish();
         }
+        request
     }
 
     fn set_driver(&mut self, enabled: bool) {

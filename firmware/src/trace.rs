@@ -11,6 +11,7 @@ pub enum Request {
     Start,
     Stop,
     Halt,
+    QuickStop,
 }
 
 #[cfg(feature = "hil-trace")]
@@ -50,6 +51,7 @@ mod stream {
             Request::Start => "start",
             Request::Stop => "stop",
             Request::Halt => "halt",
+            Request::QuickStop => "quickstop",
         };
         defmt::println!("EVT {=str} tick={=u64}", name, tick);
     }

@@ -52,6 +52,10 @@ pub enum Event {
     Halt {
         tick: u64,
     },
+    /// Controlled fault stop: the cycle in progress ends at rest, then idle.
+    QuickStop {
+        tick: u64,
+    },
     Segment(SegmentEvent),
     End {
         tick: u64,
@@ -168,6 +172,9 @@ pub fn parse_line(line: &str) -> Result<Option<Event>, ParseError> {
             tick: number("tick")?,
         },
         "halt" => Event::Halt {
+            tick: number("tick")?,
+        },
+        "quickstop" => Event::QuickStop {
             tick: number("tick")?,
         },
         "end" => Event::End {
@@ -327,7 +334,8 @@ impl Checker {
                 Event::Plan { tick, .. }
                 | Event::Start { tick }
                 | Event::Stop { tick }
-                | Event::Halt { tick } => *tick,
+                | Event::Halt { tick }
+                | Event::QuickStop { tick } => *tick,
                 _ => return false,
             };
             if tick > next_tick {
@@ -342,6 +350,7 @@ impl Checker {
                 Event::Start { .. } => replay.start(),
                 Event::Stop { .. } => replay.stop(),
                 Event::Halt { .. } => replay.halt(),
+                Event::QuickStop { .. } => replay.quick_stop(),
                 Event::Plan {
                     spec,
                     clock_hz,

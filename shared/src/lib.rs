@@ -38,5 +38,7 @@ pub use protocol::{
 pub use recipe::{Loaded, RecipeSlot, RecordError};
 pub use scenario::{ScenarioError, ScenarioSetting};
 pub use scheduler::{Amplitude, Phase, Scheduler, Segment};
-pub use supervisor::{Fault, Led, MotionRequest, RunState, Supervisor, SupervisorEvent};
+pub use supervisor::{
+    Fault, Led, MotionRequest, RunState, StopCategory, Supervisor, SupervisorEvent,
+};
 pub use waveform::{Drive, ExactSegment, Level, Limits, Waveform, WaveformSpec};

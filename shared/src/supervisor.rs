@@ -4,10 +4,10 @@
 //! The supervisor comes up [`RunState::Stopped`] after every reset (or [`RunState::Faulted`] when
 //! the reset was the watchdog's), with the driver disabled: the feeder never resumes motion by
 //! itself. A press starts; a press while running begins a soft stop, and the driver stays enabled
-//! until the output has reached idle. A fault halts at once and is latched: the next press (or an
-//! explicit reset) only acknowledges it, back to stopped, and a further press or start starts
-//! again. Explicit start and stop requests (command line, scripts) act like the button but never
-//! toggle.
+//! until the output has reached idle. A fault stops the motor in its [`StopCategory`] and is
+//! latched: the next press (or an explicit reset) only acknowledges it, back to stopped, and a
+//! further press or start starts again. Explicit start and stop requests (command line, scripts)
+//! act like the button but never toggle.
 
 /// Why the output was halted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -21,7 +21,28 @@ pub enum Fault {
     InvalidSettings,
 }
 
+/// How a fault brings the motor to a safe state (the stop categories of IEC 60204-1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StopCategory {
+    /// Category 0: zero command and driver disabled at once. For a fault that leaves no output
+    /// segment to trust; the plate keeps whatever velocity it had.
+    Immediate,
+    /// Category 1: the output still works, so the cycle in progress runs to its end, where the
+    /// plate is at rest, and only then is the command zero and the driver disabled.
+    Controlled,
+}
+
 impl Fault {
+    /// The stop this fault calls for: a missed edge has lost the output timing, a watchdog reset
+    /// finds the output already off; refused settings leave the output working.
+    pub const fn stop_category(self) -> StopCategory {
+        match self {
+            Fault::EdgeMissed | Fault::WatchdogReset => StopCategory::Immediate,
+            Fault::InvalidSettings => StopCategory::Controlled,
+        }
+    }
+
     pub const fn name(self) -> &'static str {
         match self {
             Fault::EdgeMissed => "edge-missed",
@@ -85,14 +106,18 @@ pub enum MotionRequest {
     Start,
     /// Soft stop from the next cycle boundary.
     Stop,
-    /// Zero the output now and drop to idle (fault stop).
+    /// Zero the output now and drop to idle (stop category 0).
     Halt,
+    /// Let the cycle in progress end at rest, then idle, without a ramp (stop category 1).
+    QuickStop,
 }
 
 /// The run/stop/fault state machine.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Supervisor {
     state: RunState,
+    /// A controlled fault stop is finishing its cycle: the driver stays enabled until idle.
+    braking: bool,
 }
 
 impl Supervisor {
@@ -103,16 +128,21 @@ impl Supervisor {
         } else {
             RunState::Stopped
         };
-        Self { state }
+        Self {
+            state,
+            braking: false,
+        }
     }
 
     /// Applies `event` and says what the scheduler must do.
     pub fn handle(&mut self, event: SupervisorEvent) -> MotionRequest {
-        use MotionRequest::{Halt, Keep, Start, Stop};
+        use MotionRequest::{Keep, Start, Stop};
         use RunState::{Faulted, Running, Stopped, Stopping};
+        if event == SupervisorEvent::OutputIdle {
+            self.braking = false;
+        }
         let (state, request) = match (self.state, event) {
-            (Faulted(first), SupervisorEvent::Fault(_)) => (Faulted(first), Halt),
-            (_, SupervisorEvent::Fault(fault)) => (Faulted(fault), Halt),
+            (_, SupervisorEvent::Fault(fault)) => return self.fault(fault),
             (Stopped, SupervisorEvent::ButtonPressed) => (Running, Start),
             (Running, SupervisorEvent::ButtonPressed) => (Stopping, Stop),
             (Stopping, SupervisorEvent::ButtonPressed) => (Running, Start),
@@ -133,13 +163,34 @@ impl Supervisor {
         request
     }
 
+    /// Latches `fault` (the first cause stays) and chooses its stop: controlled while the plate
+    /// moves and the fault allows it, immediate otherwise.
+    fn fault(&mut self, fault: Fault) -> MotionRequest {
+        let moving = self.braking || matches!(self.state, RunState::Running | RunState::Stopping);
+        let request = match fault.stop_category() {
+            StopCategory::Controlled if moving => MotionRequest::QuickStop,
+            _ => MotionRequest::Halt,
+        };
+        self.braking = request == MotionRequest::QuickStop;
+        if !matches!(self.state, RunState::Faulted(_)) {
+            self.state = RunState::Faulted(fault);
+        }
+        request
+    }
+
     pub const fn state(&self) -> RunState {
         self.state
     }
 
-    /// Whether the motor driver may be enabled: only while running or ramping down.
+    /// Whether the motor driver may be enabled: while running, ramping down, or finishing the
+    /// cycle of a controlled fault stop.
     pub const fn driver_enabled(&self) -> bool {
-        matches!(self.state, RunState::Running | RunState::Stopping)
+        self.braking || matches!(self.state, RunState::Running | RunState::Stopping)
+    }
+
+    /// Whether a controlled fault stop is still finishing its cycle.
+    pub const fn braking(&self) -> bool {
+        self.braking
     }
 
     /// Off when stopped, on while running or ramping down, blinking when faulted.

@@ -1,6 +1,8 @@
 //! Run/stop/fault supervision: hand-written sequences and invariants over all short sequences.
 
-use feeder_shared::{Fault, Led, MotionRequest, RunState, Supervisor, SupervisorEvent};
+use feeder_shared::{
+    Fault, Led, MotionRequest, RunState, StopCategory, Supervisor, SupervisorEvent,
+};
 
 use SupervisorEvent::{
     ButtonPressed as Press, OutputIdle as Idle, ResetRequested as Reset, StartRequested as Start,
@@ -69,8 +71,10 @@ fn faults_halt_at_once_and_latch_the_first_cause() {
     assert!(!supervisor.driver_enabled());
     assert_eq!(supervisor.led(), Led::Blink);
 
+    // Nothing moves any more: a later controlled fault has nothing to finish.
     let settings = SupervisorEvent::Fault(Fault::InvalidSettings);
     assert_eq!(supervisor.handle(settings), MotionRequest::Halt);
+    assert!(!supervisor.driver_enabled());
     assert_eq!(supervisor.handle(Idle), MotionRequest::Keep);
     assert_eq!(supervisor.state(), RunState::Faulted(Fault::EdgeMissed));
 
@@ -79,6 +83,44 @@ fn faults_halt_at_once_and_latch_the_first_cause() {
     assert_eq!(supervisor.state(), RunState::Stopped);
     assert!(!supervisor.driver_enabled());
     assert_eq!(supervisor.handle(Press), MotionRequest::Start);
+}
+
+#[test]
+fn a_controlled_fault_finishes_the_cycle_with_the_driver_on_then_disables_it() {
+    let mut supervisor = Supervisor::new(false);
+    supervisor.handle(Start);
+    let settings = SupervisorEvent::Fault(Fault::InvalidSettings);
+    assert_eq!(supervisor.handle(settings), MotionRequest::QuickStop);
+    assert_eq!(supervisor.state(), RunState::Faulted(Fault::InvalidSettings));
+    assert!(supervisor.driver_enabled(), "the driver carries the cycle to rest");
+    assert_eq!(supervisor.led(), Led::Blink);
+    // A missed edge while braking leaves nothing to trust: the stop becomes immediate.
+    let mut escalated = supervisor;
+    assert_eq!(
+        escalated.handle(SupervisorEvent::Fault(Fault::EdgeMissed)),
+        MotionRequest::Halt
+    );
+    assert!(!escalated.driver_enabled());
+    assert_eq!(escalated.state(), RunState::Faulted(Fault::InvalidSettings));
+    // Otherwise the first idle period ends the stop.
+    assert_eq!(supervisor.handle(Idle), MotionRequest::Keep);
+    assert!(!supervisor.driver_enabled());
+    assert_eq!(supervisor.state(), RunState::Faulted(Fault::InvalidSettings));
+    assert_eq!(supervisor.handle(Reset), MotionRequest::Keep);
+    assert_eq!(supervisor.handle(Start), MotionRequest::Start);
+    assert!(supervisor.driver_enabled());
+}
+
+#[test]
+fn a_reset_during_a_controlled_stop_keeps_the_driver_until_idle() {
+    let mut supervisor = Supervisor::new(false);
+    supervisor.handle(Press);
+    supervisor.handle(SupervisorEvent::Fault(Fault::InvalidSettings));
+    supervisor.handle(Reset);
+    assert_eq!(supervisor.state(), RunState::Stopped);
+    assert!(supervisor.driver_enabled(), "the cycle in progress still needs it");
+    supervisor.handle(Idle);
+    assert!(!supervisor.driver_enabled());
 }
 
 #[test]
@@ -134,10 +176,18 @@ fn for_all_sequences(
 }
 
 #[test]
-fn the_driver_is_enabled_only_while_running_or_ramping_down() {
-    for_all_sequences(|_, _, _, after| {
+fn the_driver_is_enabled_only_while_running_ramping_down_or_braking() {
+    for_all_sequences(|before, event, request, after| {
         let moving = matches!(after.state(), RunState::Running | RunState::Stopping);
-        assert_eq!(after.driver_enabled(), moving);
+        // Braking: a controlled stop was asked for and no idle period or immediate stop has
+        // ended it since.
+        let braking = match event {
+            SupervisorEvent::Fault(_) => request == MotionRequest::QuickStop,
+            Idle => false,
+            _ => before.braking(),
+        };
+        assert_eq!(after.braking(), braking);
+        assert_eq!(after.driver_enabled(), moving || braking);
         assert_eq!(after.led() == Led::On, moving);
         assert_eq!(
             after.led() == Led::Blink,
@@ -147,11 +197,18 @@ fn the_driver_is_enabled_only_while_running_or_ramping_down() {
 }
 
 #[test]
-fn every_fault_halts_and_only_a_press_or_start_starts() {
+fn every_fault_stops_in_its_category_and_only_a_press_or_start_starts() {
     for_all_sequences(|before, event, request, after| {
-        if let SupervisorEvent::Fault(_) = event {
-            assert_eq!(request, MotionRequest::Halt);
-            assert!(!after.driver_enabled());
+        if let SupervisorEvent::Fault(fault) = event {
+            let was_moving = before.driver_enabled();
+            let controlled = fault.stop_category() == StopCategory::Controlled && was_moving;
+            if controlled {
+                assert_eq!(request, MotionRequest::QuickStop);
+                assert!(after.driver_enabled());
+            } else {
+                assert_eq!(request, MotionRequest::Halt);
+                assert!(!after.driver_enabled());
+            }
         }
         if request == MotionRequest::Start {
             assert!(event == Press || event == Start);
@@ -160,7 +217,7 @@ fn every_fault_halts_and_only_a_press_or_start_starts() {
                 "a fault needs acknowledging"
             );
         }
-        if request == MotionRequest::Halt {
+        if matches!(request, MotionRequest::Halt | MotionRequest::QuickStop) {
             assert!(matches!(after.state(), RunState::Faulted(_)));
         }
     });
