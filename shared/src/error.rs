@@ -109,6 +109,14 @@ pub enum Error {
         segment: SegmentKind,
         exact_ticks: f64,
     },
+    /// A segment is shorter than the output stage's floor ([`crate::TickClock`]): its edge could
+    /// come before software has preloaded the next segment.
+    SegmentBelowFloor {
+        segment: SegmentKind,
+        ticks: u32,
+        min_ticks: u32,
+        clock_hz: u32,
+    },
     /// The period or a segment needs more ticks than the timer can count.
     TicksOverflow {
         segment: SegmentKind,
@@ -173,6 +181,18 @@ impl fmt::Display for Error {
                  or a duty further from its limits",
                 segment.name(),
                 Significant(exact_ticks)
+            ),
+            Error::SegmentBelowFloor { segment, ticks, min_ticks, clock_hz } => write!(
+                f,
+                "the {} segment lasts {} ticks of the {} Hz clock ({} us), shorter than the {} \
+                 ticks ({} us) the output stage needs to preload the next edge: choose a duty \
+                 further from its limits or a lower frequency",
+                segment.name(),
+                ticks,
+                clock_hz,
+                Significant(1e6 * f64::from(ticks) / f64::from(clock_hz)),
+                min_ticks,
+                Significant(1e6 * f64::from(min_ticks) / f64::from(clock_hz))
             ),
             Error::TicksOverflow { segment, exact_ticks, max_ticks } => write!(
                 f,

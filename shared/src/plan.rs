@@ -22,21 +22,43 @@ use crate::error::{positive, Error, Quantity, SegmentKind};
 use crate::waveform::Waveform;
 use libm::{fabs, round, sqrt};
 
-/// A timer that counts at `hz` and can time segments of at most `max_segment_ticks` ticks
-/// (for example `u16::MAX` for a 16-bit auto-reload register).
+/// A timer that counts at `hz` and can time segments of at least `min_segment_ticks` and at most
+/// `max_segment_ticks` ticks (for example `u16::MAX` for a 16-bit auto-reload register).
+///
+/// The floor is the output stage's: software must preload the next segment while the current one
+/// plays, so a segment shorter than the worst case of that work (with margin) could be missed. A
+/// plan whose every segment is at least the floor long can never miss an edge.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct TickClock {
     pub hz: u32,
+    pub min_segment_ticks: u32,
     pub max_segment_ticks: u32,
 }
 
 impl TickClock {
-    /// A clock limited only by the 32-bit tick counts of the plan.
+    /// A clock limited only by the 32-bit tick counts of the plan (no segment may be empty).
     pub const fn new(hz: u32) -> Self {
         Self {
             hz,
+            min_segment_ticks: 1,
             max_segment_ticks: u32::MAX,
+        }
+    }
+
+    /// The same clock with the output stage's shortest segment, `min_segment_s` rounded up to
+    /// whole ticks (at least one).
+    pub fn with_min_segment_s(self, min_segment_s: f64) -> Self {
+        let ticks = libm::ceil(min_segment_s * f64::from(self.hz));
+        Self {
+            min_segment_ticks: if ticks >= 1.0 && ticks < f64::from(u32::MAX) {
+                ticks as u32
+            } else if ticks >= 1.0 {
+                u32::MAX
+            } else {
+                1
+            },
+            ..self
         }
     }
 
@@ -186,6 +208,19 @@ impl TickPlan {
                 exact_ticks,
             });
         };
+        for variant in [&up.cycle, &down.cycle] {
+            for (index, (segment, _)) in lengths.iter().enumerate() {
+                let ticks = variant.segment_ticks(index);
+                if ticks < clock.min_segment_ticks {
+                    return Err(Error::SegmentBelowFloor {
+                        segment: *segment,
+                        ticks,
+                        min_ticks: clock.min_segment_ticks,
+                        clock_hz: clock.hz,
+                    });
+                }
+            }
+        }
         let worst_residual = up.cycle.residual.max(-down.cycle.residual);
         Ok(TickPlan {
             waveform: *waveform,

@@ -241,7 +241,7 @@ impl ReplyError {
     }
 }
 
-/// One code per validation error, 40–54.
+/// One code per validation error, 40–55.
 const fn rejected_code(error: &Error) -> u16 {
     match error {
         Error::NotFinite { .. } => 40,
@@ -259,6 +259,7 @@ const fn rejected_code(error: &Error) -> u16 {
         Error::OutsideViscousRange { .. } => 52,
         Error::FeedRateAboveReach { .. } => 53,
         Error::FeedRateBelowReach { .. } => 54,
+        Error::SegmentBelowFloor { .. } => 55,
     }
 }
 

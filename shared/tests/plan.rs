@@ -130,3 +130,55 @@ proptest! {
         prop_assert!((plan.drift_bound_m - worst * unit_m).abs() <= 1e-12 * plan.drift_bound_m.max(1e-300));
     }
 }
+
+#[test]
+fn a_segment_below_the_output_floor_is_refused_with_its_length_and_the_floor() {
+    // 100 Hz, d = 0.9: the first segment is T(1 − d)²/(2(d + √(2d − 1))) = 27.9 µs.
+    let clock = TickClock::new(1_000_000).with_min_segment_s(120e-6);
+    assert_eq!(clock.min_segment_ticks, 120);
+    match TickPlan::new(&waveform(100.0, 0.9, 0.0005), clock) {
+        Err(Error::SegmentBelowFloor {
+            segment: SegmentKind::Accelerate,
+            ticks,
+            min_ticks: 120,
+            clock_hz: 1_000_000,
+        }) => assert!((27..=29).contains(&ticks), "{ticks}"),
+        other => panic!("{other:?}"),
+    }
+    // The paper's point has its shortest segment at 1713 µs: well above the floor.
+    assert!(TickPlan::new(&waveform(50.0, 0.586, 0.0025), clock).is_ok());
+    // The floor rounds up to whole ticks and is never below one.
+    assert_eq!(TickClock::new(1_000_000).with_min_segment_s(120.2e-6).min_segment_ticks, 121);
+    assert_eq!(TickClock::new(1_000_000).with_min_segment_s(0.0).min_segment_ticks, 1);
+}
+
+proptest! {
+    /// Either every segment of both variants (and so every ramp step, which only scales the
+    /// amplitude) is at least the floor long, or the plan is refused naming a segment below it.
+    #[test]
+    fn no_accepted_plan_has_a_segment_below_the_floor(
+        frequency_hz in 50.0f64..100.0,
+        duty in 0.5001f64..0.999,
+        clock_hz in prop_oneof![Just(1_000_000u32), Just(170_000_000), Just(20_000)],
+        min_segment_s in 0.0f64..500e-6,
+    ) {
+        let clock = TickClock::new(clock_hz).with_min_segment_s(min_segment_s);
+        match TickPlan::new(&waveform(frequency_hz, duty, 0.001), clock) {
+            Ok(plan) => {
+                for cycle in plan.variants {
+                    for index in 0..4 {
+                        prop_assert!(cycle.segment_ticks(index) >= clock.min_segment_ticks);
+                    }
+                }
+                prop_assert!(plan.period_ticks >= clock.min_segment_ticks);
+            }
+            Err(Error::SegmentBelowFloor { ticks, min_ticks, clock_hz: hz, .. }) => {
+                prop_assert!(ticks < min_ticks);
+                prop_assert_eq!(min_ticks, clock.min_segment_ticks);
+                prop_assert_eq!(hz, clock_hz);
+            }
+            Err(Error::SegmentTooShort { .. }) => {}
+            Err(other) => prop_assert!(false, "unexpected refusal {other:?}"),
+        }
+    }
+}

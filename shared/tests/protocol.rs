@@ -314,6 +314,17 @@ fn error_codes_are_stable_and_explained() {
             54,
             "least",
         ),
+        (
+            Error::SegmentBelowFloor {
+                segment: feeder_shared::SegmentKind::Accelerate,
+                ticks: 95,
+                min_ticks: 120,
+                clock_hz: 1_000_000,
+            }
+            .into(),
+            55,
+            "accelerate segment lasts 95 ticks of the 1000000 Hz clock (95 us), shorter than the 120 ticks (120 us)",
+        ),
         (ReplyError::NotStopped, 60, "only allowed while stopped"),
         (ReplyError::FaultLatched, 61, "send reset"),
         (ReplyError::StorageFailed, 62, "could not be written"),
@@ -1089,7 +1100,7 @@ fn the_reference_documents_every_error_code() {
         .collect();
     let mut expected: Vec<u16> = vec![10, 11];
     expected.extend(20..=28);
-    expected.extend(40..=54);
+    expected.extend(40..=55);
     expected.extend(60..=62);
     assert_eq!(documented, expected);
 }
