@@ -2,101 +2,15 @@
 //! (`FEEDER_QEMU_ELF`): every reply is checked, then the firmware's `EVT` stream shows that every
 //! change landed on a cycle boundary and that no edge is missing.
 
-use std::io::{BufRead, BufReader, Read, Write};
-use std::net::{TcpListener, TcpStream};
-use std::process::{Child, Command, Stdio};
-use std::sync::mpsc;
+mod support;
+
 use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
-/// Longest the whole session may take.
-const SESSION_TIMEOUT: Duration = Duration::from_secs(90);
-/// Longest to wait for one reply.
-const REPLY_TIMEOUT: Duration = Duration::from_secs(10);
+use support::{console_image, Emulator};
 
-/// Kills QEMU when the test ends, however it ends.
-struct Emulator(Child);
-
-impl Drop for Emulator {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
-fn free_port() -> u16 {
-    let listener = TcpListener::bind("127.0.0.1:0").expect("a free loopback port");
-    listener.local_addr().expect("bound address").port()
-}
-
-struct Console {
-    stream: TcpStream,
-    deadline: Instant,
-}
-
-impl Console {
-    fn connect(port: u16, deadline: Instant, emulator: &mut Emulator) -> Self {
-        loop {
-            if let Ok(Some(status)) = emulator.0.try_wait() {
-                panic!("QEMU ended before its serial port opened: {status}");
-            }
-            match TcpStream::connect(("127.0.0.1", port)) {
-                Ok(stream) => {
-                    stream.set_read_timeout(Some(REPLY_TIMEOUT)).unwrap();
-                    stream.set_nodelay(true).unwrap();
-                    return Console { stream, deadline };
-                }
-                Err(_) if Instant::now() < deadline => thread::sleep(Duration::from_millis(50)),
-                Err(error) => panic!("QEMU's serial port never opened: {error}"),
-            }
-        }
-    }
-
-    /// Sends raw bytes (a line with its terminator) and returns the reply line.
-    fn send(&mut self, bytes: &[u8]) -> String {
-        assert!(Instant::now() < self.deadline, "session timed out");
-        self.stream.write_all(bytes).unwrap();
-        let mut reply = Vec::new();
-        let mut byte = [0u8];
-        loop {
-            let read = self.stream.read(&mut byte).expect("a reply in time");
-            assert_eq!(read, 1, "the console closed the connection");
-            match byte[0] {
-                b'\n' => break,
-                b'\r' => {}
-                other => reply.push(other),
-            }
-        }
-        String::from_utf8(reply).expect("replies are ASCII")
-    }
-
-    fn command(&mut self, line: &str) -> String {
-        self.send(format!("{line}\r\n").as_bytes())
-    }
-
-    /// Sends `line` and checks that the reply starts with `expected`.
-    fn expect(&mut self, line: &str, expected: &str) -> String {
-        let reply = self.command(line);
-        assert!(
-            reply.starts_with(expected),
-            "{line:?}: expected {expected:?}, got {reply:?}"
-        );
-        reply
-    }
-
-    /// Polls `status` until the state is `state`.
-    fn wait_for_state(&mut self, state: &str) {
-        let wanted = format!("OK state={state} ");
-        loop {
-            let reply = self.command("status");
-            if reply.starts_with(&wanted) {
-                return;
-            }
-            assert!(reply.starts_with("OK state="), "status: {reply:?}");
-            thread::sleep(Duration::from_millis(100));
-        }
-    }
-}
+/// Longest the feeder may take to reach a requested state.
+const STATE_TIMEOUT: Duration = Duration::from_secs(30);
 
 /// One `EVT seg` line.
 #[derive(Debug)]
@@ -133,53 +47,14 @@ fn segment(line: &str) -> Seg {
 #[test]
 #[ignore = "needs the QEMU firmware; run by cargo xtask test"]
 fn scripted_session_over_the_serial_console() {
-    let elf = std::env::var("FEEDER_QEMU_ELF")
-        .ok()
-        .filter(|path| !path.is_empty())
-        .expect("FEEDER_QEMU_ELF must name the QEMU firmware built with the console feature");
-    let deadline = Instant::now() + SESSION_TIMEOUT;
-    let port = free_port();
-    let mut qemu = Command::new("qemu-system-arm")
-        .args(["-machine", "mps2-an386", "-cpu", "cortex-m4"])
-        .args(["-display", "none", "-monitor", "none"])
-        .args(["-semihosting-config", "enable=on,target=native"])
-        .args(["-icount", "shift=4", "-serial"])
-        .arg(format!("tcp:127.0.0.1:{port},server=on,wait=off"))
-        .arg("-kernel")
-        .arg(&elf)
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("qemu-system-arm runs");
-    let raw_log = qemu.stdout.take().expect("QEMU's standard output");
-    let mut emulator = Emulator(qemu);
-    let mut decoder = Command::new("defmt-print")
-        .args(["-e", &elf])
-        .stdin(raw_log)
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("defmt-print runs");
-    let decoded = decoder.stdout.take().unwrap();
-    let (log_tx, log_rx) = mpsc::channel();
-    let reader = thread::spawn(move || {
-        for line in BufReader::new(decoded).lines() {
-            match line {
-                Ok(line) => {
-                    if log_tx.send(line).is_err() {
-                        break;
-                    }
-                }
-                Err(_) => break,
-            }
-        }
-    });
-
-    let mut console = Console::connect(port, deadline, &mut emulator);
+    let mut emulator = Emulator::launch(&console_image(), Vec::new());
+    let mut console = emulator.connect();
     console.expect("status", "OK state=stopped ");
     console.expect("set freq 55", "OK freq_hz=55 ");
     console.expect("set ramp 5 cycles", "OK freq_hz=55 ");
     console.expect("get ramp", "OK ramp_cycles=5");
     console.expect("start", "OK starting");
-    console.wait_for_state("running");
+    console.wait_for_state("running", STATE_TIMEOUT);
     console.expect("set duty 0.6", "OK freq_hz=55 duty=0.6 ");
     thread::sleep(Duration::from_millis(300));
     let feed = console.expect("set feed 30", "OK freq_hz=55 duty=");
@@ -197,18 +72,15 @@ fn scripted_session_over_the_serial_console() {
     let running = console.expect("status", "OK state=running freq_hz=55 ");
     assert!(running.ends_with(" fault=none"), "{running}");
     console.expect("stop", "OK stopping");
-    console.wait_for_state("stopped");
+    console.wait_for_state("stopped", STATE_TIMEOUT);
     console.expect("recipe save 1", "OK recipe 1 saved");
     console.expect("recipe load 1", "OK recipe 1 loaded freq_hz=55 ");
     console.expect("recipe load 2", "OK recipe 2 not usable (no recipe saved");
     console.expect("help", "OK commands: ");
     // Let the last plan (the defaults of slot 2) reach the output.
     thread::sleep(Duration::from_millis(300));
-    drop(emulator);
     drop(console);
-    let _ = decoder.wait();
-    reader.join().unwrap();
-    let log: Vec<String> = log_rx.try_iter().collect();
+    let log = emulator.shut_down();
 
     check_event_stream(&log);
 }

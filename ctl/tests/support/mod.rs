@@ -1,0 +1,271 @@
+//! The QEMU console image under test, shared by the QEMU-backed tests: QEMU running the firmware
+//! built with the `console` feature (`FEEDER_QEMU_ELF`), its serial port on a free loopback TCP
+//! port, its defmt log decoded by `defmt-print` line by line into a [`LogSink`], and a client
+//! for the console that reads one reply line at a time.
+//!
+//! The QEMU command line is the one `cargo xtask` uses (`xtask/src/qemu.rs`).
+
+// Each test uses its own part of this module.
+#![allow(dead_code)]
+
+use std::io::{self, BufRead, BufReader, ErrorKind, Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::thread::{self, JoinHandle};
+use std::time::{Duration, Instant};
+
+/// `-icount shift=4`: one instruction is 16 ns of virtual time.
+const ICOUNT_SHIFT: &str = "4";
+
+/// Longest to wait for QEMU to open its serial port.
+const PORT_OPEN_TIMEOUT: Duration = Duration::from_secs(20);
+
+/// Longest to wait for one reply line by default.
+pub const REPLY_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// The console image named by `FEEDER_QEMU_ELF` (`cargo xtask test` sets it).
+pub fn console_image() -> PathBuf {
+    std::env::var_os("FEEDER_QEMU_ELF")
+        .filter(|path| !path.is_empty())
+        .map(PathBuf::from)
+        .expect("FEEDER_QEMU_ELF must name the QEMU firmware built with the console feature")
+}
+
+/// Takes the decoded log, one line at a time, on the log thread.
+pub trait LogSink: Send + 'static {
+    fn line(&mut self, line: &str);
+}
+
+/// Keeps every line.
+impl LogSink for Vec<String> {
+    fn line(&mut self, line: &str) {
+        self.push(line.to_string());
+    }
+}
+
+/// QEMU and its log decoder; both are ended when this is dropped, however the test ends.
+pub struct Emulator<S> {
+    qemu: Child,
+    decoder: Child,
+    log_thread: Option<JoinHandle<S>>,
+    port: u16,
+}
+
+impl<S: LogSink> Emulator<S> {
+    /// Starts `elf` under QEMU with its serial port on a free loopback port and its decoded log
+    /// going to `sink`.
+    pub fn launch(elf: &Path, sink: S) -> Self {
+        let port = free_port();
+        let mut qemu = qemu_command(elf, port)
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("qemu-system-arm runs");
+        let raw_log = qemu.stdout.take().expect("QEMU's standard output");
+        let mut decoder = Command::new("defmt-print")
+            .arg("-e")
+            .arg(elf)
+            .stdin(raw_log)
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("defmt-print runs");
+        let decoded = decoder
+            .stdout
+            .take()
+            .expect("defmt-print's standard output");
+        let log_thread = thread::spawn(move || forward_lines(decoded, sink));
+        Emulator {
+            qemu,
+            decoder,
+            log_thread: Some(log_thread),
+            port,
+        }
+    }
+
+    /// Connects to the serial console as soon as QEMU has opened the port.
+    pub fn connect(&mut self) -> Console {
+        let deadline = Instant::now() + PORT_OPEN_TIMEOUT;
+        loop {
+            if let Ok(Some(status)) = self.qemu.try_wait() {
+                panic!("QEMU ended before its serial port opened: {status}");
+            }
+            match TcpStream::connect(("127.0.0.1", self.port)) {
+                Ok(stream) => return Console::new(stream),
+                Err(_) if Instant::now() < deadline => thread::sleep(Duration::from_millis(20)),
+                Err(error) => panic!("QEMU's serial port never opened: {error}"),
+            }
+        }
+    }
+
+    /// Ends QEMU, lets the decoder drain and returns the sink, which has seen every line.
+    pub fn shut_down(mut self) -> S {
+        self.stop_processes();
+        self.log_thread
+            .take()
+            .expect("the log thread runs until shut down")
+            .join()
+            .expect("the log thread does not panic")
+    }
+}
+
+impl<S> Emulator<S> {
+    fn stop_processes(&mut self) {
+        let _ = self.qemu.kill();
+        let _ = self.qemu.wait();
+        // defmt-print ends at the end of QEMU's output.
+        let _ = self.decoder.wait();
+    }
+}
+
+impl<S> Drop for Emulator<S> {
+    fn drop(&mut self) {
+        self.stop_processes();
+    }
+}
+
+/// The QEMU command line of `xtask/src/qemu.rs` with UART0 on loopback TCP `port`.
+fn qemu_command(elf: &Path, port: u16) -> Command {
+    let mut command = Command::new("qemu-system-arm");
+    command
+        .args(["-machine", "mps2-an386", "-cpu", "cortex-m4"])
+        .args(["-display", "none", "-monitor", "none"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(["-icount", &format!("shift={ICOUNT_SHIFT}")])
+        .arg("-serial")
+        .arg(format!("tcp:127.0.0.1:{port},server=on,wait=off"))
+        .arg("-kernel")
+        .arg(elf);
+    command
+}
+
+fn free_port() -> u16 {
+    let listener = TcpListener::bind("127.0.0.1:0").expect("a free loopback port");
+    listener.local_addr().expect("bound address").port()
+}
+
+/// Hands every decoded line (without its terminator) to `sink` until the decoder ends.
+fn forward_lines<S: LogSink>(decoded: impl Read, mut sink: S) -> S {
+    let mut reader = BufReader::new(decoded);
+    let mut bytes = Vec::new();
+    loop {
+        bytes.clear();
+        match reader.read_until(b'\n', &mut bytes) {
+            Ok(0) | Err(_) => return sink,
+            Ok(_) => {
+                let line = String::from_utf8_lossy(&bytes);
+                sink.line(line.trim_end_matches(['\r', '\n']));
+            }
+        }
+    }
+}
+
+/// The serial console: raw bytes out, reply lines back.
+pub struct Console {
+    writer: TcpStream,
+    reader: BufReader<TcpStream>,
+}
+
+impl Console {
+    fn new(stream: TcpStream) -> Self {
+        stream.set_nodelay(true).expect("TCP_NODELAY");
+        stream
+            .set_read_timeout(Some(REPLY_TIMEOUT))
+            .expect("a read timeout");
+        let writer = stream.try_clone().expect("a second handle on the socket");
+        Console {
+            writer,
+            reader: BufReader::new(stream),
+        }
+    }
+
+    /// Sets how long [`Self::reply`] waits.
+    pub fn set_reply_timeout(&mut self, timeout: Duration) {
+        self.reader
+            .get_ref()
+            .set_read_timeout(Some(timeout))
+            .expect("a read timeout");
+    }
+
+    /// Writes `bytes` as they are, in one write.
+    pub fn write(&mut self, bytes: &[u8]) -> io::Result<()> {
+        self.writer.write_all(bytes)
+    }
+
+    /// The next reply line, without its CR LF.
+    pub fn reply(&mut self) -> io::Result<String> {
+        let mut bytes = Vec::new();
+        self.reader.read_until(b'\n', &mut bytes)?;
+        match bytes.strip_suffix(b"\n") {
+            Some(line) => {
+                let line = line.strip_suffix(b"\r").unwrap_or(line);
+                String::from_utf8(line.to_vec())
+                    .map_err(|_| io::Error::new(ErrorKind::InvalidData, "a reply is not text"))
+            }
+            None if bytes.is_empty() => Err(ErrorKind::UnexpectedEof.into()),
+            None => Err(io::Error::new(
+                ErrorKind::UnexpectedEof,
+                format!(
+                    "the console closed mid-reply: {:?}",
+                    String::from_utf8_lossy(&bytes)
+                ),
+            )),
+        }
+    }
+
+    /// Checks that nothing arrives within `quiet`: every line has had its one reply.
+    pub fn expect_silence(&mut self, quiet: Duration) -> Result<(), String> {
+        self.set_reply_timeout(quiet);
+        let outcome = match self.reader.fill_buf() {
+            Ok([]) => Err("the console closed the connection".to_string()),
+            Ok(unsolicited) => Err(format!(
+                "unsolicited bytes from the console: {:?}",
+                String::from_utf8_lossy(unsolicited)
+            )),
+            Err(error) if matches!(error.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
+                Ok(())
+            }
+            Err(error) => Err(format!("the console failed: {error}")),
+        };
+        self.set_reply_timeout(REPLY_TIMEOUT);
+        outcome
+    }
+
+    /// Sends raw bytes (a line with its terminator) and returns the reply line.
+    pub fn send(&mut self, bytes: &[u8]) -> String {
+        self.write(bytes).expect("the console takes the line");
+        self.reply().expect("a reply in time")
+    }
+
+    /// Sends `line` with CR LF and returns the reply line.
+    pub fn command(&mut self, line: &str) -> String {
+        self.send(format!("{line}\r\n").as_bytes())
+    }
+
+    /// Sends `line` and checks that the reply starts with `expected`.
+    pub fn expect(&mut self, line: &str, expected: &str) -> String {
+        let reply = self.command(line);
+        assert!(
+            reply.starts_with(expected),
+            "{line:?}: expected {expected:?}, got {reply:?}"
+        );
+        reply
+    }
+
+    /// Polls `status` until the state is `state`, for at most `timeout`.
+    pub fn wait_for_state(&mut self, state: &str, timeout: Duration) {
+        let wanted = format!("OK state={state} ");
+        let deadline = Instant::now() + timeout;
+        loop {
+            let reply = self.command("status");
+            if reply.starts_with(&wanted) {
+                return;
+            }
+            assert!(reply.starts_with("OK state="), "status: {reply:?}");
+            assert!(
+                Instant::now() < deadline,
+                "not {state} after {timeout:?}: {reply}"
+            );
+            thread::sleep(Duration::from_millis(50));
+        }
+    }
+}
