@@ -1,20 +1,25 @@
-//! `cargo xtask <command>`: the project's two entry points and their helpers.
+//! `cargo xtask <command>`: the project's two main entry points (`run`, `test`), the tasks around
+//! them, and their helpers.
 //!
 //! * `run`  — the main job: the firmware under QEMU drives the simulated plate and part.
 //! * `test` — the whole test suite: host tests, the `no_std` crate and the firmware for
 //!   `thumbv7em-none-eabihf`, the firmware size budget, and the firmware-in-the-loop scenarios
 //!   under QEMU.
 //! * `size` — the firmware's flash and static RAM use against the budget.
+//! * `console` — live control: the QEMU console image at the `feeder-ctl` prompt, then
+//!   `host-sim hil` on what happened.
+//! * `soak` — only the random-operator soak against the QEMU console image, at any length.
 //!
 //! Each command installs what it needs (the thumb target, flip-link, qemu-system-arm,
 //! defmt-print; see `tools`) so it works on a fresh machine.
 
+mod console;
 mod qemu;
 mod size;
 mod tools;
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, ExitCode};
+use std::process::{Command, ExitCode, Stdio};
 
 use clap::{Args, Parser, Subcommand};
 use feeder_shared::scenario::{parse_setting, SCENARIO_KEYS};
@@ -27,7 +32,7 @@ type Result<T = ()> = std::result::Result<T, String>;
 #[command(
     name = "cargo xtask",
     bin_name = "cargo xtask",
-    about = "The feeder's main job, its whole test suite and the firmware size report",
+    about = "The feeder's main job, its whole test suite, live control and the firmware size report",
     allow_negative_numbers = true
 )]
 struct Cli {
@@ -44,6 +49,22 @@ enum Task {
     Test,
     /// Flash and static RAM of both board images against their budgets.
     Size,
+    /// Live control: the QEMU console image with the `feeder-ctl` prompt on this terminal and
+    /// its decoded log in target/console-run.log; on leaving the prompt (`quit`, `exit`,
+    /// Ctrl-D), `host-sim hil` checks the run.
+    Console,
+    /// The random-operator soak against the QEMU console image alone (also part of `test`).
+    Soak(SoakArgs),
+}
+
+#[derive(Args, Default)]
+struct SoakArgs {
+    /// Motion cycles to run (default: FEEDER_SOAK_CYCLES, else 20000).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    cycles: Option<u64>,
+    /// Seed of the operator's script (default: FEEDER_SOAK_SEED, else random).
+    #[arg(long, value_name = "SEED")]
+    seed: Option<u64>,
 }
 
 #[derive(Args)]
@@ -81,6 +102,8 @@ fn main() -> ExitCode {
             Task::Run(args) => run(&args),
             Task::Test => test(),
             Task::Size => firmware_size(),
+            Task::Console => console::console(),
+            Task::Soak(args) => soak_alone(&args),
         }
     });
     match outcome {
@@ -131,8 +154,9 @@ fn firmware_cargo() -> Command {
     command
 }
 
-/// `host-sim` (release build) with the arguments that follow.
-fn host_sim() -> Command {
+/// A binary of the host workspace (release build, through `cargo run`) with the arguments
+/// that follow.
+fn workspace_binary(package: &str) -> Command {
     let mut command = cargo();
     command.args([
         "run",
@@ -140,10 +164,15 @@ fn host_sim() -> Command {
         "--release",
         "--locked",
         "--package",
-        "host-sim",
+        package,
         "--",
     ]);
     command
+}
+
+/// `host-sim` (release build) with the arguments that follow.
+fn host_sim() -> Command {
+    workspace_binary("host-sim")
 }
 
 /// The prediction at the paper's operating point (`host-sim simulate`, with a plot), then the
@@ -170,7 +199,8 @@ fn run(args: &RunArgs) -> Result {
             .arg(root().join("target").join("hil-run.svg"));
     }
     hil.args(hil_flags);
-    let (mut emulator, mut decoder) = qemu::spawn_decoded(&elf, scenario)?;
+    let (mut emulator, mut decoder) =
+        qemu::spawn_decoded(&elf, scenario, qemu::Serial::None, Stdio::piped())?;
     hil.stdin(decoder.stdout.take().ok_or("no decoder output")?);
     let report = hil
         .status()
@@ -210,27 +240,43 @@ fn test() -> Result {
     firmware_size()?;
     tools::ensure_emulation()?;
     let scripted = qemu::build_firmware(qemu::Image::Scripted)?;
-    ignored_tests("feeder-tests", "qemu", &scripted)?;
+    exec(&mut ignored_tests("feeder-tests", "qemu", &scripted))?;
     let console = qemu::build_firmware(qemu::Image::Console)?;
-    ignored_tests("feeder-ctl", "qemu_session", &console)
+    exec(&mut ignored_tests("feeder-ctl", "qemu_session", &console))?;
+    soak(&console, &SoakArgs::default())
 }
 
-/// Runs the tests of `package`'s `test` target that need the QEMU firmware `elf`.
-fn ignored_tests(package: &str, test: &str, elf: &Path) -> Result {
-    exec(
-        cargo()
-            .args([
-                "test",
-                "--locked",
-                "--package",
-                package,
-                "--test",
-                test,
-                "--",
-                "--ignored",
-            ])
-            .env("FEEDER_QEMU_ELF", elf),
-    )
+/// `cargo test` of the tests of `package`'s `test` target that need the QEMU firmware `elf`.
+fn ignored_tests(package: &str, test: &str, elf: &Path) -> Command {
+    let mut command = cargo();
+    command
+        .args(["test", "--locked", "--package", package, "--test", test])
+        .args(["--", "--ignored"])
+        .env("FEEDER_QEMU_ELF", elf);
+    command
+}
+
+/// Builds the console image and runs the soak on it.
+fn soak_alone(args: &SoakArgs) -> Result {
+    tools::ensure_linker()?;
+    tools::ensure_emulation()?;
+    let elf = qemu::build_firmware(qemu::Image::Console)?;
+    soak(&elf, args)
+}
+
+/// The random-operator soak (`ctl/tests/soak`) against the console image `elf`, its progress
+/// shown as it runs; unset arguments leave FEEDER_SOAK_CYCLES and FEEDER_SOAK_SEED to the
+/// environment.
+fn soak(elf: &Path, args: &SoakArgs) -> Result {
+    let mut command = ignored_tests("feeder-ctl", "soak", elf);
+    command.arg("--nocapture");
+    if let Some(cycles) = args.cycles {
+        command.env("FEEDER_SOAK_CYCLES", cycles.to_string());
+    }
+    if let Some(seed) = args.seed {
+        command.env("FEEDER_SOAK_SEED", seed.to_string());
+    }
+    exec(&mut command)
 }
 
 fn firmware_size() -> Result {
@@ -273,13 +319,40 @@ mod tests {
     }
 
     #[test]
+    fn console_takes_no_arguments() {
+        assert!(matches!(
+            parse(&["console"]).expect("accepted").task,
+            Task::Console
+        ));
+        assert!(parse(&["console", "cycles=5"]).is_err());
+    }
+
+    #[test]
+    fn a_soak_of_zero_cycles_is_refused() {
+        let Task::Soak(args) = parse(&["soak", "--cycles", "1000000", "--seed", "7"])
+            .expect("accepted")
+            .task
+        else {
+            panic!("not a soak");
+        };
+        assert_eq!((args.cycles, args.seed), (Some(1_000_000), Some(7)));
+        assert!(parse(&["soak", "--cycles", "0"]).is_err());
+    }
+
+    #[test]
     fn a_negative_scenario_value_is_refused_with_the_word_named() {
-        let error = parse(&["run", "cycles=-5"]).err().expect("refused").to_string();
+        let error = parse(&["run", "cycles=-5"])
+            .err()
+            .expect("refused")
+            .to_string();
         assert!(
             error.contains("cycles=-5: cycles must be a whole number from 1"),
             "{error}"
         );
-        let error = parse(&["run", "duty=-inf"]).err().expect("refused").to_string();
+        let error = parse(&["run", "duty=-inf"])
+            .err()
+            .expect("refused")
+            .to_string();
         assert!(error.contains("duty=-inf"), "{error}");
     }
 }

@@ -1,7 +1,7 @@
 //! The emulated board: building the QEMU firmware and running it with its decoded log piped
 //! onward.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 
 use crate::{exec, firmware_cargo, firmware_dir, Result, THUMB_TARGET};
@@ -43,9 +43,27 @@ pub fn build_firmware(image: Image) -> Result<PathBuf> {
         .join("feeder-firmware"))
 }
 
-/// QEMU running `elf` with the scenario arguments (`key=value`), its semihosting output on
-/// stdout. The serial port is unused.
-pub fn command(elf: &std::path::Path, scenario: &[String]) -> Command {
+/// Where QEMU connects the board's UART0 (the serial console of the console image).
+#[derive(Clone, Copy)]
+pub enum Serial {
+    /// Not connected: the scripted image has no console.
+    None,
+    /// A TCP server on this loopback port that a client may connect to at any time.
+    Tcp { port: u16 },
+}
+
+impl Serial {
+    fn backend(self) -> String {
+        match self {
+            Serial::None => "none".into(),
+            Serial::Tcp { port } => format!("tcp:127.0.0.1:{port},server=on,wait=off"),
+        }
+    }
+}
+
+/// QEMU running `elf` with the scenario arguments (`key=value`) and UART0 on `serial`; the
+/// firmware's defmt output appears on QEMU's stdout.
+pub fn command(elf: &Path, scenario: &[String], serial: Serial) -> Command {
     let mut semihosting = String::from("enable=on,target=native");
     for argument in scenario {
         semihosting.push_str(",arg=");
@@ -63,7 +81,7 @@ pub fn command(elf: &std::path::Path, scenario: &[String]) -> Command {
             "-monitor",
             "none",
             "-serial",
-            "none",
+            &serial.backend(),
         ])
         .args([
             "-semihosting-config",
@@ -76,9 +94,15 @@ pub fn command(elf: &std::path::Path, scenario: &[String]) -> Command {
     command
 }
 
-/// Starts QEMU and defmt-print; the decoded log is on the returned decoder's stdout.
-pub fn spawn_decoded(elf: &std::path::Path, scenario: &[String]) -> Result<(Child, Child)> {
-    let mut emulator = command(elf, scenario)
+/// Starts QEMU and defmt-print; the decoded log goes to `decoded` (the returned decoder's
+/// stdout when that is [`Stdio::piped`]).
+pub fn spawn_decoded(
+    elf: &Path,
+    scenario: &[String],
+    serial: Serial,
+    decoded: Stdio,
+) -> Result<(Child, Child)> {
+    let mut emulator = command(elf, scenario, serial)
         .stdout(Stdio::piped())
         .spawn()
         .map_err(|error| format!("cannot start qemu-system-arm: {error}"))?;
@@ -87,8 +111,14 @@ pub fn spawn_decoded(elf: &std::path::Path, scenario: &[String]) -> Result<(Chil
         .arg("-e")
         .arg(elf)
         .stdin(raw)
-        .stdout(Stdio::piped())
-        .spawn()
-        .map_err(|error| format!("cannot start defmt-print: {error}"))?;
-    Ok((emulator, decoder))
+        .stdout(decoded)
+        .spawn();
+    match decoder {
+        Ok(decoder) => Ok((emulator, decoder)),
+        Err(error) => {
+            let _ = emulator.kill();
+            let _ = emulator.wait();
+            Err(format!("cannot start defmt-print: {error}"))
+        }
+    }
 }

@@ -1,0 +1,141 @@
+//! `cargo xtask console`: live control of the emulated feeder in one command. The QEMU console
+//! image runs with its serial port on a free loopback TCP port and its decoded log captured to
+//! `target/console-run.log`; the operator gets the `feeder-ctl` prompt on the terminal, and when
+//! they leave it, QEMU is stopped and `host-sim hil` checks what happened.
+
+use std::fs::File;
+use std::net::{TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Stdio};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use crate::qemu::{self, Image, Serial};
+use crate::{exec, host_sim, root, tools, workspace_binary, Result};
+
+/// Longest to wait for QEMU to open its serial port.
+const PORT_OPEN_TIMEOUT: Duration = Duration::from_secs(20);
+/// Pause between attempts to reach the serial port.
+const PORT_POLL_INTERVAL: Duration = Duration::from_millis(20);
+
+/// Where the decoded log of the session goes.
+fn log_path() -> PathBuf {
+    root().join("target").join("console-run.log")
+}
+
+/// Builds and runs everything, hands the terminal to `feeder-ctl`, then checks the log.
+pub fn console() -> Result {
+    tools::ensure_linker()?;
+    tools::ensure_emulation()?;
+    let elf = qemu::build_firmware(Image::Console)?;
+    exec(
+        crate::cargo()
+            .args(["build", "--release", "--locked"])
+            .args(["--package", "feeder-ctl", "--package", "host-sim"]),
+    )?;
+    let log = log_path();
+    let operator = {
+        let mut feeder = Feeder::start(&elf, &log)?;
+        eprintln!(
+            "xtask: the feeder runs under QEMU, its console on 127.0.0.1:{} and its log in {}; \
+             `help` lists the commands, `quit`, `exit` or Ctrl-D leave and check the run",
+            feeder.port,
+            log.display()
+        );
+        let operator = operate(feeder.port);
+        feeder.stop()?;
+        operator
+    };
+    println!("\nWhat the firmware did, checked by host-sim hil:");
+    let check = exec(
+        host_sim()
+            .args(["hil", "--input"])
+            .arg(&log)
+            .arg("--open-ended"),
+    );
+    operator.and(check)
+}
+
+/// The emulated feeder: QEMU and the decoder writing its log. Both end when this is dropped.
+struct Feeder {
+    emulator: Child,
+    decoder: Child,
+    port: u16,
+}
+
+impl Feeder {
+    /// Starts the console image `elf` with its decoded log going to `log`, and waits until its
+    /// serial port accepts connections.
+    fn start(elf: &Path, log: &Path) -> Result<Self> {
+        let port = free_port()?;
+        let file = File::create(log)
+            .map_err(|error| format!("cannot create {}: {error}", log.display()))?;
+        let (emulator, decoder) =
+            qemu::spawn_decoded(elf, &[], Serial::Tcp { port }, Stdio::from(file))?;
+        let mut feeder = Feeder {
+            emulator,
+            decoder,
+            port,
+        };
+        feeder.wait_for_port()?;
+        Ok(feeder)
+    }
+
+    fn wait_for_port(&mut self) -> Result {
+        let deadline = Instant::now() + PORT_OPEN_TIMEOUT;
+        loop {
+            if let Ok(Some(status)) = self.emulator.try_wait() {
+                return Err(format!(
+                    "QEMU ended before its serial port opened: {status}"
+                ));
+            }
+            // QEMU takes the next client once this probe has disconnected.
+            if TcpStream::connect(("127.0.0.1", self.port)).is_ok() {
+                return Ok(());
+            }
+            if Instant::now() > deadline {
+                return Err(format!(
+                    "QEMU did not open its serial port within {PORT_OPEN_TIMEOUT:?}"
+                ));
+            }
+            thread::sleep(PORT_POLL_INTERVAL);
+        }
+    }
+
+    /// Ends QEMU and waits for the decoder to write the rest of the log.
+    fn stop(&mut self) -> Result {
+        let _ = self.emulator.kill();
+        self.emulator
+            .wait()
+            .map_err(|error| format!("cannot wait for QEMU: {error}"))?;
+        self.decoder
+            .wait()
+            .map_err(|error| format!("cannot wait for defmt-print: {error}"))?;
+        Ok(())
+    }
+}
+
+impl Drop for Feeder {
+    fn drop(&mut self) {
+        let _ = self.emulator.kill();
+        let _ = self.emulator.wait();
+        let _ = self.decoder.wait();
+    }
+}
+
+/// A loopback port nobody listens on (free when this returns; QEMU takes it right after).
+fn free_port() -> Result<u16> {
+    TcpListener::bind("127.0.0.1:0")
+        .and_then(|listener| listener.local_addr())
+        .map(|address| address.port())
+        .map_err(|error| format!("no free loopback port: {error}"))
+}
+
+/// The `feeder-ctl` prompt on this terminal, connected to the console on `port`.
+fn operate(port: u16) -> Result {
+    exec(
+        workspace_binary("feeder-ctl")
+            .arg("--tcp")
+            .arg(format!("127.0.0.1:{port}")),
+    )
+}
