@@ -26,9 +26,16 @@ pub fn edges(report: &CheckReport) -> Result<(), String> {
     Err(found)
 }
 
-/// The firmware logged no error, and every event line was readable.
+/// The firmware logged no error, every event line was readable, and the checker's replay of
+/// them ran to the end.
 pub fn log_lines(summary: &Summary) -> Result<(), String> {
     let mut found = Vec::new();
+    found.extend(
+        summary
+            .checker_panic
+            .iter()
+            .map(|panic| format!("the checker's replay on the shared scheduler panicked: {panic}")),
+    );
     found.extend(
         summary
             .firmware_errors

@@ -5,6 +5,7 @@
 use std::collections::VecDeque;
 use std::fs::File;
 use std::io::{BufWriter, Write};
+use std::panic::{self, AssertUnwindSafe};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
@@ -63,6 +64,8 @@ pub struct Summary {
     pub firmware_errors: Vec<String>,
     /// Event lines the checker could not read.
     pub unreadable: Vec<String>,
+    /// The checker's replay panicked on this event (with this message) and took no more.
+    pub checker_panic: Option<String>,
     pub path: PathBuf,
 }
 
@@ -71,6 +74,7 @@ pub struct SoakLog {
     file: BufWriter<File>,
     path: PathBuf,
     checker: Checker,
+    checker_panic: Option<String>,
     plans: Vec<Plan>,
     firmware_errors: Vec<String>,
     unreadable: Vec<String>,
@@ -88,6 +92,7 @@ impl SoakLog {
             file: BufWriter::new(file),
             path: path.to_path_buf(),
             checker: Checker::new(),
+            checker_panic: None,
             plans: Vec::new(),
             firmware_errors: Vec::new(),
             unreadable: Vec::new(),
@@ -110,6 +115,7 @@ impl SoakLog {
             plans: self.plans,
             firmware_errors: self.firmware_errors,
             unreadable: self.unreadable,
+            checker_panic: self.checker_panic,
             path: self.path,
         }
     }
@@ -131,7 +137,24 @@ impl SoakLog {
             }
             _ => {}
         }
-        self.checker.feed(event);
+        self.check(event);
+    }
+
+    /// Feeds `event` to the checker. A panic in its replay (the shared scheduler's code) is
+    /// kept for the report instead of ending the log thread; the checker takes nothing more.
+    fn check(&mut self, event: &Event) {
+        if self.checker_panic.is_some() {
+            return;
+        }
+        let checker = &mut self.checker;
+        if let Err(payload) = panic::catch_unwind(AssertUnwindSafe(|| checker.feed(event))) {
+            let message = payload
+                .downcast_ref::<&str>()
+                .map(|text| text.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            self.checker_panic = Some(format!("{message:?} at {event:?}"));
+        }
     }
 
     fn firmware_error(&mut self, line: String) {

@@ -77,7 +77,7 @@ fn random_operator_soak() {
              decoded log: {} (recheck: cargo run --release -p host-sim -- hil --input {} \
              --open-ended)\nFEEDER_SOAK_SEED={seed} repeats the operator's lines",
             wall.as_secs_f64(),
-            summary.report.motion_cycles,
+            progress.motion_cycles(),
             session.lines_sent,
             findings.failures.join("\n- "),
             transcript_path.display(),
