@@ -32,7 +32,7 @@ type Result<T = ()> = std::result::Result<T, String>;
 #[command(
     name = "cargo xtask",
     bin_name = "cargo xtask",
-    about = "The feeder's main job, its whole test suite, live control and the firmware size report",
+    about = "The feeder's main job, its test suite, live control and the firmware size report",
     allow_negative_numbers = true
 )]
 struct Cli {
