@@ -236,7 +236,7 @@ impl Scheduler {
             self.quick_stop = false;
             0
         } else if self.run_requested {
-            (self.step + 1).min(self.ramp_steps)
+            self.step.saturating_add(1).min(self.ramp_steps)
         } else {
             self.step.saturating_sub(1)
         };

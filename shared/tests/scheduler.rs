@@ -341,3 +341,22 @@ fn a_start_after_a_controlled_stop_ramps_up_from_rest() {
     let first = scheduler.next_segment();
     assert_eq!((first.kind, first.amplitude.step, first.phase), (SegmentKind::Accelerate, 1, Phase::Starting));
 }
+
+#[test]
+fn the_longest_ramp_set_at_full_amplitude_keeps_full_amplitude() {
+    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 2);
+    scheduler.start();
+    for _ in 0..12 {
+        scheduler.next_segment();
+    }
+    scheduler.set_ramp_cycles(u16::MAX);
+    for _ in 0..3 {
+        let first = scheduler.next_segment();
+        assert_eq!(first.kind, SegmentKind::Accelerate);
+        assert_eq!((first.amplitude.step, first.amplitude.steps), (u16::MAX, u16::MAX));
+        assert_eq!(first.phase, Phase::Running);
+        for _ in 0..3 {
+            scheduler.next_segment();
+        }
+    }
+}
