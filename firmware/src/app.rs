@@ -37,7 +37,7 @@ pub enum OperatorRequest {
     #[cfg(any(feature = "board-qemu", feature = "console"))]
     Stop,
     /// Acknowledge a latched fault.
-    #[cfg(feature = "console")]
+    #[cfg(any(feature = "board-qemu", feature = "console"))]
     Reset,
 }
 
@@ -473,7 +473,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     /// Work at the start of every segment: supervision and pending requests.
     fn begin(&mut self, playing: &Segment, scheduler: &mut Scheduler) {
         HEARTBEAT.fetch_add(1, Ordering::Relaxed);
-        trace::segment(playing, self.output.started_tick(playing));
+        trace::segment(playing, self.output.started(playing));
         if playing.starts_cycle() {
             CYCLE.store(playing.cycle as u32, Ordering::Relaxed);
         }
@@ -492,7 +492,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
                 OperatorRequest::Start => SupervisorEvent::StartRequested,
                 #[cfg(any(feature = "board-qemu", feature = "console"))]
                 OperatorRequest::Stop => SupervisorEvent::StopRequested,
-                #[cfg(feature = "console")]
+                #[cfg(any(feature = "board-qemu", feature = "console"))]
                 OperatorRequest::Reset => SupervisorEvent::ResetRequested,
             };
             self.handle(event, Some(scheduler));

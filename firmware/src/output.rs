@@ -7,6 +7,16 @@ use feeder_shared::{DriveError, Segment, TickClock};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub struct EdgeMissed;
 
+/// How a segment began on the output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SegmentStart {
+    /// The tick at which it took effect.
+    pub tick: u64,
+    /// Its deadline (its start) minus the moment software preloaded it, in ticks; `None` for a
+    /// segment applied at once by [`SegmentOutput::restart`] or where the stage cannot read it.
+    pub slack_ticks: Option<u32>,
+}
+
 /// A hardware-timed output of segments.
 ///
 /// The stage holds two segments: the one playing and the one preloaded. At the end of the
@@ -34,7 +44,8 @@ pub trait SegmentOutput {
     /// Outputs zero at once and stops the timer.
     fn halt(&mut self);
 
-    /// The tick at which `segment`, the one just begun, took effect. Hardware-timed stages
-    /// return its planned start; an emulated stage returns what it measured.
-    fn started_tick(&self, segment: &Segment) -> u64;
+    /// How `segment`, the one just begun, started. The timer starts every segment on its
+    /// planned tick: the tick is that start, on the stage's own timeline (which a restart after
+    /// a halt may shift against the plan).
+    fn started(&self, segment: &Segment) -> SegmentStart;
 }

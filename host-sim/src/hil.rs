@@ -6,16 +6,27 @@
 //! ```text
 //! EVT plan tick=0 period_s=0.02 duty=0.586 stroke_m=0.0025 clock_hz=1000000 ramp=4
 //! EVT start tick=20000
-//! EVT seg cycle=1 kind=accelerate planned=20000 actual=20007 ticks=1713 level=1 step=1 steps=4
+//! EVT seg cycle=1 kind=accelerate planned=20000 actual=20000 ticks=1713 level=1 step=1 steps=4 slack=19830
+//! EVT replay cycle=9 kind=return planned=195860 actual=200000 ticks=4140 level=1 step=4 steps=4 slack=-51
+//! EVT zero actual=200057
 //! EVT stop tick=1000000
 //! EVT halt tick=1000000
+//! EVT work edges=90 max_cycles=4236 total_cycles=151414 clock_hz=25000000
 //! EVT end tick=1200000
 //! ```
 //!
 //! `tick` on a request is the scheduler's next segment start when the request was made, so the
 //! replay applies it at exactly the same point; `accel_mps2=` may stand for `stroke_m=`.
 //! Every `seg` event is compared with the segment the shared scheduler produces for the same
-//! requests: start tick, length, kind, level and amplitude must match exactly.
+//! requests: start tick, length, kind, level and amplitude must match exactly. `actual` is when
+//! the level took effect on the output's own timeline, which a restart after a halt shifts
+//! against the plan; `slack` (optional) is how many ticks before its start the segment was
+//! preloaded.
+//!
+//! The emulated board (QEMU) also reports what its hardware-timed output did by itself: a missed
+//! edge (`replay`: the preload came after the deadline, `slack` < 0, so the timer played the
+//! playing segment again from `actual`), the output's zero at a halt (`zero`), and the work per
+//! edge over the run (`work`: timer cycles from an edge to the preload of the next segment).
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -57,6 +68,13 @@ pub enum Event {
         tick: u64,
     },
     Segment(SegmentEvent),
+    /// A missed edge: the output played the segment again from `actual_tick`.
+    Replay(SegmentEvent),
+    /// The output went to zero (a halt).
+    Zero {
+        actual_tick: u64,
+    },
+    Work(EdgeWork),
     End {
         tick: u64,
     },
@@ -73,6 +91,36 @@ pub struct SegmentEvent {
     pub level: i8,
     pub step: u16,
     pub steps: u16,
+    /// Ticks from the preload to the start: the segment's deadline minus the moment it was
+    /// preloaded. `None` where the firmware does not report it (a restart, an older log).
+    pub slack_ticks: Option<i64>,
+}
+
+/// QEMU's virtual time per instruction under `-icount shift=4`, as `cargo xtask` and the QEMU
+/// tests run it.
+pub const QEMU_NS_PER_INSTRUCTION: f64 = 16.0;
+
+/// Work per edge over a run: from each edge (when the output switched) to the preload of the
+/// next segment, wake-up included, in cycles of a `clock_hz` clock.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct EdgeWork {
+    pub edges: u64,
+    pub max_cycles: u64,
+    pub total_cycles: u64,
+    pub clock_hz: u64,
+}
+
+impl EdgeWork {
+    pub fn max_ns(&self) -> f64 {
+        self.max_cycles as f64 * 1e9 / self.clock_hz.max(1) as f64
+    }
+
+    pub fn mean_ns(&self) -> f64 {
+        if self.edges == 0 {
+            return 0.0;
+        }
+        self.total_cycles as f64 * 1e9 / self.clock_hz.max(1) as f64 / self.edges as f64
+    }
 }
 
 /// A line that carries the event marker but cannot be read.
@@ -180,7 +228,16 @@ pub fn parse_line(line: &str) -> Result<Option<Event>, ParseError> {
         "end" => Event::End {
             tick: number("tick")?,
         },
-        "seg" => {
+        "work" => Event::Work(EdgeWork {
+            edges: number("edges")?,
+            max_cycles: number("max_cycles")?,
+            total_cycles: number("total_cycles")?,
+            clock_hz: number("clock_hz")?,
+        }),
+        "zero" => Event::Zero {
+            actual_tick: number("actual")?,
+        },
+        "seg" | "replay" => {
             let kind = match field("kind")? {
                 "accelerate" => SegmentKind::Accelerate,
                 "plateau" => SegmentKind::Plateau,
@@ -197,7 +254,22 @@ pub fn parse_line(line: &str) -> Result<Option<Event>, ParseError> {
                 .ok()
                 .filter(|level: &i8| (-1..=1).contains(level))
                 .ok_or_else(|| error("`level` must be -1, 0 or 1".into()))?;
-            Event::Segment(SegmentEvent {
+            // A segment that began was preloaded in time; only a replay reports a late one.
+            let slack_ticks = match fields.get("slack") {
+                None => None,
+                Some(slack) => Some(if name == "seg" {
+                    i64::from(
+                        slack
+                            .parse::<u32>()
+                            .map_err(|_| error("`slack` is not a whole number".into()))?,
+                    )
+                } else {
+                    slack
+                        .parse()
+                        .map_err(|_| error("`slack` is not an integer".into()))?
+                }),
+            };
+            let segment = SegmentEvent {
                 cycle: number("cycle")?,
                 kind,
                 planned_tick: number("planned")?,
@@ -206,7 +278,13 @@ pub fn parse_line(line: &str) -> Result<Option<Event>, ParseError> {
                 level,
                 step: small("step")?,
                 steps: small("steps")?,
-            })
+                slack_ticks,
+            };
+            if name == "seg" {
+                Event::Segment(segment)
+            } else {
+                Event::Replay(segment)
+            }
         }
         other => return Err(error(format!("unknown event `{other}`"))),
     };
@@ -228,8 +306,17 @@ pub struct CheckReport {
     pub glitches: u64,
     /// Number of motion cycles (not idle periods) completed.
     pub motion_cycles: u64,
-    /// `actual − planned` in ticks: count per value.
+    /// `actual − planned` in ticks, after the shift of the last restart: count per value.
     pub deviation_histogram: BTreeMap<i64, u64>,
+    /// Preload slack of the segments that began: count per bucket, keyed by its lower bound
+    /// (see [`slack_bucket`]).
+    pub slack_histogram: BTreeMap<i64, u64>,
+    /// The smallest of those slacks and the planned tick of its segment.
+    pub min_slack: Option<(i64, u64)>,
+    /// The missed edges: each the output's replay of the segment playing.
+    pub missed: Vec<SegmentEvent>,
+    /// Work per edge, when the firmware reports it.
+    pub edge_work: Option<EdgeWork>,
     /// The first problems found, in words.
     pub problems: Vec<String>,
     /// Whether the stream ended with an `end` event.
@@ -248,10 +335,11 @@ impl CheckReport {
             .unwrap_or(0)
     }
 
-    /// True when every edge was present, exact and glitch-free and the run ended.
+    /// True when every edge was present, exact, on time and glitch-free and the run ended.
     pub fn passed(&self) -> bool {
         (self.ended || !self.end_required)
             && self.edges > 0
+            && self.missed.is_empty()
             && self.missing == 0
             && self.unexpected == 0
             && self.glitches == 0
@@ -266,14 +354,81 @@ const MAX_PROBLEMS: usize = 20;
 /// as out of step and the replay stops: a garbled tick far ahead would otherwise replay for ages.
 const MAX_SKIPPED_SEGMENTS: u64 = 100_000;
 
-/// A reported edge with what the replay knows about it.
+/// The bucket of a slack in [`CheckReport::slack_histogram`]: 0 for no slack, else the power of
+/// two at or below it (the bucket `2^k` holds `2^k ..= 2^(k+1) − 1`).
+pub fn slack_bucket(slack_ticks: i64) -> i64 {
+    if slack_ticks <= 0 {
+        0
+    } else {
+        1 << slack_ticks.ilog2()
+    }
+}
+
+/// How an edge came about, and so on which timeline it lies.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EdgeSource {
+    /// A planned segment that began on the output: on both timelines.
+    Played,
+    /// A planned segment that never began because a missed edge halted the output: planned
+    /// only, and at zero, as the halt would have been on time.
+    Unplayed,
+    /// The output's replay of the playing segment at a missed edge: actual only.
+    Replayed,
+    /// The output's zero at a halt: actual only.
+    Zeroed,
+}
+
+impl EdgeSource {
+    fn on(self, times: EdgeTimes) -> bool {
+        match self {
+            EdgeSource::Played => true,
+            EdgeSource::Unplayed => times == EdgeTimes::Planned,
+            EdgeSource::Replayed | EdgeSource::Zeroed => times == EdgeTimes::Actual,
+        }
+    }
+}
+
+/// A level change with what the replay knows about it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Edge {
-    pub event: SegmentEvent,
-    /// `a_max` of the plan in force (from the replay).
-    pub peak_accel_mps2: f64,
+    pub source: EdgeSource,
+    /// When it took effect on the output (an unplayed edge: its planned tick).
+    pub actual_tick: u64,
+    /// The scheduler's tick (an edge of the output alone: its actual tick).
+    pub planned_tick: u64,
+    /// The planned length, which the last edge holds for.
+    pub ticks: u32,
+    /// The plate acceleration it commands.
+    pub accel_mps2: f64,
+    /// It begins a cycle or idle period.
+    pub starts_cycle: bool,
+    /// It begins a cycle at its plan's full amplitude.
+    pub full_amplitude: bool,
     /// How many plan changes had taken effect by this edge.
     pub plan_index: usize,
+}
+
+impl Edge {
+    /// A segment as the firmware reported it, with `a_max` of the plan in force.
+    fn reported(
+        source: EdgeSource,
+        event: &SegmentEvent,
+        peak_accel_mps2: f64,
+        plan_index: usize,
+    ) -> Self {
+        let amplitude = f64::from(event.step) / f64::from(event.steps.max(1));
+        let starts_cycle = matches!(event.kind, SegmentKind::Accelerate | SegmentKind::Idle);
+        Edge {
+            source,
+            actual_tick: event.actual_tick,
+            planned_tick: event.planned_tick,
+            ticks: event.ticks,
+            accel_mps2: f64::from(event.level) * peak_accel_mps2 * amplitude,
+            starts_cycle: starts_cycle && source == EdgeSource::Played,
+            full_amplitude: event.kind == SegmentKind::Accelerate && event.step == event.steps,
+            plan_index,
+        }
+    }
 }
 
 /// Replays the firmware's requests on the shared scheduler and compares every edge.
@@ -285,7 +440,13 @@ pub struct Checker {
     report: CheckReport,
     edges: Vec<Edge>,
     plan_index: usize,
+    /// `a_max` of the plan of the last edge played.
+    peak_accel_mps2: f64,
     clock_hz: u32,
+    /// `actual − planned` since the last restart (set by its first edge).
+    timeline_offset: Option<i128>,
+    /// An edge was missed: the planned segments before the next reported one never began.
+    missed_edge: bool,
     /// A reported edge lay too far past the plan; later edges are counted, not replayed.
     out_of_step: bool,
 }
@@ -305,6 +466,22 @@ impl Checker {
     pub fn feed(&mut self, event: &Event) {
         match event {
             Event::Segment(segment) => self.segment(segment),
+            Event::Replay(replayed) => self.replayed(replayed),
+            Event::Zero { actual_tick } => {
+                self.edges.push(Edge {
+                    source: EdgeSource::Zeroed,
+                    actual_tick: *actual_tick,
+                    planned_tick: *actual_tick,
+                    ticks: 0,
+                    accel_mps2: 0.0,
+                    starts_cycle: false,
+                    full_amplitude: false,
+                    plan_index: self.plan_index,
+                });
+                // The restart that follows shifts the plan against the output's timeline.
+                self.timeline_offset = None;
+            }
+            Event::Work(work) => self.report.edge_work = Some(*work),
             Event::End { .. } => self.report.ended = true,
             Event::Plan {
                 tick: 0,
@@ -375,15 +552,52 @@ impl Checker {
         }
     }
 
+    /// A missed edge: the output played the segment again; what was planned from here until the
+    /// next reported edge never began.
+    fn replayed(&mut self, replayed: &SegmentEvent) {
+        self.report.missed.push(*replayed);
+        let late = match replayed.slack_ticks {
+            Some(slack) => format!(
+                "the next segment was preloaded {} ticks late",
+                -i128::from(slack)
+            ),
+            None => "the next segment was not preloaded".to_string(),
+        };
+        self.problem(format!(
+            "edge missed at tick {}: {late}, so the output played cycle {}'s {} again",
+            replayed.actual_tick,
+            replayed.cycle,
+            replayed.kind.name()
+        ));
+        self.edges.push(Edge::reported(
+            EdgeSource::Replayed,
+            replayed,
+            self.peak_accel_mps2,
+            self.plan_index,
+        ));
+        self.missed_edge = true;
+    }
+
     fn segment(&mut self, reported: &SegmentEvent) {
         self.report.edges += 1;
-        let deviation = (i128::from(reported.actual_tick) - i128::from(reported.planned_tick))
-            .clamp(-i128::from(i64::MAX), i128::from(i64::MAX)) as i64;
+        let shift = i128::from(reported.actual_tick) - i128::from(reported.planned_tick);
+        let offset = *self.timeline_offset.get_or_insert(shift);
+        let deviation = (shift - offset).clamp(-i128::from(i64::MAX), i128::from(i64::MAX)) as i64;
         *self
             .report
             .deviation_histogram
             .entry(deviation)
             .or_default() += 1;
+        if let Some(slack) = reported.slack_ticks {
+            *self
+                .report
+                .slack_histogram
+                .entry(slack_bucket(slack))
+                .or_default() += 1;
+            if self.report.min_slack.is_none_or(|(least, _)| slack < least) {
+                self.report.min_slack = Some((slack, reported.planned_tick));
+            }
+        }
         if let Some(previous) = self.previous {
             let changed = previous.step != reported.step || previous.steps != reported.steps;
             let boundary = matches!(reported.kind, SegmentKind::Accelerate | SegmentKind::Idle);
@@ -417,8 +631,25 @@ impl Checker {
                 return;
             }
             let expected = replay.next_segment();
+            if expected.plan_applied {
+                self.plan_index += 1;
+            }
             if expected.start_tick < reported.planned_tick {
-                self.report.missing += 1;
+                if self.missed_edge {
+                    self.edges.push(Edge {
+                        source: EdgeSource::Unplayed,
+                        actual_tick: expected.start_tick,
+                        planned_tick: expected.start_tick,
+                        ticks: expected.ticks,
+                        accel_mps2: 0.0,
+                        starts_cycle: expected.starts_cycle(),
+                        full_amplitude: false,
+                        plan_index: self.plan_index,
+                    });
+                } else {
+                    self.report.missing += 1;
+                    self.problem(format!("missing edge at tick {}", expected.start_tick));
+                }
                 skipped += 1;
                 if skipped == MAX_SKIPPED_SEGMENTS {
                     self.report.unexpected += 1;
@@ -431,17 +662,16 @@ impl Checker {
                     ));
                     return;
                 }
-                self.problem(format!("missing edge at tick {}", expected.start_tick));
                 continue;
             }
-            if expected.plan_applied {
-                self.plan_index += 1;
-            }
-            self.edges.push(Edge {
-                event: *reported,
-                peak_accel_mps2: expected.peak_accel_mps2,
-                plan_index: self.plan_index,
-            });
+            self.missed_edge = false;
+            self.peak_accel_mps2 = expected.peak_accel_mps2;
+            self.edges.push(Edge::reported(
+                EdgeSource::Played,
+                reported,
+                expected.peak_accel_mps2,
+                self.plan_index,
+            ));
             if matches(&expected, reported) {
                 self.report.matched += 1;
                 if expected.kind == SegmentKind::Return {
@@ -598,6 +828,18 @@ pub struct PartReport {
     pub duration_s: f64,
     /// Every cycle (and idle period) of the run.
     pub cycles: Vec<CyclePoint>,
+    /// The plate at each halt: where the output went to zero (actual edges only).
+    pub halts: Vec<HaltPoint>,
+}
+
+/// Where a halt left the plate: its state when the output went to zero, relative to its
+/// position and rest at the start of the run.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct HaltPoint {
+    pub tick: u64,
+    pub time_s: f64,
+    pub plate_position_m: f64,
+    pub plate_velocity_mps: f64,
 }
 
 /// One cycle of a simulated run.
@@ -611,13 +853,14 @@ pub struct CyclePoint {
     pub plate_velocity_mps: f64,
 }
 
-/// Simulates the part on the edges: each level holds from its edge to the next edge (the last
-/// one for its planned length), at the actual or the planned instants.
+/// Simulates the part on the edges of one timeline: each level holds from its edge to the next
+/// edge (the last one for its planned length), at the actual or the planned instants.
 pub fn simulate(edges: &[Edge], clock_hz: u32, contact: &Contact, times: EdgeTimes) -> PartReport {
     let clock_hz = f64::from(clock_hz.max(1));
-    let tick = |edge: &Edge| match times {
-        EdgeTimes::Actual => edge.event.actual_tick,
-        EdgeTimes::Planned => edge.event.planned_tick,
+    let edges: Vec<&Edge> = edges.iter().filter(|edge| edge.source.on(times)).collect();
+    let tick = |edge: &&Edge| match times {
+        EdgeTimes::Actual => edge.actual_tick,
+        EdgeTimes::Planned => edge.planned_tick,
     };
     let segments: Vec<PlateSegment> = edges
         .iter()
@@ -626,12 +869,11 @@ pub fn simulate(edges: &[Edge], clock_hz: u32, contact: &Contact, times: EdgeTim
             let start_tick = tick(edge);
             let end_tick = edges
                 .get(index + 1)
-                .map_or(start_tick.saturating_add(u64::from(edge.event.ticks)), tick);
-            let amplitude = f64::from(edge.event.step) / f64::from(edge.event.steps.max(1));
+                .map_or(start_tick.saturating_add(u64::from(edge.ticks)), tick);
             PlateSegment {
                 duration_s: end_tick.saturating_sub(start_tick) as f64 / clock_hz,
-                accel_mps2: f64::from(edge.event.level) * edge.peak_accel_mps2 * amplitude,
-                starts_cycle: starts_cycle(edge),
+                accel_mps2: edge.accel_mps2,
+                starts_cycle: edge.starts_cycle,
             }
         })
         .collect();
@@ -646,12 +888,8 @@ pub fn simulate(edges: &[Edge], clock_hz: u32, contact: &Contact, times: EdgeTim
     let final_plan = edges.last().map_or(0, |edge| edge.plan_index);
     let steady: Vec<bool> = edges
         .iter()
-        .filter(|edge| starts_cycle(edge))
-        .map(|edge| {
-            edge.event.kind == SegmentKind::Accelerate
-                && edge.event.step == edge.event.steps
-                && edge.plan_index == final_plan
-        })
+        .filter(|edge| edge.starts_cycle)
+        .map(|edge| edge.full_amplitude && edge.plan_index == final_plan)
         .collect();
     let window: Vec<(&CycleStats, f64)> = run
         .cycle_stats
@@ -710,11 +948,29 @@ pub fn simulate(edges: &[Edge], clock_hz: u32, contact: &Contact, times: EdgeTim
         plate_drift_m: plate_m.iter().sum(),
         duration_s: segments.iter().map(|segment| segment.duration_s).sum(),
         cycles,
+        halts: plate_at_halts(&edges, &segments, clock_hz),
     }
 }
 
-fn starts_cycle(edge: &Edge) -> bool {
-    matches!(edge.event.kind, SegmentKind::Accelerate | SegmentKind::Idle)
+/// The plate's state where each `Zeroed` edge begins, integrating `segments` (one per edge)
+/// from rest.
+fn plate_at_halts(edges: &[&Edge], segments: &[PlateSegment], clock_hz: f64) -> Vec<HaltPoint> {
+    let mut halts = Vec::new();
+    let (mut position_m, mut velocity_mps) = (0.0, 0.0);
+    for (edge, segment) in edges.iter().zip(segments) {
+        if edge.source == EdgeSource::Zeroed {
+            halts.push(HaltPoint {
+                tick: edge.actual_tick,
+                time_s: edge.actual_tick as f64 / clock_hz,
+                plate_position_m: position_m,
+                plate_velocity_mps: velocity_mps,
+            });
+        }
+        let t = segment.duration_s;
+        position_m += velocity_mps * t + segment.accel_mps2 * t * t / 2.0;
+        velocity_mps += segment.accel_mps2 * t;
+    }
+    halts
 }
 
 /// The plate's displacement over each cycle of `segments`, from rest (constant acceleration per

@@ -6,7 +6,10 @@ use std::io::BufReader;
 use std::path::PathBuf;
 
 use clap::Args;
-use host_sim::hil::{self, CheckReport, Checker, EdgeTimes, Event, PartReport};
+use host_sim::hil::{
+    self, CheckReport, Checker, EdgeTimes, EdgeWork, Event, HaltPoint, PartReport,
+    QEMU_NS_PER_INSTRUCTION,
+};
 use host_sim::SimError;
 use serde::Serialize;
 
@@ -35,10 +38,22 @@ struct HilReport {
     missing: u64,
     unexpected: u64,
     glitches: u64,
+    /// Edges the output missed: each a late preload, which the timer answered by playing the
+    /// segment again.
+    missed_edges: Vec<MissedEdge>,
     motion_cycles: u64,
     max_deviation_ticks: i64,
     /// `[deviation in ticks, edges]`, ascending.
     deviation_histogram: Vec<(i64, u64)>,
+    /// The least preload slack of a segment that began, and the planned tick of that segment.
+    min_slack_ticks: Option<i64>,
+    min_slack_at_tick: Option<u64>,
+    /// `[lowest slack, highest slack, edges]` in ticks, ascending, in power-of-two buckets.
+    slack_histogram: Vec<(i64, i64, u64)>,
+    /// Work per edge, when the firmware reports it (QEMU).
+    edge_work: Option<WorkSummary>,
+    /// Where each halt left the plate, on the actual edges.
+    halts: Vec<HaltPoint>,
     problems: Vec<String>,
     firmware_errors: Vec<String>,
     clock_hz: u32,
@@ -46,6 +61,41 @@ struct HilReport {
     actual: PartSummary,
     /// The part on the scheduler's planned ticks.
     planned: PartSummary,
+}
+
+#[derive(Serialize)]
+struct MissedEdge {
+    /// When the edge was due: the timer played the segment again from here.
+    tick: u64,
+    /// The late preload's slack (negative); absent if none was tried.
+    slack_ticks: Option<i64>,
+    /// The segment played again.
+    replayed_cycle: u64,
+    replayed_kind: &'static str,
+    replayed_ticks: u32,
+}
+
+/// Work per edge in time and in QEMU instructions.
+#[derive(Serialize)]
+struct WorkSummary {
+    edges: u64,
+    max_ns: f64,
+    mean_ns: f64,
+    /// At [`QEMU_NS_PER_INSTRUCTION`].
+    max_instructions: f64,
+    mean_instructions: f64,
+}
+
+impl From<&EdgeWork> for WorkSummary {
+    fn from(work: &EdgeWork) -> Self {
+        WorkSummary {
+            edges: work.edges,
+            max_ns: work.max_ns(),
+            mean_ns: work.mean_ns(),
+            max_instructions: work.max_ns() / QEMU_NS_PER_INSTRUCTION,
+            mean_instructions: work.mean_ns() / QEMU_NS_PER_INSTRUCTION,
+        }
+    }
 }
 
 #[derive(Serialize)]
@@ -119,6 +169,17 @@ pub fn hil(args: &HilArgs) -> Result<(), SimError> {
         missing: check.missing,
         unexpected: check.unexpected,
         glitches: check.glitches,
+        missed_edges: check
+            .missed
+            .iter()
+            .map(|replayed| MissedEdge {
+                tick: replayed.actual_tick,
+                slack_ticks: replayed.slack_ticks,
+                replayed_cycle: replayed.cycle,
+                replayed_kind: replayed.kind.name(),
+                replayed_ticks: replayed.ticks,
+            })
+            .collect(),
         motion_cycles: check.motion_cycles,
         max_deviation_ticks: check.max_deviation_ticks(),
         deviation_histogram: check
@@ -126,6 +187,15 @@ pub fn hil(args: &HilArgs) -> Result<(), SimError> {
             .iter()
             .map(|(d, n)| (*d, *n))
             .collect(),
+        min_slack_ticks: check.min_slack.map(|(slack, _)| slack),
+        min_slack_at_tick: check.min_slack.map(|(_, tick)| tick),
+        slack_histogram: check
+            .slack_histogram
+            .iter()
+            .map(|(lowest, edges)| (*lowest, (2 * lowest - 1).max(0), *edges))
+            .collect(),
+        edge_work: check.edge_work.as_ref().map(WorkSummary::from),
+        halts: actual.halts.clone(),
         problems: check.problems.clone(),
         firmware_errors: stream.errors.clone(),
         clock_hz,
@@ -159,8 +229,9 @@ fn print_report(report: &HilReport, check: &CheckReport) {
         if report.passed { "PASSED" } else { "FAILED" }
     );
     say!(
-        "  edges           {} reported, {} exactly as planned, {} missing, {} unexpected, {} glitches",
-        report.edges, report.matched, report.missing, report.unexpected, report.glitches
+        "  edges           {} reported, {} exactly as planned, {} missing, {} unexpected, {} glitches, {} missed",
+        report.edges, report.matched, report.missing, report.unexpected, report.glitches,
+        report.missed_edges.len()
     );
     say!("  motion cycles   {}", report.motion_cycles);
     say!(
@@ -175,6 +246,42 @@ fn print_report(report: &HilReport, check: &CheckReport) {
             .collect::<Vec<_>>()
             .join(", ")
     );
+    if let (Some(slack), Some(tick)) = (report.min_slack_ticks, report.min_slack_at_tick) {
+        say!(
+            "  preload slack   min {slack} ticks ({:.1} µs) before the edge at tick {tick}; histogram (ticks: edges) {}",
+            microseconds(slack),
+            report
+                .slack_histogram
+                .iter()
+                .map(|(lowest, highest, edges)| if lowest == highest {
+                    format!("{lowest}: {edges}")
+                } else {
+                    format!("{lowest}–{highest}: {edges}")
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    }
+    if let Some(work) = &report.edge_work {
+        say!(
+            "  edge work       max {:.2} µs, mean {:.2} µs from an edge to the next preload over {} edges \
+             (max {:.0}, mean {:.0} instructions at {QEMU_NS_PER_INSTRUCTION} ns, QEMU -icount shift=4)",
+            work.max_ns / 1e3,
+            work.mean_ns / 1e3,
+            work.edges,
+            work.max_instructions,
+            work.mean_instructions
+        );
+    }
+    for halt in &report.halts {
+        say!(
+            "  halt            output zeroed at tick {} ({:.6} s) with the plate at {:+.6} mm, moving {:+.3} mm/s (actual edges)",
+            halt.tick,
+            halt.time_s,
+            halt.plate_position_m * 1e3,
+            halt.plate_velocity_mps * 1e3
+        );
+    }
     for (name, part) in [
         ("actual edges ", &report.actual),
         ("planned ticks", &report.planned),

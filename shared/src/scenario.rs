@@ -11,7 +11,7 @@ use core::fmt;
 use crate::number::split_decimal;
 
 /// The keys, each with its meaning, in the order a help text lists them.
-pub const SCENARIO_KEYS: [(&str, &str); 7] = [
+pub const SCENARIO_KEYS: [(&str, &str); 8] = [
     ("cycles", "request the soft stop once N cycles have begun (N ≥ 1)"),
     ("freq_hz", "waveform frequency"),
     ("duty", "duty at start"),
@@ -19,6 +19,7 @@ pub const SCENARIO_KEYS: [(&str, &str); 7] = [
     ("new_duty", "duty of the live change at half the cycles"),
     ("ramp", "soft start and stop cycles"),
     ("panic_at", "panic once this many cycles have begun (tests the fault path)"),
+    ("late_preload_at", "preload this cycle's first segment too late: a missed edge, then a restart"),
 ];
 
 /// One setting of the scripted operator.
@@ -38,6 +39,8 @@ pub enum ScenarioSetting {
     Ramp(u16),
     /// `panic_at=C`: panic once `C` cycles have begun.
     PanicAt(u32),
+    /// `late_preload_at=C`: preload the first segment of cycle `C` past its deadline.
+    LatePreloadAt(u32),
 }
 
 /// Why a scenario word was refused; each names the word or value as typed.
@@ -68,7 +71,7 @@ impl fmt::Display for ScenarioError<'_> {
             ScenarioError::UnknownKey(key) => write!(
                 f,
                 "unknown scenario key `{key}` (known: cycles, freq_hz, duty, stroke_m, new_duty, \
-                 ramp, panic_at)"
+                 ramp, panic_at, late_preload_at)"
             ),
             ScenarioError::NotACount {
                 key,
@@ -120,6 +123,7 @@ pub fn parse_setting(word: &str) -> Result<ScenarioSetting, ScenarioError<'_>> {
             max: u16::MAX.into(),
         })?),
         "panic_at" => ScenarioSetting::PanicAt(count("panic_at", 0, u32::MAX)?),
+        "late_preload_at" => ScenarioSetting::LatePreloadAt(count("late_preload_at", 0, u32::MAX)?),
         _ => return Err(ScenarioError::UnknownKey(key)),
     })
 }

@@ -15,6 +15,7 @@ fn each_key_reads_its_value() {
     assert_eq!(parse_setting("ramp=0"), Ok(ScenarioSetting::Ramp(0)));
     assert_eq!(parse_setting("ramp=65535"), Ok(ScenarioSetting::Ramp(u16::MAX)));
     assert_eq!(parse_setting("panic_at=0"), Ok(ScenarioSetting::PanicAt(0)));
+    assert_eq!(parse_setting("late_preload_at=30"), Ok(ScenarioSetting::LatePreloadAt(30)));
 }
 
 #[test]
@@ -43,7 +44,11 @@ fn physical_values_are_finite_decimals() {
 fn malformed_words_and_unknown_keys_are_named() {
     assert_eq!(parse_setting("cycles"), Err(ScenarioError::NotKeyValue("cycles")));
     assert_eq!(parse_setting("speed=3"), Err(ScenarioError::UnknownKey("speed")));
-    assert!(parse_setting("speed=3").unwrap_err().to_string().contains("`speed`"));
+    let unknown = parse_setting("speed=3").unwrap_err().to_string();
+    assert!(unknown.contains("`speed`"), "{unknown}");
+    for (key, _) in SCENARIO_KEYS {
+        assert!(unknown.contains(key), "{unknown} lists {key}");
+    }
 }
 
 proptest! {

@@ -1,11 +1,11 @@
 //! The firmware-in-the-loop checker on synthetic event streams: a faithful stream passes, and
 //! each kind of fault (dropped edge, shifted edge, extra edge, mid-cycle amplitude change, early
-//! end) is found and counted.
+//! end, missed edge) is found and counted.
 
 use feeder_shared::{
-    Drive, Limits, Scheduler, SegmentKind, TickClock, TickPlan, Waveform, WaveformSpec,
+    Drive, Limits, Scheduler, Segment, SegmentKind, TickClock, TickPlan, Waveform, WaveformSpec,
 };
-use host_sim::hil::{self, Checker, Event, SegmentEvent};
+use host_sim::hil::{self, Checker, EdgeWork, Event, SegmentEvent};
 use host_sim::plant::Contact;
 
 const CLOCK_HZ: u32 = 1_000_000;
@@ -94,6 +94,51 @@ fn parses_each_event_kind() {
             level: -1,
             step: 1,
             steps: 4,
+            slack_ticks: None,
+        }))
+    );
+    assert_eq!(
+        hil::parse_line("EVT seg cycle=2 kind=plateau planned=41713 actual=41713 ticks=8294 level=0 step=1 steps=4 slack=1635").unwrap(),
+        Some(Event::Segment(SegmentEvent {
+            cycle: 2,
+            kind: SegmentKind::Plateau,
+            planned_tick: 41_713,
+            actual_tick: 41_713,
+            ticks: 8_294,
+            level: 0,
+            step: 1,
+            steps: 4,
+            slack_ticks: Some(1_635),
+        }))
+    );
+    assert_eq!(
+        hil::parse_line("EVT replay cycle=9 kind=return planned=195860 actual=200000 ticks=4140 level=1 step=4 steps=4 slack=-51").unwrap(),
+        Some(Event::Replay(SegmentEvent {
+            cycle: 9,
+            kind: SegmentKind::Return,
+            planned_tick: 195_860,
+            actual_tick: 200_000,
+            ticks: 4_140,
+            level: 1,
+            step: 4,
+            steps: 4,
+            slack_ticks: Some(-51),
+        }))
+    );
+    assert_eq!(
+        hil::parse_line("EVT zero actual=200057").unwrap(),
+        Some(Event::Zero {
+            actual_tick: 200_057
+        })
+    );
+    assert_eq!(
+        hil::parse_line("EVT work edges=90 max_cycles=4236 total_cycles=151451 clock_hz=25000000")
+            .unwrap(),
+        Some(Event::Work(EdgeWork {
+            edges: 90,
+            max_cycles: 4_236,
+            total_cycles: 151_451,
+            clock_hz: 25_000_000,
         }))
     );
     assert_eq!(
@@ -118,6 +163,9 @@ fn parses_each_event_kind() {
         "EVT start tick=-3",
         "EVT seg cycle=1 kind=sideways planned=0 actual=0 ticks=1 level=0 step=0 steps=1",
         "EVT seg cycle=1 kind=idle planned=0 actual=0 ticks=1 level=2 step=0 steps=1",
+        // A segment that began was preloaded before its start.
+        "EVT seg cycle=1 kind=idle planned=0 actual=0 ticks=1 level=0 step=0 steps=1 slack=-3",
+        "EVT zero tick=5",
         "EVT plan tick=0 period_s=0.02 duty=0.6 stroke_m=1 accel_mps2=1 clock_hz=1 ramp=1",
     ] {
         assert!(hil::parse_line(bad).is_err(), "{bad}");
@@ -238,4 +286,190 @@ fn the_part_feeds_on_recorded_edges_and_the_plate_returns() {
         part.plate_excursion_m
     );
     assert!(part.plate_drift_m.abs() < 2.0 * plan(0.6).drift_bound_m + plan(0.586).drift_bound_m);
+}
+
+/// One `seg` line as the emulated board prints it.
+fn seg_line(segment: &Segment, actual_tick: u64, slack_ticks: Option<u32>) -> String {
+    let slack = slack_ticks.map_or(String::new(), |slack| format!(" slack={slack}"));
+    format!(
+        "EVT seg cycle={} kind={} planned={} actual={actual_tick} ticks={} level={} step={} steps={}{slack}",
+        segment.cycle,
+        segment.kind.name(),
+        segment.start_tick,
+        segment.ticks,
+        segment.level.sign(),
+        segment.amplitude.step,
+        segment.amplitude.steps
+    )
+}
+
+/// Preload slack of a segment preloaded 63 ticks after the edge before it.
+const WORK_TICKS: u32 = 63;
+
+#[test]
+fn slack_is_summarised_by_its_minimum_and_power_of_two_buckets() {
+    let mut scheduler = Scheduler::new(plan(0.586), 4);
+    let mut lines = vec![format!(
+        "EVT plan tick=0 period_s=0.02 duty=0.586 stroke_m=0.0025 clock_hz={CLOCK_HZ} ramp=4"
+    )];
+    let mut previous: Option<Segment> = None;
+    let mut emit = |scheduler: &mut Scheduler, lines: &mut Vec<String>, segments: usize| {
+        for _ in 0..segments {
+            let segment = scheduler.next_segment();
+            let slack = previous.map(|previous| previous.ticks - WORK_TICKS);
+            lines.push(seg_line(&segment, segment.start_tick, slack));
+            previous = Some(segment);
+        }
+    };
+    emit(&mut scheduler, &mut lines, 2);
+    scheduler.start();
+    lines.push(format!("EVT start tick={}", scheduler.next_tick()));
+    emit(&mut scheduler, &mut lines, 40);
+    let stream = hil::read_stream(lines.join("\n").as_bytes()).unwrap();
+    let mut checker = Checker::new();
+    for event in &stream.events {
+        checker.feed(event);
+    }
+    let report = checker.finish(false).0;
+    assert!(report.passed(), "{:?}", report.problems);
+    // The shortest segment before a preload is an accelerate one (1712 or 1713 ticks).
+    let (least, _) = report.min_slack.unwrap();
+    assert_eq!(least, 1712 - i64::from(WORK_TICKS));
+    assert_eq!(hil::slack_bucket(least), 1024);
+    assert_eq!(report.slack_histogram.values().sum::<u64>(), 41);
+    assert_eq!(
+        report.slack_histogram.keys().copied().collect::<Vec<_>>(),
+        [1024, 2048, 4096, 8192, 16384]
+    );
+    assert_eq!(
+        (
+            hil::slack_bucket(0),
+            hil::slack_bucket(1),
+            hil::slack_bucket(3)
+        ),
+        (0, 1, 2)
+    );
+}
+
+/// Ticks past its deadline at which the late preload came, at which the output was zeroed, and
+/// at which it restarted.
+const LATE_TICKS: u64 = 51;
+const ZERO_AFTER_TICKS: u64 = 57;
+const RESTART_AFTER_TICKS: u64 = 60;
+
+/// What the emulated board prints when the preload of cycle 10's first segment comes late: its
+/// timer plays the segment playing (cycle 9's return) again, the firmware zeroes the output and
+/// restarts it idle, then starts again and stops. Returns the lines and the missed deadline.
+fn stream_with_a_missed_edge() -> (Vec<String>, u64) {
+    let ramp = 4;
+    let mut scheduler = Scheduler::new(plan(0.586), ramp);
+    let mut lines = vec![format!(
+        "EVT plan tick=0 period_s=0.02 duty=0.586 stroke_m=0.0025 clock_hz={CLOCK_HZ} ramp={ramp}"
+    )];
+    let mut shift = 0i64;
+    let emit = |scheduler: &mut Scheduler, lines: &mut Vec<String>, shift: i64, segments| {
+        for _ in 0..segments {
+            let segment = scheduler.next_segment();
+            let actual = segment.start_tick.checked_add_signed(shift).unwrap();
+            lines.push(seg_line(&segment, actual, Some(1_000)));
+        }
+    };
+    emit(&mut scheduler, &mut lines, shift, 2);
+    scheduler.start();
+    lines.push(format!("EVT start tick={}", scheduler.next_tick()));
+    let mut playing = scheduler.next_segment();
+    let missed = loop {
+        lines.push(seg_line(&playing, playing.start_tick, Some(1_000)));
+        let next = scheduler.next_segment();
+        if next.cycle == 10 {
+            break next;
+        }
+        playing = next;
+    };
+    let deadline = missed.start_tick;
+    lines.push(format!(
+        "EVT replay cycle={} kind={} planned={} actual={deadline} ticks={} level={} step={} steps={} slack=-{LATE_TICKS}",
+        playing.cycle,
+        playing.kind.name(),
+        playing.start_tick,
+        playing.ticks,
+        playing.level.sign(),
+        playing.amplitude.step,
+        playing.amplitude.steps
+    ));
+    lines.push(format!("EVT zero actual={}", deadline + ZERO_AFTER_TICKS));
+    lines.push("ERROR fault: EdgeMissed (stop: Immediate)".into());
+    lines.push(format!("EVT halt tick={}", scheduler.next_tick()));
+    scheduler.halt();
+    let restart = scheduler.next_segment();
+    shift = (deadline + RESTART_AFTER_TICKS) as i64 - restart.start_tick as i64;
+    lines.push(seg_line(&restart, deadline + RESTART_AFTER_TICKS, None));
+    emit(&mut scheduler, &mut lines, shift, 1);
+    scheduler.start();
+    lines.push(format!("EVT start tick={}", scheduler.next_tick()));
+    emit(&mut scheduler, &mut lines, shift, 80);
+    scheduler.stop();
+    lines.push(format!("EVT stop tick={}", scheduler.next_tick()));
+    emit(&mut scheduler, &mut lines, shift, 20);
+    lines.push("EVT end tick=0".to_string());
+    (lines, deadline)
+}
+
+#[test]
+fn a_missed_edge_is_reported_with_where_the_halt_left_the_plate() {
+    let (lines, deadline) = stream_with_a_missed_edge();
+    let stream = hil::read_stream(lines.join("\n").as_bytes()).unwrap();
+    assert_eq!(stream.errors.len(), 1);
+    let mut checker = Checker::new();
+    for event in &stream.events {
+        checker.feed(event);
+    }
+    let (report, edges, clock_hz) = checker.finish(true);
+    // Every segment that began is as planned; the one never begun is not missing but missed.
+    assert_eq!(report.missed.len(), 1);
+    assert_eq!(report.missed[0].actual_tick, deadline);
+    assert_eq!(
+        (report.missing, report.unexpected, report.glitches),
+        (0, 0, 0)
+    );
+    assert_eq!(report.matched, report.edges);
+    assert!(!report.passed());
+    assert!(
+        report.problems[0].starts_with(&format!(
+            "edge missed at tick {deadline}: the next segment was preloaded {LATE_TICKS} ticks late"
+        )),
+        "{:?}",
+        report.problems
+    );
+    // The restart shifts the plan against the output's timeline; every edge is on its tick.
+    assert_eq!(report.deviation_histogram.keys().collect::<Vec<_>>(), [&0]);
+
+    // The replayed return (+a_max) held from the deadline until the output went to zero: the
+    // plate, at rest at the end of cycle 9 within the plan's residual, moves at a_max·57 µs.
+    let contact = Contact::kinetic(1.0, 1e-3).unwrap();
+    let actual = hil::simulate(&edges, clock_hz, &contact, hil::EdgeTimes::Actual);
+    assert_eq!(actual.halts.len(), 1);
+    let halt = actual.halts[0];
+    assert_eq!(halt.tick, deadline + ZERO_AFTER_TICKS);
+    let accel_mps2 = plan(0.586).waveform.accel_mps2;
+    let expected_mps = accel_mps2 * ZERO_AFTER_TICKS as f64 / f64::from(CLOCK_HZ);
+    assert!(
+        (halt.plate_velocity_mps - expected_mps).abs() < 1e-9,
+        "{} vs {expected_mps} m/s",
+        halt.plate_velocity_mps
+    );
+    assert!(
+        halt.plate_position_m.abs() < 1e-6,
+        "{} m",
+        halt.plate_position_m
+    );
+    // On the planned ticks the output is zero from the missed edge on, as an on-time halt would
+    // have made it: the plate stays within the plan's drift bound.
+    let planned = hil::simulate(&edges, clock_hz, &contact, hil::EdgeTimes::Planned);
+    assert!(planned.halts.is_empty());
+    assert!(
+        planned.plate_drift_m.abs() < 2.0 * plan(0.586).drift_bound_m,
+        "{} m",
+        planned.plate_drift_m
+    );
 }

@@ -47,7 +47,7 @@ use feeder_shared::{DacLevels, Direction, DriveError, PwmLevels, Segment, TickCl
 
 use crate::app;
 use crate::config::{self, OutputStage};
-use crate::output::{EdgeMissed, SegmentOutput};
+use crate::output::{EdgeMissed, SegmentOutput, SegmentStart};
 
 pub type Output = G474Output;
 pub type DriverEnable = gpio::Output<'static>;
@@ -371,6 +371,9 @@ impl SegmentOutput for G474Output {
         };
         let (now, passed) = EDGES.wait_past(*seen).await;
         *seen = now;
+        if let G474Output::Dac(stage) = self {
+            stage.playing_slack_ticks = stage.queued_slack_ticks.take();
+        }
         if passed == 1 {
             Ok(())
         } else {
@@ -385,9 +388,16 @@ impl SegmentOutput for G474Output {
         }
     }
 
-    fn started_tick(&self, segment: &Segment) -> u64 {
-        // The timer's update event starts every segment exactly on its planned tick.
-        segment.start_tick
+    fn started(&self, segment: &Segment) -> SegmentStart {
+        SegmentStart {
+            // The timer's update event starts every segment exactly on its planned tick.
+            tick: segment.start_tick,
+            // TIM1's repetition counter cannot be read: the PWM stage has no slack to report.
+            slack_ticks: match self {
+                G474Output::Dac(stage) => stage.playing_slack_ticks,
+                G474Output::Pwm(_) => None,
+            },
+        }
     }
 }
 
@@ -398,6 +408,9 @@ pub struct DacStage {
     levels: Option<DacLevels>,
     /// Edge count when the playing segment began.
     seen: u32,
+    /// Preload slack of the preloaded segment and of the playing one (`None`: restarted).
+    queued_slack_ticks: Option<u32>,
+    playing_slack_ticks: Option<u32>,
 }
 
 impl DacStage {
@@ -429,6 +442,8 @@ impl DacStage {
             timer,
             levels: None,
             seen: EDGES.count(),
+            queued_slack_ticks: None,
+            playing_slack_ticks: None,
         }
     }
 
@@ -455,18 +470,28 @@ impl DacStage {
         self.timer.regs_core().egr().write(|w| w.set_ug(true));
         self.timer.clear_update_interrupt();
         self.seen = EDGES.count();
+        self.queued_slack_ticks = None;
+        self.playing_slack_ticks = None;
         self.timer.start();
     }
 
-    /// Writes the next code and length; returns the edge count to check and whether an update
-    /// is pending.
+    /// Writes the next code and length and keeps the slack left when they were written (the
+    /// playing segment's auto-reload + 1 − the count); returns the edge count to check and
+    /// whether an update is pending.
     fn preload(&mut self, segment: &Segment) -> Result<(u32, bool), EdgeMissed> {
         // A one-tick segment would stop the counter (auto-reload 0) and cannot be prepared.
         if segment.ticks < 2 {
             return Err(EdgeMissed);
         }
+        let counter = self.timer.regs_gp32();
+        let playing_reload = counter.arr().read();
         self.dac.set(Value::Bit12Right(self.code(segment)));
-        self.timer.regs_gp32().arr().write_value(segment.ticks - 1);
+        counter.arr().write_value(segment.ticks - 1);
+        self.queued_slack_ticks = Some(
+            playing_reload
+                .wrapping_add(1)
+                .wrapping_sub(counter.cnt().read()),
+        );
         Ok((self.seen, self.timer.regs_core().sr().read().uif()))
     }
 

@@ -1,9 +1,12 @@
 //! QEMU `-machine mps2-an386` (Cortex-M4F at 25 MHz): the same application as on the board, with
 //! an output stage that reports every level change instead of driving a DAC.
 //!
-//! * Time: an embassy-time driver on the CMSDK APB timers ([`time_driver`]), 1 µs ticks; the
-//!   scheduler plans in those ticks and the output waits for each edge with `Timer::at`, so the
-//!   reported `actual` tick shows the software latency.
+//! * Time: an embassy-time driver on the CMSDK APB timers ([`time_driver`]), 1 µs ticks, which
+//!   the scheduler plans in. The output stage ([`ReportingOutput`]) keeps TIM2's semantics on
+//!   that clock: every level takes effect on its planned tick, whatever the software's latency,
+//!   and a segment preloaded after its deadline is a missed edge, as on the board. It reports each
+//!   segment's preload slack and measures the work per edge on the 25 MHz timer (40 ns, which
+//!   `-icount shift=4` makes 2.5 instructions).
 //! * Operator: a script read from the semihosting command line (`scenario`) instead of B1; with
 //!   the `console` feature, the serial console on UART0 (`uart`, QEMU's `-serial`) instead, with
 //!   recipes kept in RAM: the feeder waits, stopped, for commands and the emulation runs until
@@ -21,14 +24,17 @@ mod time_driver;
 #[cfg(feature = "console")]
 mod uart;
 
+use core::cell::Cell;
 use core::convert::Infallible;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m::interrupt::InterruptNumber;
 use cortex_m::peripheral::NVIC;
 use cortex_m_semihosting::debug::{self, EXIT_FAILURE};
+use critical_section::Mutex;
 use defmt_semihosting as _;
 use embassy_executor::{InterruptExecutor, SendSpawner};
-use embassy_time::Instant;
+use embassy_time::{Instant, Timer};
 use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
 use embedded_hal_async::digital::Wait;
 #[cfg(feature = "console")]
@@ -39,7 +45,9 @@ use feeder_shared::{RecipeSlot, RecipeStore};
 
 use crate::app;
 use crate::config;
-use crate::output::{EdgeMissed, SegmentOutput};
+use crate::output::{EdgeMissed, SegmentOutput, SegmentStart};
+use crate::trace;
+use time_driver::CYCLES_PER_TICK;
 
 #[cfg(not(feature = "console"))]
 pub use scenario::spawn_operator;
@@ -183,26 +191,124 @@ pub fn after_fault() -> ! {
     sleep_forever()
 }
 
-/// The output stage: holds each level from its planned tick, measured on the embassy clock.
+/// Cycle whose first segment the output stage preloads late, once (`u32::MAX`: none).
+static LATE_PRELOAD_CYCLE: AtomicU32 = AtomicU32::new(u32::MAX);
+/// How far past its deadline the provoked late preload comes.
+const LATE_PRELOAD_TICKS: u64 = 50;
+/// The work per edge so far.
+static EDGE_WORK: Mutex<Cell<EdgeWork>> = Mutex::new(Cell::new(EdgeWork {
+    edges: 0,
+    max_cycles: 0,
+    total_cycles: 0,
+}));
+
+/// Work per edge: timer cycles from an edge (when the output switched) to the preload of the
+/// next segment, wake-up included, over the edges whose next segment was preloaded in time.
+#[derive(Clone, Copy)]
+pub struct EdgeWork {
+    pub edges: u32,
+    pub max_cycles: u32,
+    pub total_cycles: u64,
+}
+
+/// Makes the software preload the first segment of `cycle` after its deadline, as an overrun
+/// would: the missed edge of a scripted run.
+#[cfg(not(feature = "console"))]
+fn provoke_late_preload(cycle: u32) {
+    LATE_PRELOAD_CYCLE.store(cycle, Ordering::Relaxed);
+}
+
+/// The work per edge of the run so far.
+#[cfg(not(feature = "console"))]
+fn edge_work() -> EdgeWork {
+    critical_section::with(|cs| EDGE_WORK.borrow(cs).get())
+}
+
+/// Holds the software up past `deadline_cycles` if `segment` is the one whose late preload the
+/// scenario provoked: an overrun of the control loop.
+fn overrun_if_provoked(segment: &Segment, deadline_cycles: u64) {
+    let provoked = segment.starts_cycle()
+        && LATE_PRELOAD_CYCLE
+            .compare_exchange(
+                segment.cycle as u32,
+                u32::MAX,
+                Ordering::Relaxed,
+                Ordering::Relaxed,
+            )
+            .is_ok();
+    if provoked {
+        let late_cycles = deadline_cycles + LATE_PRELOAD_TICKS * CYCLES_PER_TICK;
+        while time_driver::now_cycles() < late_cycles {}
+    }
+}
+
+/// Adds one edge's work, in timer cycles, to the run's.
+fn record_edge_work(cycles: u64) {
+    let cycles = u32::try_from(cycles).unwrap_or(u32::MAX);
+    critical_section::with(|cs| {
+        let work = EDGE_WORK.borrow(cs);
+        let mut sums = work.get();
+        sums.edges += 1;
+        sums.max_cycles = sums.max_cycles.max(cycles);
+        sums.total_cycles += u64::from(cycles);
+        work.set(sums);
+    })
+}
+
+/// The output stage: TIM2's semantics on the emulated clock. Each segment takes effect on its
+/// planned tick whatever the software does, which only preloads the next segment while the
+/// current one plays. A preload after its deadline (the start of the segment it preloads) is too
+/// late: at the deadline the update event found nothing new and the timer played the playing
+/// segment again, level and length. The stage returns [`EdgeMissed`] and reports the replay
+/// (`EVT replay`) at the halt that follows, with the output's zero (`EVT zero`), so that the
+/// report does not delay the halt.
+///
+/// `actual` ticks count from the first restart on one timeline: the planned ticks until a halt,
+/// after which the restart shifts the plan against it.
 pub struct ReportingOutput {
-    /// Embassy tick at which scheduler tick 0 lies.
+    /// Clock tick of scheduler tick 0, set by each restart (wrapping).
     origin_ticks: u64,
-    queued: Option<Segment>,
-    started_tick: u64,
+    /// Clock tick of actual tick 0: the first restart.
+    timeline_ticks: u64,
+    /// The segment playing and its preload slack (`None`: restarted), until a halt.
+    playing: Option<(Segment, Option<u32>)>,
+    /// The preloaded segment and its slack.
+    queued: Option<(Segment, u32)>,
+    /// Timer cycle of the edge that began the playing segment, until the next preload.
+    edge_cycles: Option<u64>,
+    /// The missed edge's replay, until the halt reports it.
+    replay: Option<Replay>,
+}
+
+/// At a missed edge the timer played `segment` again from `actual_tick`; `slack_ticks` is the
+/// late preload's slack, `None` if software had not tried yet.
+#[derive(Clone, Copy)]
+struct Replay {
+    segment: Segment,
+    actual_tick: u64,
+    slack_ticks: Option<i64>,
 }
 
 impl ReportingOutput {
     fn new() -> Self {
         Self {
             origin_ticks: 0,
+            timeline_ticks: u64::MAX,
+            playing: None,
             queued: None,
-            started_tick: 0,
+            edge_cycles: None,
+            replay: None,
         }
     }
 
-    /// The scheduler tick now.
-    fn now_tick(&self) -> u64 {
-        Instant::now().as_ticks().wrapping_sub(self.origin_ticks)
+    /// The clock tick of scheduler tick `tick`.
+    fn clock_tick(&self, tick: u64) -> u64 {
+        self.origin_ticks.wrapping_add(tick)
+    }
+
+    /// The actual tick of clock tick `clock_tick`.
+    fn actual(&self, clock_tick: u64) -> u64 {
+        clock_tick.saturating_sub(self.timeline_ticks)
     }
 }
 
@@ -258,36 +364,73 @@ impl SegmentOutput for ReportingOutput {
     }
 
     fn restart(&mut self, segment: &Segment) {
-        self.origin_ticks = Instant::now().as_ticks().wrapping_sub(segment.start_tick);
+        let now_ticks = Instant::now().as_ticks();
+        self.origin_ticks = now_ticks.wrapping_sub(segment.start_tick);
+        self.timeline_ticks = self.timeline_ticks.min(now_ticks);
+        self.playing = Some((*segment, None));
         self.queued = None;
-        self.started_tick = segment.start_tick;
+        self.edge_cycles = None;
     }
 
     fn preload(&mut self, segment: &Segment) -> Result<(), EdgeMissed> {
-        if self.now_tick() >= segment.start_tick {
+        let deadline_cycles = self.clock_tick(segment.start_tick) * CYCLES_PER_TICK;
+        overrun_if_provoked(segment, deadline_cycles);
+        let now_cycles = time_driver::now_cycles();
+        if now_cycles >= deadline_cycles {
+            self.replay = self.playing.map(|(playing, _)| Replay {
+                segment: playing,
+                actual_tick: self.actual(self.clock_tick(segment.start_tick)),
+                slack_ticks: Some(
+                    (deadline_cycles as i64 - now_cycles as i64).div_euclid(CYCLES_PER_TICK as i64),
+                ),
+            });
             return Err(EdgeMissed);
         }
-        self.queued = Some(*segment);
+        if let Some(edge_cycles) = self.edge_cycles.take() {
+            record_edge_work(now_cycles - edge_cycles);
+        }
+        let slack_ticks = (deadline_cycles - now_cycles) / CYCLES_PER_TICK;
+        self.queued = Some((*segment, slack_ticks as u32));
         Ok(())
     }
 
     async fn wait_edge(&mut self) -> Result<(), EdgeMissed> {
-        let segment = self.queued.take().ok_or(EdgeMissed)?;
-        let edge = Instant::from_ticks(self.origin_ticks.wrapping_add(segment.start_tick));
-        embassy_time::Timer::at(edge).await;
-        self.started_tick = self.now_tick();
-        if self.started_tick >= segment.end_tick() {
+        let (segment, slack_ticks) = self.queued.take().ok_or(EdgeMissed)?;
+        let edge_ticks = self.clock_tick(segment.start_tick);
+        Timer::at(Instant::from_ticks(edge_ticks)).await;
+        self.playing = Some((segment, Some(slack_ticks)));
+        let end_ticks = self.clock_tick(segment.end_tick());
+        if Instant::now().as_ticks() >= end_ticks {
+            // More than one edge has passed: the segment played, then the timer played it again.
+            trace::segment(&segment, self.started(&segment));
+            self.replay = Some(Replay {
+                segment,
+                actual_tick: self.actual(end_ticks),
+                slack_ticks: None,
+            });
             return Err(EdgeMissed);
         }
+        self.edge_cycles = Some(edge_ticks * CYCLES_PER_TICK);
         Ok(())
     }
 
     fn halt(&mut self) {
+        let now_ticks = Instant::now().as_ticks();
         self.queued = None;
+        self.edge_cycles = None;
+        if let Some(replay) = self.replay.take() {
+            trace::replay(&replay.segment, replay.actual_tick, replay.slack_ticks);
+        }
+        if self.playing.take().is_some() {
+            trace::zero(self.actual(now_ticks));
+        }
     }
 
-    fn started_tick(&self, _segment: &Segment) -> u64 {
-        self.started_tick
+    fn started(&self, segment: &Segment) -> SegmentStart {
+        SegmentStart {
+            tick: self.actual(self.clock_tick(segment.start_tick)),
+            slack_ticks: self.playing.and_then(|(_, slack_ticks)| slack_ticks),
+        }
     }
 }
 

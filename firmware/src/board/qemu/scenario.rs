@@ -5,18 +5,21 @@
 //! Keys and values are read by `feeder_shared::scenario`, which refuses unknown keys and malformed
 //! values (the run then ends with a failure code):
 //!
-//! | argument     | meaning                                                   | default              |
-//! |--------------|-----------------------------------------------------------|----------------------|
-//! | `cycles=N`   | request the soft stop once N cycles have begun            | 300                  |
-//! | `freq_hz=F`  | waveform frequency                                         | the firmware default |
-//! | `duty=D`     | duty at start                                              | the firmware default |
-//! | `stroke_m=X` | stroke (peak-to-peak plate travel)                         | the firmware default |
-//! | `new_duty=D` | duty of the live change at N/2 cycles                      | `duty` + 0.02        |
-//! | `ramp=R`     | soft start/stop cycles                                     | the firmware default |
-//! | `panic_at=C` | panic once C cycles have begun (to test failure handling) | never                |
+//! | argument            | meaning                                         | default              |
+//! |---------------------|-------------------------------------------------|----------------------|
+//! | `cycles=N`          | request the soft stop once N cycles have begun  | 300                  |
+//! | `freq_hz=F`         | waveform frequency                              | the firmware default |
+//! | `duty=D`            | duty at start                                   | the firmware default |
+//! | `stroke_m=X`        | stroke (peak-to-peak plate travel)              | the firmware default |
+//! | `new_duty=D`        | duty of the live change at N/2 cycles           | `duty` + 0.02        |
+//! | `ramp=R`            | soft start/stop cycles                          | the firmware default |
+//! | `panic_at=C`        | panic once C cycles have begun (tests failures) | never                |
+//! | `late_preload_at=C` | preload cycle C's first segment too late        | never                |
 //!
 //! The run starts (soft), changes the duty at N/2, stops (soft) at N, and exits with code 0 once
-//! the output is idle again.
+//! the output is idle again, with the work per edge (`EVT work`) and `EVT end`. The missed edge
+//! of `late_preload_at` halts the output with the driver disabled; the operator then resets and
+//! starts again, once. Any other fault ends the run with a failure code.
 
 use cortex_m_semihosting::debug::{self, EXIT_SUCCESS};
 use cortex_m_semihosting::nr::GET_CMDLINE;
@@ -26,7 +29,7 @@ use embassy_time::{Instant, Timer};
 use feeder_shared::scenario::parse_setting;
 use feeder_shared::{Drive, ScenarioError, ScenarioSetting, TickClock, WaveformSpec};
 
-use super::{after_fault, sleep_forever};
+use super::{after_fault, edge_work, provoke_late_preload, sleep_forever, time_driver};
 use crate::app::{self, OperatorRequest, OperatorView};
 use crate::{config, trace};
 
@@ -41,6 +44,7 @@ struct Scenario {
     new_duty: f64,
     ramp_cycles: u16,
     panic_at_cycle: Option<u32>,
+    late_preload_cycle: Option<u32>,
 }
 
 impl Scenario {
@@ -53,6 +57,7 @@ impl Scenario {
             new_duty: f64::NAN,
             ramp_cycles: config::RAMP_CYCLES,
             panic_at_cycle: None,
+            late_preload_cycle: None,
         };
         for word in command_line.split_whitespace() {
             match parse_setting(word)? {
@@ -65,6 +70,7 @@ impl Scenario {
                 ScenarioSetting::NewDuty(d) => scenario.new_duty = d,
                 ScenarioSetting::Ramp(r) => scenario.ramp_cycles = r,
                 ScenarioSetting::PanicAt(c) => scenario.panic_at_cycle = Some(c),
+                ScenarioSetting::LatePreloadAt(c) => scenario.late_preload_cycle = Some(c),
             }
         }
         if scenario.new_duty.is_nan() {
@@ -94,27 +100,51 @@ pub fn spawn_operator(spawner: SendSpawner, clock: TickClock) {
     spawner.spawn(unwrap!(operator_task(clock)));
 }
 
-/// Ends the run with a failure code if the firmware faulted.
-fn fail_on_fault() {
-    if app::state() == OperatorView::Faulted {
-        defmt::error!("scenario: the firmware faulted");
-        after_fault();
-    }
+/// The scripted operator during the run.
+struct Operator {
+    scenario: Scenario,
+    /// The provoked missed edge was acknowledged and the feeder started again.
+    restarted: bool,
 }
 
-async fn until_cycle(cycle: u32, panic_at_cycle: Option<u32>) {
-    loop {
-        fail_on_fault();
-        let begun = app::cycles_begun();
-        if let Some(panic_at) = panic_at_cycle {
-            if begun >= panic_at {
-                panic!("scenario: panic requested at cycle {}", panic_at);
-            }
-        }
-        if begun >= cycle {
+impl Operator {
+    /// Ends the run with a failure code if the firmware faulted, unless it is the missed edge
+    /// the scenario provoked: that one is acknowledged and the feeder started again, once.
+    async fn watch_faults(&mut self) {
+        if app::state() != OperatorView::Faulted {
             return;
         }
-        Timer::after_millis(POLL_MS).await;
+        let provoked = self
+            .scenario
+            .late_preload_cycle
+            .is_some_and(|cycle| app::cycles_begun() >= cycle);
+        if !provoked || self.restarted {
+            defmt::error!("scenario: the firmware faulted");
+            after_fault();
+        }
+        info!("scenario: the provoked missed edge halted the output; reset and start");
+        app::request(OperatorRequest::Reset);
+        app::request(OperatorRequest::Start);
+        self.restarted = true;
+        while app::state() == OperatorView::Faulted {
+            Timer::after_millis(POLL_MS).await;
+        }
+    }
+
+    async fn until_cycle(&mut self, cycle: u32) {
+        loop {
+            self.watch_faults().await;
+            let begun = app::cycles_begun();
+            if let Some(panic_at) = self.scenario.panic_at_cycle {
+                if begun >= panic_at {
+                    panic!("scenario: panic requested at cycle {}", panic_at);
+                }
+            }
+            if begun >= cycle {
+                return;
+            }
+            Timer::after_millis(POLL_MS).await;
+        }
     }
 }
 
@@ -152,16 +182,23 @@ async fn operator_task(clock: TickClock) {
         half,
         scenario.ramp_cycles
     );
+    if let Some(cycle) = scenario.late_preload_cycle {
+        provoke_late_preload(cycle);
+    }
+    let (stop_after, ramp_cycles) = (scenario.stop_after_cycles, scenario.ramp_cycles);
+    let mut operator = Operator {
+        scenario,
+        restarted: false,
+    };
     app::offer(first);
     app::request(OperatorRequest::Start);
-    until_cycle(half, scenario.panic_at_cycle).await;
+    operator.until_cycle(half).await;
     app::offer(second);
-    until_cycle(scenario.stop_after_cycles, scenario.panic_at_cycle).await;
+    operator.until_cycle(stop_after).await;
     app::request(OperatorRequest::Stop);
-    let deadline = scenario.stop_after_cycles + u32::from(scenario.ramp_cycles) + STOP_GRACE_CYCLES;
-    while app::state() != OperatorView::Stopped || app::cycles_begun() <= scenario.stop_after_cycles
-    {
-        fail_on_fault();
+    let deadline = stop_after + u32::from(ramp_cycles) + STOP_GRACE_CYCLES;
+    while app::state() != OperatorView::Stopped || app::cycles_begun() <= stop_after {
+        operator.watch_faults().await;
         if app::cycles_begun() > deadline {
             defmt::error!(
                 "scenario: the output did not stop by cycle {=u32}",
@@ -171,6 +208,13 @@ async fn operator_task(clock: TickClock) {
         }
         Timer::after_millis(POLL_MS).await;
     }
+    let work = edge_work();
+    trace::work(
+        work.edges,
+        work.max_cycles,
+        work.total_cycles,
+        time_driver::TIMER_HZ as u32,
+    );
     trace::end(Instant::now().as_ticks());
     info!("scenario: done");
     debug::exit(EXIT_SUCCESS);
