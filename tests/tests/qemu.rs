@@ -28,7 +28,9 @@ fn elf() -> PathBuf {
 /// Runs the QEMU firmware with the scenario arguments; returns its exit status and decoded log.
 fn run_scenario(arguments: &[&str]) -> (ExitStatus, String) {
     let elf = elf();
-    let mut semihosting = String::from("enable=on,target=native");
+    // The first argument is the program's name, as in C's argv: without any `arg=`, QEMU would
+    // pass the kernel's path in its place.
+    let mut semihosting = String::from("enable=on,target=native,arg=feeder-firmware");
     for argument in arguments {
         semihosting.push_str(",arg=");
         semihosting.push_str(argument);

@@ -64,7 +64,9 @@ impl Serial {
 /// QEMU running `elf` with the scenario arguments (`key=value`) and UART0 on `serial`; the
 /// firmware's defmt output appears on QEMU's stdout.
 pub fn command(elf: &Path, scenario: &[String], serial: Serial) -> Command {
-    let mut semihosting = String::from("enable=on,target=native");
+    // The first argument is the program's name, as in C's argv: without any `arg=`, QEMU would
+    // pass the kernel's path in its place.
+    let mut semihosting = String::from("enable=on,target=native,arg=feeder-firmware");
     for argument in scenario {
         semihosting.push_str(",arg=");
         semihosting.push_str(argument);

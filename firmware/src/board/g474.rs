@@ -55,6 +55,19 @@ pub type Led = gpio::Output<'static>;
 pub type Button = ExtiInput<'static, Async>;
 pub type Watchdog = IndependentWatchdog<'static, IWDG>;
 
+/// Core clock (`clocks`).
+const CORE_HZ: f64 = 170e6;
+
+/// Cycles per instruction assumed for the edge work: Cortex-M4 code from flash at 4 wait states
+/// behind the ART accelerator, loads and taken branches included. The firmware logs the measured
+/// cycles per edge (DWT) every second; that figure replaces this assumption on a real board.
+const CYCLES_PER_INSTRUCTION: f64 = 1.5;
+
+/// The shortest segment either output stage takes: the worst work per edge measured in
+/// instructions, at this core's speed, times the margin (about 281 µs).
+const MIN_SEGMENT_S: f64 =
+    config::EDGE_WORK_MARGIN * config::EDGE_WORK_INSTRUCTIONS * CYCLES_PER_INSTRUCTION / CORE_HZ;
+
 /// Pin number of the driver enable on GPIOA (PA10), for the emergency stop.
 const DRIVER_ENABLE_PIN: usize = 10;
 
@@ -448,7 +461,7 @@ impl DacStage {
     }
 
     fn clock(&self) -> TickClock {
-        TickClock::new(self.timer.get_clock_frequency().0)
+        TickClock::new(self.timer.get_clock_frequency().0).with_min_segment_s(MIN_SEGMENT_S)
     }
 
     fn code(&self, segment: &Segment) -> u16 {
@@ -555,7 +568,9 @@ impl PwmStage {
             _direction: direction,
             period_counts,
             // The repetition counter has 16 bits.
-            clock: TickClock::new(carrier_hz).with_max_segment_ticks(1 << 16),
+            clock: TickClock::new(carrier_hz)
+                .with_max_segment_ticks(1 << 16)
+                .with_min_segment_s(MIN_SEGMENT_S),
             levels: None,
             seen: EDGES.count(),
         }

@@ -56,6 +56,13 @@ pub use scenario::spawn_operator;
 #[cfg(feature = "console")]
 pub fn spawn_operator(_: SendSpawner, _: TickClock) {}
 
+/// Virtual time per instruction under `-icount shift=4`: 2⁴ ns.
+const INSTRUCTION_S: f64 = 16e-9;
+
+/// The shortest segment this board's output stage takes: the worst work per edge, at QEMU's
+/// speed, times the margin (about 509 µs).
+const MIN_SEGMENT_S: f64 = config::EDGE_WORK_MARGIN * config::EDGE_WORK_INSTRUCTIONS * INSTRUCTION_S;
+
 pub type Output = ReportingOutput;
 pub type DriverEnable = EmulatedPin;
 pub type Led = EmulatedPin;
@@ -355,7 +362,7 @@ impl RecipeStore for RamRecipes {
 
 impl SegmentOutput for ReportingOutput {
     fn clock(&self) -> TickClock {
-        TickClock::new(embassy_time::TICK_HZ as u32)
+        TickClock::new(embassy_time::TICK_HZ as u32).with_min_segment_s(MIN_SEGMENT_S)
     }
 
     fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {

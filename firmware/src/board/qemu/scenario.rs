@@ -1,6 +1,6 @@
 //! The scripted operator of an emulated run (without the `qemu-console` feature), configured on
-//! QEMU's command line
-//! (`-semihosting-config enable=on,target=native,arg=cycles=1000,arg=freq_hz=100`):
+//! QEMU's command line, the first argument being the program's name
+//! (`-semihosting-config enable=on,target=native,arg=feeder-firmware,arg=cycles=1000`):
 //!
 //! Keys and values are read by `feeder_shared::scenario`, which refuses unknown keys and malformed
 //! values (the run then ends with a failure code):
@@ -59,7 +59,8 @@ impl Scenario {
             panic_at_cycle: None,
             late_preload_cycle: None,
         };
-        for word in command_line.split_whitespace() {
+        // The first word is the program's name (the kernel's path when QEMU got no `arg=`).
+        for word in command_line.split_whitespace().skip(1) {
             match parse_setting(word)? {
                 ScenarioSetting::Cycles(n) => scenario.stop_after_cycles = n,
                 ScenarioSetting::FreqHz(f) => scenario.spec.period_s = 1.0 / f,
