@@ -57,7 +57,7 @@ enum Task {
     Soak(SoakArgs),
 }
 
-#[derive(Args, Default)]
+#[derive(Args)]
 struct SoakArgs {
     /// Motion cycles to run (default: FEEDER_SOAK_CYCLES, else 20000).
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
@@ -243,8 +243,15 @@ fn test() -> Result {
     exec(&mut ignored_tests("feeder-tests", "qemu", &scripted))?;
     let console = qemu::build_firmware(qemu::Image::Console)?;
     exec(&mut ignored_tests("feeder-ctl", "qemu_session", &console))?;
-    soak(&console, &SoakArgs::default())
+    let seed = std::env::var_os("FEEDER_SOAK_SEED")
+        .is_none()
+        .then_some(TEST_SOAK_SEED);
+    soak(&console, &SoakArgs { cycles: None, seed })
 }
+
+/// The soak's seed in `test`, so that every run sends the same operator lines (the firmware's
+/// timing against them still varies); `FEEDER_SOAK_SEED` or `cargo xtask soak` choose others.
+const TEST_SOAK_SEED: u64 = 3_709_873_859_707_123_073;
 
 /// `cargo test` of the tests of `package`'s `test` target that need the QEMU firmware `elf`.
 fn ignored_tests(package: &str, test: &str, elf: &Path) -> Command {
