@@ -11,7 +11,7 @@ use core::fmt;
 use crate::number::split_decimal;
 
 /// The keys, each with its meaning, in the order a help text lists them.
-pub const SCENARIO_KEYS: [(&str, &str); 8] = [
+pub const SCENARIO_KEYS: [(&str, &str); 10] = [
     ("cycles", "request the soft stop once N cycles have begun (N ≥ 1)"),
     ("freq_hz", "waveform frequency"),
     ("duty", "duty at start"),
@@ -20,6 +20,8 @@ pub const SCENARIO_KEYS: [(&str, &str); 8] = [
     ("ramp", "soft start and stop cycles"),
     ("panic_at", "panic once this many cycles have begun (tests the fault path)"),
     ("late_preload_at", "preload this cycle's first segment too late: a missed edge, then a restart"),
+    ("changes", "random operator changes between start and stop: settings in and past range, stops and starts"),
+    ("seed", "seed of the random changes"),
 ];
 
 /// One setting of the scripted operator.
@@ -41,6 +43,10 @@ pub enum ScenarioSetting {
     PanicAt(u32),
     /// `late_preload_at=C`: preload the first segment of cycle `C` past its deadline.
     LatePreloadAt(u32),
+    /// `changes=K`: `K` random operator changes spread over the run.
+    Changes(u32),
+    /// `seed=S`: the seed of the random changes.
+    Seed(u32),
 }
 
 /// Why a scenario word was refused; each names the word or value as typed.
@@ -71,7 +77,7 @@ impl fmt::Display for ScenarioError<'_> {
             ScenarioError::UnknownKey(key) => write!(
                 f,
                 "unknown scenario key `{key}` (known: cycles, freq_hz, duty, stroke_m, new_duty, \
-                 ramp, panic_at, late_preload_at)"
+                 ramp, panic_at, late_preload_at, changes, seed)"
             ),
             ScenarioError::NotACount {
                 key,
@@ -124,6 +130,8 @@ pub fn parse_setting(word: &str) -> Result<ScenarioSetting, ScenarioError<'_>> {
         })?),
         "panic_at" => ScenarioSetting::PanicAt(count("panic_at", 0, u32::MAX)?),
         "late_preload_at" => ScenarioSetting::LatePreloadAt(count("late_preload_at", 0, u32::MAX)?),
+        "changes" => ScenarioSetting::Changes(count("changes", 0, u32::MAX)?),
+        "seed" => ScenarioSetting::Seed(count("seed", 0, u32::MAX)?),
         _ => return Err(ScenarioError::UnknownKey(key)),
     })
 }

@@ -15,6 +15,8 @@ fn each_key_reads_its_value() {
     assert_eq!(parse_setting("ramp=0"), Ok(ScenarioSetting::Ramp(0)));
     assert_eq!(parse_setting("ramp=65535"), Ok(ScenarioSetting::Ramp(u16::MAX)));
     assert_eq!(parse_setting("panic_at=0"), Ok(ScenarioSetting::PanicAt(0)));
+    assert_eq!(parse_setting("changes=200"), Ok(ScenarioSetting::Changes(200)));
+    assert_eq!(parse_setting("seed=4294967295"), Ok(ScenarioSetting::Seed(u32::MAX)));
     assert_eq!(parse_setting("late_preload_at=30"), Ok(ScenarioSetting::LatePreloadAt(30)));
 }
 

@@ -229,6 +229,54 @@ fn thousand_cycles(frequency_hz: &str, stroke_m: &str) {
     assert_eq!(actual, planned);
 }
 
+/// The scripted image under a seeded random operator: settings across and past the machine's
+/// range at random moments, back-to-back changes, stops and starts landing mid-ramp. Every edge
+/// must still be the shared plan's, every accepted change must take effect at a cycle boundary,
+/// and the plate must end within the plans' drift bounds of its start.
+#[test]
+#[ignore = "needs the QEMU firmware; run by cargo xtask test"]
+fn random_changes_on_the_scripted_image_follow_the_shared_plan() {
+    let (log, stream, report, edges, clock_hz) =
+        checked_run(&["cycles=3000", "changes=150", "seed=7", "ramp=8"]);
+    assert!(stream.errors.is_empty(), "firmware errors: {:?}", stream.errors);
+    assert!(report.passed(), "edge check failed: {:?}", report.problems);
+    assert_eq!(report.matched, report.edges, "every edge equals the shared plan");
+    assert!(report.missed.is_empty());
+    let count = |wanted: fn(&Event) -> bool| stream.events.iter().filter(|e| wanted(e)).count();
+    let plans = count(|event| matches!(event, Event::Plan { .. }));
+    let stops = count(|event| matches!(event, Event::Stop { .. }));
+    let refused = log.matches("scenario: change refused").count();
+    assert!(plans > 30, "{plans} plans taken");
+    assert!(stops > 5, "{stops} stops");
+    assert!(refused > 10, "{refused} changes refused: some must fall past the range");
+
+    let specs: Vec<WaveformSpec> = stream
+        .events
+        .iter()
+        .filter_map(|event| match event {
+            Event::Plan { spec, .. } => Some(*spec),
+            _ => None,
+        })
+        .collect();
+    let bound_m: f64 = specs
+        .iter()
+        .map(|spec| {
+            let waveform = Waveform::new(*spec, &Limits::NONE).unwrap();
+            TickPlan::new(&waveform, TickClock::new(clock_hz))
+                .unwrap()
+                .drift_bound_m
+        })
+        .sum();
+    let contact = Contact::kinetic(1.0, 1e-3).unwrap();
+    let planned = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Planned);
+    assert!(
+        planned.plate_drift_m.abs() <= bound_m,
+        "plate drift {} m > {} m",
+        planned.plate_drift_m,
+        bound_m
+    );
+}
+
 fn tail(log: &str) -> String {
     let lines: Vec<&str> = log.lines().collect();
     lines[lines.len().saturating_sub(20)..].join("\n")

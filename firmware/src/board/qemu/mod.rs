@@ -19,6 +19,8 @@
 //!   panic or fault.
 
 #[cfg(not(feature = "console"))]
+mod changes;
+#[cfg(not(feature = "console"))]
 mod scenario;
 mod time_driver;
 #[cfg(feature = "console")]

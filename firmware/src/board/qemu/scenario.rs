@@ -15,6 +15,8 @@
 //! | `ramp=R`            | soft start/stop cycles                          | the firmware default |
 //! | `panic_at=C`        | panic once C cycles have begun (tests failures) | never                |
 //! | `late_preload_at=C` | preload cycle C's first segment too late        | never                |
+//! | `changes=K`         | K random changes instead of the one at N/2      | none                 |
+//! | `seed=S`            | seed of the random changes (`changes`)          | 1                    |
 //!
 //! The run starts (soft), changes the duty at N/2, stops (soft) at N, and exits with code 0 once
 //! the output is idle again, with the work per edge (`EVT work`) and `EVT end`. The missed edge
@@ -29,6 +31,7 @@ use embassy_time::{Instant, Timer};
 use feeder_shared::scenario::parse_setting;
 use feeder_shared::{Drive, ScenarioError, ScenarioSetting, TickClock, WaveformSpec};
 
+use super::changes::RandomChanges;
 use super::{after_fault, edge_work, provoke_late_preload, sleep_forever, time_driver};
 use crate::app::{self, OperatorRequest, OperatorView};
 use crate::{config, trace};
@@ -45,6 +48,8 @@ struct Scenario {
     ramp_cycles: u16,
     panic_at_cycle: Option<u32>,
     late_preload_cycle: Option<u32>,
+    random_changes: u32,
+    seed: u32,
 }
 
 impl Scenario {
@@ -58,6 +63,8 @@ impl Scenario {
             ramp_cycles: config::RAMP_CYCLES,
             panic_at_cycle: None,
             late_preload_cycle: None,
+            random_changes: 0,
+            seed: 1,
         };
         // The first word is the program's name (the kernel's path when QEMU got no `arg=`).
         for word in command_line.split_whitespace().skip(1) {
@@ -72,6 +79,8 @@ impl Scenario {
                 ScenarioSetting::Ramp(r) => scenario.ramp_cycles = r,
                 ScenarioSetting::PanicAt(c) => scenario.panic_at_cycle = Some(c),
                 ScenarioSetting::LatePreloadAt(c) => scenario.late_preload_cycle = Some(c),
+                ScenarioSetting::Changes(k) => scenario.random_changes = k,
+                ScenarioSetting::Seed(seed) => scenario.seed = seed,
             }
         }
         if scenario.new_duty.is_nan() {
@@ -187,14 +196,25 @@ async fn operator_task(clock: TickClock) {
         provoke_late_preload(cycle);
     }
     let (stop_after, ramp_cycles) = (scenario.stop_after_cycles, scenario.ramp_cycles);
+    let (count, start_spec) = (scenario.random_changes, first.spec);
+    let mut random = RandomChanges::new(scenario.seed, clock, start_spec, ramp_cycles);
     let mut operator = Operator {
         scenario,
         restarted: false,
     };
     app::offer(first);
     app::request(OperatorRequest::Start);
-    operator.until_cycle(half).await;
-    app::offer(second);
+    if count == 0 {
+        operator.until_cycle(half).await;
+        app::offer(second);
+    }
+    let first_cycle = app::cycles_begun();
+    for index in 0..count {
+        operator
+            .until_cycle(RandomChanges::cycle_of(index, count, first_cycle, stop_after))
+            .await;
+        random.change().await;
+    }
     operator.until_cycle(stop_after).await;
     app::request(OperatorRequest::Stop);
     let deadline = stop_after + u32::from(ramp_cycles) + STOP_GRACE_CYCLES;
