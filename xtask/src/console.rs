@@ -1,7 +1,8 @@
 //! `cargo xtask console`: live control of the emulated feeder in one command. The QEMU console
 //! image runs with its serial port on a free loopback TCP port and its decoded log captured to
 //! `target/console-run.log`; the operator gets the `feeder-ctl` prompt on the terminal, and when
-//! they leave it, QEMU is stopped and `host-sim hil` checks what happened.
+//! they leave it, the plate is brought to rest (a soft stop), QEMU is stopped and `host-sim hil`
+//! checks what happened.
 
 use std::fs::File;
 use std::net::{TcpListener, TcpStream};
@@ -17,6 +18,11 @@ use crate::{exec, host_sim, root, tools, workspace_binary, Result};
 const PORT_OPEN_TIMEOUT: Duration = Duration::from_secs(20);
 /// Pause between attempts to reach the serial port.
 const PORT_POLL_INTERVAL: Duration = Duration::from_millis(20);
+/// Longest to wait for the soft stop after the operator leaves (the longest ramps take longer:
+/// the check then sees the plate still ramping down).
+const REST_TIMEOUT: Duration = Duration::from_secs(60);
+/// Pause between `status` polls while the plate comes to rest.
+const REST_POLL_INTERVAL: Duration = Duration::from_millis(200);
 
 /// Where the decoded log of the session goes.
 fn log_path() -> PathBuf {
@@ -42,7 +48,7 @@ pub fn console() -> Result {
             feeder.port,
             log.display()
         );
-        let operator = operate(feeder.port);
+        let operator = operate(feeder.port).and_then(|()| bring_to_rest(feeder.port));
         feeder.stop()?;
         operator
     };
@@ -138,4 +144,38 @@ fn operate(port: u16) -> Result {
             .arg("--tcp")
             .arg(format!("127.0.0.1:{port}")),
     )
+}
+
+/// One command to the console on `port`; its reply line.
+fn command(port: u16, words: &[&str]) -> Result<String> {
+    let output = workspace_binary("feeder-ctl")
+        .arg("--tcp")
+        .arg(format!("127.0.0.1:{port}"))
+        .args(words)
+        .stderr(Stdio::inherit())
+        .output()
+        .map_err(|error| format!("cannot run feeder-ctl: {error}"))?;
+    match output.status.code() {
+        Some(0 | 1) => Ok(String::from_utf8_lossy(&output.stdout).trim().to_string()),
+        _ => Err(format!("feeder-ctl {words:?} failed with {}", output.status)),
+    }
+}
+
+/// Leaves the plate at rest before the emulator ends: a soft stop, then `status` until the
+/// feeder says it is stopped (or faulted, which has stopped it already).
+fn bring_to_rest(port: u16) -> Result {
+    eprintln!("xtask: bringing the plate to rest (soft stop) before the check");
+    command(port, &["stop"])?;
+    let deadline = Instant::now() + REST_TIMEOUT;
+    loop {
+        let status = command(port, &["status"])?;
+        if status.starts_with("OK state=stopped") || status.starts_with("OK state=fault") {
+            return Ok(());
+        }
+        if Instant::now() > deadline {
+            eprintln!("xtask: still not at rest after {REST_TIMEOUT:?}: {status}");
+            return Ok(());
+        }
+        thread::sleep(REST_POLL_INTERVAL);
+    }
 }
