@@ -3,8 +3,9 @@
 //! Two output stages are supported: an analog command from a DAC (a calibrated zero code plus or
 //! minus an amplitude code) and, for H-bridge drivers, a PWM magnitude with a direction line. The
 //! full-scale amplitude is converted once per plan (floating point, checked against the stage's
-//! range); every segment is then mapped in integers, with the soft-start fraction `step / steps`
-//! applied by rounding half up. `+a` and `−a` use the same magnitude, so the two are exactly
+//! range: for the DAC the linear range of its buffered output, so that no level clips); every
+//! segment is then mapped in integers, with the soft-start fraction `step / steps` applied by
+//! rounding half up. `+a` and `−a` use the same magnitude, so the two are exactly
 //! symmetric about zero and the command carries no DC acceleration bias.
 
 use crate::scheduler::Amplitude;
@@ -20,9 +21,23 @@ pub enum DriveError {
     InvalidScale { value: f64 },
     /// The peak acceleration is NaN, infinite or negative.
     InvalidAccel { accel_mps2: f64 },
-    /// The DAC zero code lies outside the converter's range.
-    ZeroOutOfRange { zero_code: u16, max_code: u16 },
-    /// The amplitude in counts does not fit on both sides of zero within the converter's range.
+    /// The DAC zero code lies outside the linear range of the converter's output (`min_code` to
+    /// `max_code`, both included).
+    ZeroOutOfRange {
+        zero_code: u16,
+        min_code: u16,
+        max_code: u16,
+    },
+    /// The DAC codes of the peak acceleration leave the linear range of the converter's output
+    /// (`min_code` to `max_code`): the output would clip. This calibration reaches at most
+    /// `linear_limit_mps2`.
+    BeyondLinearRange {
+        accel_mps2: f64,
+        linear_limit_mps2: f64,
+        min_code: u16,
+        max_code: u16,
+    },
+    /// The PWM duty in counts exceeds the period.
     AmplitudeOutOfRange {
         accel_mps2: f64,
         amplitude_counts: f64,
@@ -51,12 +66,26 @@ impl fmt::Display for DriveError {
             }
             DriveError::ZeroOutOfRange {
                 zero_code,
+                min_code,
                 max_code,
             } => {
                 write!(
                     f,
-                    "DAC zero code {} is above the largest code {}",
-                    zero_code, max_code
+                    "DAC zero code {} lies outside the output's linear range, codes {} to {}",
+                    zero_code, min_code, max_code
+                )
+            }
+            DriveError::BeyondLinearRange {
+                accel_mps2,
+                linear_limit_mps2,
+                min_code,
+                max_code,
+            } => {
+                write!(
+                    f,
+                    "peak acceleration {} m/s² needs DAC codes outside the output's linear range, \
+                     codes {} to {}: this calibration reaches at most {} m/s²",
+                    accel_mps2, min_code, max_code, linear_limit_mps2
                 )
             }
             DriveError::AmplitudeOutOfRange {
@@ -66,8 +95,8 @@ impl fmt::Display for DriveError {
             } => {
                 write!(
                     f,
-                    "peak acceleration {} m/s² needs {} counts but the output has {} counts of \
-                     headroom on each side of zero",
+                    "peak acceleration {} m/s² needs a duty of {} counts but the PWM period has \
+                     {} counts",
                     accel_mps2, amplitude_counts, headroom_counts
                 )
             }
@@ -93,27 +122,16 @@ pub const fn scale_counts(counts: u16, amplitude: Amplitude) -> u16 {
     ((counts as u32 * step + steps / 2) / steps) as u16
 }
 
-/// Converts `accel_mps2 · per_mps2` to whole counts no larger than `headroom_counts`.
-fn amplitude_counts(
-    accel_mps2: f64,
-    per_mps2: f64,
-    headroom_counts: u16,
-) -> Result<u16, DriveError> {
+/// `accel_mps2 · per_mps2` rounded to whole counts, or why the scale or the acceleration is
+/// invalid.
+fn rounded_counts(accel_mps2: f64, per_mps2: f64) -> Result<f64, DriveError> {
     if !per_mps2.is_finite() || per_mps2 <= 0.0 {
         return Err(DriveError::InvalidScale { value: per_mps2 });
     }
     if !accel_mps2.is_finite() || accel_mps2 < 0.0 {
         return Err(DriveError::InvalidAccel { accel_mps2 });
     }
-    let counts = round(accel_mps2 * per_mps2);
-    if counts > f64::from(headroom_counts) {
-        return Err(DriveError::AmplitudeOutOfRange {
-            accel_mps2,
-            amplitude_counts: counts,
-            headroom_counts,
-        });
-    }
-    Ok(counts as u16)
+    Ok(round(accel_mps2 * per_mps2))
 }
 
 /// Calibration of an analog driver input fed by a DAC.
@@ -123,35 +141,80 @@ pub struct DacCalibration {
     /// Code at which the driver commands zero acceleration, in counts. Default 2048, mid-scale of
     /// a 12-bit converter; measure the driver's offset and enter it here.
     pub zero_code: u16,
-    /// DAC counts per m/s² of commanded plate acceleration. Default 10, so ±200 m/s² spans
-    /// ±2000 counts around the zero code.
+    /// DAC counts per m/s² of commanded plate acceleration. Default 8, so ±200 m/s² (the
+    /// machine's limit) spans ±1600 counts around the zero code, inside the linear range.
     pub counts_per_mps2: f64,
     /// Largest code of the converter, in counts. Default 4095 (12 bits).
     pub max_code: u16,
+    /// Codes this close to either end of the converter's range leave its output's linear range.
+    /// Default 249: the buffered output of the STM32G474's DAC follows the code only from 0.2 V to
+    /// VREF+ − 0.2 V (datasheet DS12288, "DAC characteristics"), and 0.2 V is 248.2 codes at
+    /// VREF+ = 3.3 V (RM0440, DAC, "DAC output voltage": VREF+ · code / 4096), rounded up.
+    pub linear_margin_counts: u16,
 }
 
 impl DacCalibration {
-    /// The documented defaults (see the fields).
+    /// The documented defaults (see the fields): linear codes 249 to 3846, so at most
+    /// 1798 counts on either side of the zero code, 224.75 m/s².
     pub const DEFAULT: Self = Self {
         zero_code: 2048,
-        counts_per_mps2: 10.0,
+        counts_per_mps2: 8.0,
         max_code: 4095,
+        linear_margin_counts: 249,
     };
 
-    /// The codes of a plan with peak acceleration `peak_accel_mps2`, or why it does not fit.
+    /// The lowest and the highest code of the linear range.
+    pub const fn linear_codes(&self) -> (u16, u16) {
+        (
+            self.linear_margin_counts,
+            self.max_code.saturating_sub(self.linear_margin_counts),
+        )
+    }
+
+    /// Counts from the zero code to the nearer end of the linear range; `None` if the zero code
+    /// lies outside it.
+    const fn linear_headroom_counts(&self) -> Option<u16> {
+        let (min_code, max_code) = self.linear_codes();
+        if self.zero_code < min_code || self.zero_code > max_code {
+            return None;
+        }
+        let below = self.zero_code - min_code;
+        let above = max_code - self.zero_code;
+        Some(if below < above { below } else { above })
+    }
+
+    /// The largest peak acceleration whose codes stay in the linear range, in m/s² (zero if the
+    /// zero code lies outside it).
+    pub const fn linear_limit_mps2(&self) -> f64 {
+        match self.linear_headroom_counts() {
+            Some(headroom_counts) => headroom_counts as f64 / self.counts_per_mps2,
+            None => 0.0,
+        }
+    }
+
+    /// The codes of a plan with peak acceleration `peak_accel_mps2`, or why they do not fit in
+    /// the output's linear range.
     pub fn levels(&self, peak_accel_mps2: f64) -> Result<DacLevels, DriveError> {
-        if self.zero_code > self.max_code {
+        let (min_code, max_code) = self.linear_codes();
+        let Some(headroom_counts) = self.linear_headroom_counts() else {
             return Err(DriveError::ZeroOutOfRange {
                 zero_code: self.zero_code,
-                max_code: self.max_code,
+                min_code,
+                max_code,
+            });
+        };
+        let counts = rounded_counts(peak_accel_mps2, self.counts_per_mps2)?;
+        if counts > f64::from(headroom_counts) {
+            return Err(DriveError::BeyondLinearRange {
+                accel_mps2: peak_accel_mps2,
+                linear_limit_mps2: self.linear_limit_mps2(),
+                min_code,
+                max_code,
             });
         }
-        let headroom_counts = self.zero_code.min(self.max_code - self.zero_code);
-        let amplitude_counts =
-            amplitude_counts(peak_accel_mps2, self.counts_per_mps2, headroom_counts)?;
         Ok(DacLevels {
             zero_code: self.zero_code,
-            amplitude_counts,
+            amplitude_counts: counts as u16,
         })
     }
 }
@@ -221,9 +284,16 @@ impl PwmCalibration {
             return Err(DriveError::InvalidScale { value: full });
         }
         let per_mps2 = f64::from(period_counts) / full;
-        let peak_duty_counts = amplitude_counts(peak_accel_mps2, per_mps2, period_counts)?;
+        let counts = rounded_counts(peak_accel_mps2, per_mps2)?;
+        if counts > f64::from(period_counts) {
+            return Err(DriveError::AmplitudeOutOfRange {
+                accel_mps2: peak_accel_mps2,
+                amplitude_counts: counts,
+                headroom_counts: period_counts,
+            });
+        }
         Ok(PwmLevels {
-            peak_duty_counts,
+            peak_duty_counts: counts as u16,
             period_counts,
         })
     }

@@ -1,4 +1,4 @@
-//! Level-to-output mapping: hand-derived codes and duties, symmetry and range checks.
+//! Level-to-output mapping: hand-derived codes and duties, symmetry, range and linearity checks.
 
 use feeder_shared::drive::scale_counts;
 use feeder_shared::{
@@ -11,30 +11,34 @@ fn amp(step: u16, steps: u16) -> Amplitude {
     Amplitude { step, steps }
 }
 
+/// The machine's acceleration limit, `LIMITS.max_accel_mps2` in `firmware/src/config.rs`, which
+/// asserts at compile time that its DAC calibration reaches it in the linear range.
+const MACHINE_MAX_ACCEL_MPS2: f64 = 200.0;
+
 #[test]
 fn default_dac_codes_at_the_paper_operating_point() {
-    // 150 m/s² (x_max = 2.5 mm at 50 Hz, d = 0.586) at 10 counts per m/s² is 1500 counts.
+    // 150 m/s² (x_max = 2.5 mm at 50 Hz, d = 0.586) at 8 counts per m/s² is 1200 counts.
     let levels = DacCalibration::DEFAULT.levels(150.0).unwrap();
     assert_eq!(levels.zero_code(), 2048);
-    assert_eq!(levels.amplitude_counts(), 1500);
-    assert_eq!(levels.code(Level::Positive, FULL), 3548);
+    assert_eq!(levels.amplitude_counts(), 1200);
+    assert_eq!(levels.code(Level::Positive, FULL), 3248);
     assert_eq!(levels.code(Level::Zero, FULL), 2048);
-    assert_eq!(levels.code(Level::Negative, FULL), 548);
+    assert_eq!(levels.code(Level::Negative, FULL), 848);
 }
 
 #[test]
 fn soft_start_steps_scale_the_amplitude_in_integers() {
     let levels = DacCalibration::DEFAULT.levels(150.0).unwrap();
-    assert_eq!(levels.code(Level::Positive, amp(1, 3)), 2048 + 500);
-    assert_eq!(levels.code(Level::Negative, amp(2, 3)), 2048 - 1000);
+    assert_eq!(levels.code(Level::Positive, amp(1, 3)), 2048 + 400);
+    assert_eq!(levels.code(Level::Negative, amp(2, 3)), 2048 - 800);
     assert_eq!(levels.code(Level::Positive, amp(0, 3)), 2048);
     assert_eq!(levels.code(Level::Zero, amp(2, 3)), 2048);
 }
 
 #[test]
 fn fractions_round_half_up_and_stay_symmetric() {
-    // 100.1 m/s² → 1001 counts; half of it is 500.5 → 501 on both sides.
-    let levels = DacCalibration::DEFAULT.levels(100.1).unwrap();
+    // 125.125 m/s² → 1001 counts; half of it is 500.5 → 501 on both sides.
+    let levels = DacCalibration::DEFAULT.levels(125.125).unwrap();
     assert_eq!(levels.amplitude_counts(), 1001);
     assert_eq!(levels.code(Level::Positive, amp(1, 2)), 2048 + 501);
     assert_eq!(levels.code(Level::Negative, amp(1, 2)), 2048 - 501);
@@ -44,7 +48,7 @@ fn fractions_round_half_up_and_stay_symmetric() {
 
 #[test]
 fn plus_and_minus_codes_are_symmetric_and_monotonic_for_every_step() {
-    for accel_mps2 in [0.0, 0.04, 1.0, 37.3, 150.0, 204.7] {
+    for accel_mps2 in [0.0, 0.04, 1.0, 37.3, 150.0, 224.75] {
         let levels = DacCalibration::DEFAULT.levels(accel_mps2).unwrap();
         for steps in 1..=40u16 {
             let mut last_offset = 0;
@@ -63,27 +67,75 @@ fn plus_and_minus_codes_are_symmetric_and_monotonic_for_every_step() {
 }
 
 #[test]
-fn dac_range_is_checked_on_the_narrower_side_of_zero() {
-    // Headroom is min(2048, 4095 − 2048) = 2047 counts.
-    let levels = DacCalibration::DEFAULT.levels(204.7).unwrap();
-    assert_eq!(levels.code(Level::Positive, FULL), 4095);
-    assert_eq!(levels.code(Level::Negative, FULL), 1);
+fn dac_codes_stay_in_the_linear_range_on_the_narrower_side_of_zero() {
+    // The buffered output is linear from 0.2 V to 3.1 V: codes 249 to 3846. Around 2048 that is
+    // min(2048 − 249, 3846 − 2048) = 1798 counts, 224.75 m/s² at 8 counts per m/s².
+    let default = DacCalibration::DEFAULT;
+    assert_eq!(default.linear_codes(), (249, 3846));
+    assert_eq!(default.linear_limit_mps2(), 224.75);
+    let levels = default.levels(224.75).unwrap();
+    assert_eq!(levels.code(Level::Positive, FULL), 3846);
+    assert_eq!(levels.code(Level::Negative, FULL), 250);
     assert_eq!(
-        DacCalibration::DEFAULT.levels(205.0),
-        Err(DriveError::AmplitudeOutOfRange {
-            accel_mps2: 205.0,
-            amplitude_counts: 2050.0,
-            headroom_counts: 2047
+        default.levels(224.9),
+        Err(DriveError::BeyondLinearRange {
+            accel_mps2: 224.9,
+            linear_limit_mps2: 224.75,
+            min_code: 249,
+            max_code: 3846
         })
     );
+    // Zero at 1000: 751 counts below it, 93.875 m/s².
     let low_zero = DacCalibration {
         zero_code: 1000,
         ..DacCalibration::DEFAULT
     };
-    let levels = low_zero.levels(100.0).unwrap();
-    assert_eq!(levels.code(Level::Negative, FULL), 0);
-    assert_eq!(levels.code(Level::Positive, FULL), 2000);
-    assert!(low_zero.levels(100.1).is_err());
+    let levels = low_zero.levels(93.875).unwrap();
+    assert_eq!(levels.code(Level::Negative, FULL), 249);
+    assert_eq!(levels.code(Level::Positive, FULL), 1751);
+    assert!(matches!(
+        low_zero.levels(94.0),
+        Err(DriveError::BeyondLinearRange {
+            linear_limit_mps2: 93.875,
+            ..
+        })
+    ));
+}
+
+#[test]
+fn ten_counts_per_mps2_would_clip_above_180_mps2() {
+    // ±2000 counts at 200 m/s² reach beyond the linear range from 179.8 m/s² on.
+    let ten = DacCalibration {
+        counts_per_mps2: 10.0,
+        ..DacCalibration::DEFAULT
+    };
+    assert_eq!(ten.linear_limit_mps2(), 179.8);
+    assert!(ten.levels(179.8).is_ok());
+    let err = ten.levels(185.0).unwrap_err();
+    assert_eq!(
+        err,
+        DriveError::BeyondLinearRange {
+            accel_mps2: 185.0,
+            linear_limit_mps2: 179.8,
+            min_code: 249,
+            max_code: 3846
+        }
+    );
+    let message = err.to_string();
+    assert!(message.contains("185 m/s²") && message.contains("179.8 m/s²"));
+    assert!(ten.levels(MACHINE_MAX_ACCEL_MPS2).is_err());
+}
+
+#[test]
+fn the_default_machine_never_asks_the_dac_for_a_clipped_level() {
+    let default = DacCalibration::DEFAULT;
+    assert!(default.linear_limit_mps2() >= MACHINE_MAX_ACCEL_MPS2);
+    let levels = default.levels(MACHINE_MAX_ACCEL_MPS2).unwrap();
+    let (min_code, max_code) = default.linear_codes();
+    for level in [Level::Positive, Level::Zero, Level::Negative] {
+        let code = levels.code(level, FULL);
+        assert!((min_code..=max_code).contains(&code), "{code}");
+    }
 }
 
 #[test]
@@ -112,17 +164,30 @@ fn bad_dac_calibrations_and_accelerations_are_refused() {
         DacCalibration::DEFAULT.levels(f64::INFINITY),
         Err(DriveError::InvalidAccel { .. })
     ));
-    let zero_above_max = DacCalibration {
-        zero_code: 4096,
+    for zero_code in [4096, 100, 3900] {
+        let zero_outside = DacCalibration {
+            zero_code,
+            ..DacCalibration::DEFAULT
+        };
+        assert_eq!(
+            zero_outside.levels(1.0),
+            Err(DriveError::ZeroOutOfRange {
+                zero_code,
+                min_code: 249,
+                max_code: 3846
+            })
+        );
+        assert_eq!(zero_outside.linear_limit_mps2(), 0.0);
+    }
+    // A margin wider than half the range leaves no linear code at all.
+    let no_linear_codes = DacCalibration {
+        linear_margin_counts: 2100,
         ..DacCalibration::DEFAULT
     };
-    assert_eq!(
-        zero_above_max.levels(1.0),
-        Err(DriveError::ZeroOutOfRange {
-            zero_code: 4096,
-            max_code: 4095
-        })
-    );
+    assert!(matches!(
+        no_linear_codes.levels(0.0),
+        Err(DriveError::ZeroOutOfRange { .. })
+    ));
 }
 
 #[test]
