@@ -9,6 +9,7 @@
 //! EVT seg cycle=1 kind=accelerate planned=20000 actual=20000 ticks=1713 level=1 step=1 steps=4 slack=19830
 //! EVT replay cycle=9 kind=return planned=195860 actual=200000 ticks=4140 level=1 step=4 steps=4 slack=-51
 //! EVT zero actual=200057
+//! EVT enable state=off actual=200060
 //! EVT stop tick=1000000
 //! EVT halt tick=1000000
 //! EVT work edges=90 max_cycles=4236 total_cycles=151414 clock_hz=25000000
@@ -27,6 +28,9 @@
 //! edge (`replay`: the preload came after the deadline, `slack` < 0, so the timer played the
 //! playing segment again from `actual`), the output's zero at a halt (`zero`), and the work per
 //! edge over the run (`work`: timer cycles from an edge to the preload of the next segment).
+//! A run that ends with a failure (a panic, a HardFault, a fault that stops the script) ends with
+//! the output's state as its registers hold it: `zero` if it holds the zero code, and the driver
+//! enable (`enable`, `state=on` or `off`).
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -70,9 +74,14 @@ pub enum Event {
     Segment(SegmentEvent),
     /// A missed edge: the output played the segment again from `actual_tick`.
     Replay(SegmentEvent),
-    /// The output went to zero (a halt).
+    /// The output went to zero (a halt), or holds zero at the end of a failed run.
     Zero {
         actual_tick: u64,
+    },
+    /// The driver enable at the end of a failed run.
+    Enable {
+        actual_tick: u64,
+        enabled: bool,
     },
     Work(EdgeWork),
     End {
@@ -236,6 +245,14 @@ pub fn parse_line(line: &str) -> Result<Option<Event>, ParseError> {
         }),
         "zero" => Event::Zero {
             actual_tick: number("actual")?,
+        },
+        "enable" => Event::Enable {
+            actual_tick: number("actual")?,
+            enabled: match field("state")? {
+                "on" => true,
+                "off" => false,
+                _ => return Err(error("`state` must be on or off".into())),
+            },
         },
         "seg" | "replay" => {
             let kind = match field("kind")? {
@@ -482,6 +499,7 @@ impl Checker {
                 self.timeline_offset = None;
             }
             Event::Work(work) => self.report.edge_work = Some(*work),
+            Event::Enable { .. } => {}
             Event::End { .. } => self.report.ended = true,
             Event::Plan {
                 tick: 0,
