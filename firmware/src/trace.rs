@@ -110,10 +110,18 @@ mod stream {
         }
     }
 
-    /// The emulated output went to zero at `actual_tick` (a halt).
+    /// The emulated output went to zero at `actual_tick` (a halt), or holds the zero code at the
+    /// end of a failed run.
     #[cfg(feature = "board-qemu")]
     pub fn zero(actual_tick: u64) {
         defmt::println!("EVT zero actual={=u64}", actual_tick);
+    }
+
+    /// The emulated driver enable at `actual_tick`, at the end of a failed run.
+    #[cfg(feature = "board-qemu")]
+    pub fn enable(actual_tick: u64, enabled: bool) {
+        let state = if enabled { "on" } else { "off" };
+        defmt::println!("EVT enable state={=str} actual={=u64}", state, actual_tick);
     }
 
     /// Work per edge over a scripted run: from each edge to the preload of the next segment, in

@@ -15,8 +15,12 @@
 //! * Executors: all tasks run on two interrupt executors and thread mode sleeps in `wfi`. QEMU
 //!   executes `wfe` as a no-op, so embassy's thread executor would spin instead of letting
 //!   `-icount` skip idle time.
+//! * Output registers: the stage's model keeps its state in three words of the machine's FPGA
+//!   block RAM ([`OUTPUT_CODE`], [`OUTPUT_RUN`], [`DRIVER_ENABLE`]), which the image links nothing
+//!   into: fixed addresses, as a peripheral's are, so that the fault stores
+//!   ([`SAFE_STATE_WRITES`]) can name them, and the model honours what they hold.
 //! * Logs: defmt over semihosting; the run ends with a semihosting exit code, non-zero after a
-//!   panic or fault.
+//!   panic or fault, which first reports the output's state from those registers.
 
 #[cfg(not(feature = "console"))]
 mod changes;
@@ -28,7 +32,7 @@ mod uart;
 
 use core::cell::Cell;
 use core::convert::Infallible;
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use cortex_m::interrupt::InterruptNumber;
 use cortex_m::peripheral::NVIC;
@@ -41,12 +45,13 @@ use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
 use embedded_hal_async::digital::Wait;
 #[cfg(feature = "console")]
 use feeder_shared::recipe::{RECIPE_SLOTS, RECORD_LEN};
-use feeder_shared::{DriveError, Segment, TickClock};
+use feeder_shared::{DacLevels, DriveError, Segment, TickClock};
 #[cfg(feature = "console")]
 use feeder_shared::{RecipeSlot, RecipeStore};
 
 use crate::app;
 use crate::config;
+use crate::fault::{self, RegisterWrite};
 use crate::output::{EdgeMissed, SegmentOutput, SegmentStart};
 use crate::trace;
 use time_driver::CYCLES_PER_TICK;
@@ -66,7 +71,7 @@ const INSTRUCTION_S: f64 = 16e-9;
 const MIN_SEGMENT_S: f64 = config::EDGE_WORK_MARGIN * config::EDGE_WORK_INSTRUCTIONS * INSTRUCTION_S;
 
 pub type Output = ReportingOutput;
-pub type DriverEnable = EmulatedPin;
+pub type DriverEnable = EnableRegister;
 pub type Led = EmulatedPin;
 pub type Button = NoButton;
 pub type Watchdog = NoWatchdog;
@@ -114,6 +119,31 @@ const TASK_PRIORITY: u8 = 0x80;
 static CONTROL_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 static TASK_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 
+/// The DAC code on the emulated output (the G474's DAC1 output), written by the stage's model at
+/// every edge it plays.
+const OUTPUT_CODE: u32 = 0x0100_0000;
+/// 1 while the stage's timer runs; while it is 0 the model plays no further edge.
+const OUTPUT_RUN: u32 = 0x0100_0004;
+/// The driver enable: 1 enabled, 0 disabled.
+const DRIVER_ENABLE: u32 = 0x0100_0008;
+
+/// The fault stores (see `crate::fault`): the zero code on the output, the stage's timer
+/// stopped, the driver disabled.
+pub static SAFE_STATE_WRITES: [RegisterWrite; 3] = [
+    RegisterWrite {
+        address: OUTPUT_CODE,
+        value: config::DAC.zero_code as u32,
+    },
+    RegisterWrite {
+        address: OUTPUT_RUN,
+        value: 0,
+    },
+    RegisterWrite {
+        address: DRIVER_ENABLE,
+        value: 0,
+    },
+];
+
 /// Every external interrupt lands here (there is no device crate for this machine).
 #[cortex_m_rt::exception]
 unsafe fn DefaultHandler(irqn: i16) {
@@ -128,7 +158,8 @@ unsafe fn DefaultHandler(irqn: i16) {
         30 => unsafe { CONTROL_EXECUTOR.on_interrupt() },
         31 => unsafe { TASK_EXECUTOR.on_interrupt() },
         _ => {
-            emergency_stop();
+            cortex_m::interrupt::disable();
+            fault::make_safe();
             defmt::error!("unexpected interrupt {=i16}", irqn);
             after_fault()
         }
@@ -138,6 +169,10 @@ unsafe fn DefaultHandler(irqn: i16) {
 /// Brings the emulated board up: time driver, executors (timers above the control loop above
 /// the other tasks). Returns the spawner for the application's other tasks.
 pub fn init() -> (SendSpawner, Board) {
+    guard_below_ram();
+    register_write(OUTPUT_CODE as usize, u32::from(config::DAC.zero_code));
+    register_write(OUTPUT_RUN as usize, 0);
+    register_write(DRIVER_ENABLE as usize, 0);
     time_driver::init();
     for irq in time_driver::IRQS {
         set_priority(irq, 0x00);
@@ -150,7 +185,7 @@ pub fn init() -> (SendSpawner, Board) {
     let task_spawner = TASK_EXECUTOR.start(Irq::TaskExecutor);
     let board = Board {
         output: ReportingOutput::new(),
-        driver_enable: EmulatedPin,
+        driver_enable: EnableRegister,
         led: EmulatedPin,
         button: NoButton,
         watchdog: NoWatchdog,
@@ -162,9 +197,33 @@ pub fn init() -> (SendSpawner, Board) {
     (task_spawner, board)
 }
 
-/// Reads the 32-bit register at `address`, one of this machine's CMSDK APB peripherals.
+/// Makes accesses below SRAM fault, as they do on the G474, where nothing lies below RAM. This
+/// machine answers 0x1001_0000..0x2000_0000 as reserved memory that reads as zero and ignores
+/// writes, so a stack that crosses the bottom of RAM (where flip-link puts it) would run on
+/// unnoticed; a no-access MPU region over 0x1000_0000..0x2000_0000 turns that into a fault.
+fn guard_below_ram() {
+    const BASE: u32 = 0x1000_0000;
+    /// RASR: execute never, no access, 2^(27 + 1) bytes (256 MiB), enabled.
+    const NO_ACCESS_256_MIB: u32 = 1 << 28 | 27 << 1 | 1;
+    /// CTRL: the default memory map elsewhere (privileged code), MPU enabled.
+    const DEFAULT_MAP_ENABLED: u32 = 1 << 2 | 1;
+    // SAFETY: region 0 is this board's only MPU region and is set before anything runs that
+    // could touch it; everything runs privileged, so the default map covers the rest.
+    unsafe {
+        let mpu = &*cortex_m::peripheral::MPU::PTR;
+        mpu.rnr.write(0);
+        mpu.rbar.write(BASE);
+        mpu.rasr.write(NO_ACCESS_256_MIB);
+        mpu.ctrl.write(DEFAULT_MAP_ENABLED);
+    }
+    cortex_m::asm::dsb();
+    cortex_m::asm::isb();
+}
+
+/// Reads the 32-bit register at `address`, one of this machine's CMSDK APB peripherals or the
+/// output stage's registers.
 fn register_read(address: usize) -> u32 {
-    // SAFETY: callers pass aligned word registers of peripherals only this board module uses.
+    // SAFETY: callers pass aligned word registers that only this board module uses.
     unsafe { core::ptr::read_volatile(address as *const u32) }
 }
 
@@ -191,11 +250,26 @@ pub fn sleep_forever() -> ! {
     }
 }
 
-/// There is no hardware output to zero; the stream shows the halt.
-pub fn emergency_stop() {}
+/// Set once the run ends with a failure, so that a fault while reporting only exits.
+static ENDING: AtomicBool = AtomicBool::new(false);
 
-/// Ends the emulation with a failure code, so a panic or fault fails the run.
+/// Ends the emulation with a failure code, so a panic or fault fails the run: interrupts off,
+/// then the output's state as its registers hold it (`EVT zero` if it holds the zero code,
+/// `EVT enable`), then the exit.
 pub fn after_fault() -> ! {
+    cortex_m::interrupt::disable();
+    if !ENDING.swap(true, Ordering::Relaxed) {
+        let actual_tick = Instant::now()
+            .as_ticks()
+            .saturating_sub(critical_section::with(|cs| TIMELINE_TICKS.borrow(cs).get()));
+        let code = register_read(OUTPUT_CODE as usize);
+        if code == u32::from(config::DAC.zero_code) {
+            trace::zero(actual_tick);
+        } else {
+            defmt::error!("the output holds code {=u32} at the end", code);
+        }
+        trace::enable(actual_tick, register_read(DRIVER_ENABLE as usize) != 0);
+    }
     debug::exit(EXIT_FAILURE);
     sleep_forever()
 }
@@ -204,6 +278,8 @@ pub fn after_fault() -> ! {
 static LATE_PRELOAD_CYCLE: AtomicU32 = AtomicU32::new(u32::MAX);
 /// How far past its deadline the provoked late preload comes.
 const LATE_PRELOAD_TICKS: u64 = 50;
+/// Clock tick of actual tick 0 (the first restart), for the report at the end of a failed run.
+static TIMELINE_TICKS: Mutex<Cell<u64>> = Mutex::new(Cell::new(u64::MAX));
 /// The work per edge so far.
 static EDGE_WORK: Mutex<Cell<EdgeWork>> = Mutex::new(Cell::new(EdgeWork {
     edges: 0,
@@ -266,11 +342,13 @@ fn record_edge_work(cycles: u64) {
 
 /// The output stage: TIM2's semantics on the emulated clock. Each segment takes effect on its
 /// planned tick whatever the software does, which only preloads the next segment while the
-/// current one plays. A preload after its deadline (the start of the segment it preloads) is too
-/// late: at the deadline the update event found nothing new and the timer played the playing
-/// segment again, level and length. The stage returns [`EdgeMissed`] and reports the replay
-/// (`EVT replay`) at the halt that follows, with the output's zero (`EVT zero`), so that the
-/// report does not delay the halt.
+/// current one plays. At each edge the model writes the segment's DAC code to [`OUTPUT_CODE`],
+/// unless [`OUTPUT_RUN`] says the timer was stopped: then it plays no edge at all. A preload
+/// after its deadline (the start of the segment it preloads) is too late: at the deadline the
+/// update event found nothing new and the timer played the playing segment again, level and
+/// length. The stage returns [`EdgeMissed`] and reports the replay (`EVT replay`) at the halt
+/// that follows, with the output's zero (`EVT zero`), so that the report does not delay the
+/// halt.
 ///
 /// `actual` ticks count from the first restart on one timeline: the planned ticks until a halt,
 /// after which the restart shifts the plan against it.
@@ -281,8 +359,10 @@ pub struct ReportingOutput {
     timeline_ticks: u64,
     /// The segment playing and its preload slack (`None`: restarted), until a halt.
     playing: Option<(Segment, Option<u32>)>,
-    /// The preloaded segment and its slack.
-    queued: Option<(Segment, u32)>,
+    /// The preloaded segment, its slack and its DAC code.
+    queued: Option<(Segment, u32, u32)>,
+    /// The codes of the plan's levels; `None` (a refused acceleration): zero.
+    levels: Option<DacLevels>,
     /// Timer cycle of the edge that began the playing segment, until the next preload.
     edge_cycles: Option<u64>,
     /// The missed edge's replay, until the halt reports it.
@@ -305,9 +385,19 @@ impl ReportingOutput {
             timeline_ticks: u64::MAX,
             playing: None,
             queued: None,
+            levels: None,
             edge_cycles: None,
             replay: None,
         }
+    }
+
+    /// The DAC code of `segment`, at the zero code while the levels are refused.
+    fn code(&self, segment: &Segment) -> u32 {
+        let code = match &self.levels {
+            Some(levels) => levels.code(segment.level, segment.amplitude),
+            None => config::DAC.zero_code,
+        };
+        u32::from(code)
     }
 
     /// The clock tick of scheduler tick `tick`.
@@ -368,14 +458,21 @@ impl SegmentOutput for ReportingOutput {
     }
 
     fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
-        // The same check the board's DAC stage makes.
-        config::DAC.levels(peak_accel_mps2).map(|_| ())
+        // The same levels the board's DAC stage computes.
+        self.levels = None;
+        self.levels = Some(config::DAC.levels(peak_accel_mps2)?);
+        Ok(())
     }
 
     fn restart(&mut self, segment: &Segment) {
         let now_ticks = Instant::now().as_ticks();
         self.origin_ticks = now_ticks.wrapping_sub(segment.start_tick);
-        self.timeline_ticks = self.timeline_ticks.min(now_ticks);
+        if now_ticks < self.timeline_ticks {
+            self.timeline_ticks = now_ticks;
+            critical_section::with(|cs| TIMELINE_TICKS.borrow(cs).set(now_ticks));
+        }
+        register_write(OUTPUT_CODE as usize, self.code(segment));
+        register_write(OUTPUT_RUN as usize, 1);
         self.playing = Some((*segment, None));
         self.queued = None;
         self.edge_cycles = None;
@@ -399,14 +496,19 @@ impl SegmentOutput for ReportingOutput {
             record_edge_work(now_cycles - edge_cycles);
         }
         let slack_ticks = (deadline_cycles - now_cycles) / CYCLES_PER_TICK;
-        self.queued = Some((*segment, slack_ticks as u32));
+        self.queued = Some((*segment, slack_ticks as u32, self.code(segment)));
         Ok(())
     }
 
     async fn wait_edge(&mut self) -> Result<(), EdgeMissed> {
-        let (segment, slack_ticks) = self.queued.take().ok_or(EdgeMissed)?;
+        let (segment, slack_ticks, code) = self.queued.take().ok_or(EdgeMissed)?;
         let edge_ticks = self.clock_tick(segment.start_tick);
         Timer::at(Instant::from_ticks(edge_ticks)).await;
+        if register_read(OUTPUT_RUN as usize) == 0 {
+            // A stopped timer has no further edge.
+            core::future::pending::<()>().await;
+        }
+        register_write(OUTPUT_CODE as usize, code);
         self.playing = Some((segment, Some(slack_ticks)));
         let end_ticks = self.clock_tick(segment.end_tick());
         if Instant::now().as_ticks() >= end_ticks {
@@ -424,6 +526,8 @@ impl SegmentOutput for ReportingOutput {
     }
 
     fn halt(&mut self) {
+        register_write(OUTPUT_CODE as usize, u32::from(config::DAC.zero_code));
+        register_write(OUTPUT_RUN as usize, 0);
         let now_ticks = Instant::now().as_ticks();
         self.queued = None;
         self.edge_cycles = None;
@@ -443,7 +547,26 @@ impl SegmentOutput for ReportingOutput {
     }
 }
 
-/// Driver enable and LED: no pins on this machine; their state shows in the log.
+/// The driver enable, in [`DRIVER_ENABLE`].
+pub struct EnableRegister;
+
+impl ErrorType for EnableRegister {
+    type Error = Infallible;
+}
+
+impl OutputPin for EnableRegister {
+    fn set_low(&mut self) -> Result<(), Infallible> {
+        register_write(DRIVER_ENABLE as usize, 0);
+        Ok(())
+    }
+
+    fn set_high(&mut self) -> Result<(), Infallible> {
+        register_write(DRIVER_ENABLE as usize, 1);
+        Ok(())
+    }
+}
+
+/// The LED: no pin on this machine; its state shows in the log.
 pub struct EmulatedPin;
 
 impl ErrorType for EmulatedPin {
