@@ -35,5 +35,5 @@ fn main() -> ! {
     defmt::info!("feeder firmware up on QEMU mps2-an386: output reported as events, stopped");
     let clock = app::start(spawner, board);
     board::spawn_operator(spawner, clock);
-    board::sleep_forever()
+    board::idle()
 }

@@ -11,14 +11,16 @@ use core::fmt;
 use crate::number::split_decimal;
 
 /// The keys, each with its meaning, in the order a help text lists them.
-pub const SCENARIO_KEYS: [(&str, &str); 10] = [
+pub const SCENARIO_KEYS: [(&str, &str); 12] = [
     ("cycles", "request the soft stop once N cycles have begun (N ≥ 1)"),
     ("freq_hz", "waveform frequency"),
     ("duty", "duty at start"),
     ("stroke_m", "stroke (peak-to-peak plate travel)"),
     ("new_duty", "duty of the live change at half the cycles"),
     ("ramp", "soft start and stop cycles"),
-    ("panic_at", "panic once this many cycles have begun (tests the fault path)"),
+    ("panic_at", "panic in thread mode once this many cycles have begun"),
+    ("overflow_at", "from this cycle on, recurse in thread mode until the stack overflows"),
+    ("mask_at", "at this cycle, mask interrupts in thread mode for two periods: a missed edge"),
     ("late_preload_at", "preload this cycle's first segment too late: a missed edge, then a restart"),
     ("changes", "random operator changes between start and stop: settings in and past range, stops and starts"),
     ("seed", "seed of the random changes"),
@@ -39,8 +41,12 @@ pub enum ScenarioSetting {
     NewDuty(f64),
     /// `ramp=R`: soft start and stop cycles.
     Ramp(u16),
-    /// `panic_at=C`: panic once `C` cycles have begun.
+    /// `panic_at=C`: panic in thread mode once `C` cycles have begun.
     PanicAt(u32),
+    /// `overflow_at=C`: from cycle `C` on, recurse in thread mode until the stack overflows.
+    OverflowAt(u32),
+    /// `mask_at=C`: at cycle `C`, mask interrupts in thread mode for two periods.
+    MaskAt(u32),
     /// `late_preload_at=C`: preload the first segment of cycle `C` past its deadline.
     LatePreloadAt(u32),
     /// `changes=K`: `K` random operator changes spread over the run.
@@ -77,7 +83,7 @@ impl fmt::Display for ScenarioError<'_> {
             ScenarioError::UnknownKey(key) => write!(
                 f,
                 "unknown scenario key `{key}` (known: cycles, freq_hz, duty, stroke_m, new_duty, \
-                 ramp, panic_at, late_preload_at, changes, seed)"
+                 ramp, panic_at, overflow_at, mask_at, late_preload_at, changes, seed)"
             ),
             ScenarioError::NotACount {
                 key,
@@ -129,6 +135,8 @@ pub fn parse_setting(word: &str) -> Result<ScenarioSetting, ScenarioError<'_>> {
             max: u16::MAX.into(),
         })?),
         "panic_at" => ScenarioSetting::PanicAt(count("panic_at", 0, u32::MAX)?),
+        "overflow_at" => ScenarioSetting::OverflowAt(count("overflow_at", 0, u32::MAX)?),
+        "mask_at" => ScenarioSetting::MaskAt(count("mask_at", 0, u32::MAX)?),
         "late_preload_at" => ScenarioSetting::LatePreloadAt(count("late_preload_at", 0, u32::MAX)?),
         "changes" => ScenarioSetting::Changes(count("changes", 0, u32::MAX)?),
         "seed" => ScenarioSetting::Seed(count("seed", 0, u32::MAX)?),

@@ -15,6 +15,8 @@ fn each_key_reads_its_value() {
     assert_eq!(parse_setting("ramp=0"), Ok(ScenarioSetting::Ramp(0)));
     assert_eq!(parse_setting("ramp=65535"), Ok(ScenarioSetting::Ramp(u16::MAX)));
     assert_eq!(parse_setting("panic_at=0"), Ok(ScenarioSetting::PanicAt(0)));
+    assert_eq!(parse_setting("overflow_at=30"), Ok(ScenarioSetting::OverflowAt(30)));
+    assert_eq!(parse_setting("mask_at=0"), Ok(ScenarioSetting::MaskAt(0)));
     assert_eq!(parse_setting("changes=200"), Ok(ScenarioSetting::Changes(200)));
     assert_eq!(parse_setting("seed=4294967295"), Ok(ScenarioSetting::Seed(u32::MAX)));
     assert_eq!(parse_setting("late_preload_at=30"), Ok(ScenarioSetting::LatePreloadAt(30)));
@@ -22,6 +24,11 @@ fn each_key_reads_its_value() {
 
 #[test]
 fn counts_are_whole_numbers_in_range() {
+    for word in ["overflow_at=-1", "mask_at=2.5", "mask_at="] {
+        let error = parse_setting(word).unwrap_err();
+        assert!(matches!(error, ScenarioError::NotACount { min: 0, .. }), "{word}: {error:?}");
+        assert!(error.to_string().starts_with(word), "{error}");
+    }
     for word in ["cycles=0", "cycles=-5", "cycles=1.5", "cycles=4294967296", "cycles="] {
         let error = parse_setting(word).unwrap_err();
         assert!(matches!(error, ScenarioError::NotACount { key: "cycles", min: 1, .. }), "{word}");

@@ -12,7 +12,7 @@ use std::process::{Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use feeder_shared::{Limits, SegmentKind, TickClock, TickPlan, Waveform, WaveformSpec};
-use host_sim::hil::{self, CheckReport, Checker, Edge, EdgeTimes, Event, Stream};
+use host_sim::hil::{self, CheckReport, Checker, Edge, EdgeTimes, Event, SegmentEvent, Stream};
 use host_sim::plant::Contact;
 use host_sim::scenario::OperatingPoint;
 
@@ -403,17 +403,155 @@ fn a_missed_edge_halts_the_output_until_a_reset_and_start_ramp_it_up_again() {
     );
 }
 
-#[test]
-#[ignore = "needs the QEMU firmware; run by cargo xtask test"]
-fn a_firmware_panic_fails_the_run_and_shows_its_message() {
-    let (status, log) = run_scenario(&["cycles=100", "panic_at=30"]);
+/// Runs a scenario that must fail, and checks how it ends: from the log line that contains
+/// `fault`, no edge reaches the output, and the run ends with the output's registers reported
+/// at the zero code with the driver disabled. Returns the log and its event stream.
+fn failed_run_ends_safe(arguments: &[&str], fault: &str) -> (String, Stream) {
+    let (status, log) = run_scenario(arguments);
     assert!(
         !status.success(),
-        "a panic must end the emulation with a failure code"
+        "a fault must end the emulation with a failure code:\n{}",
+        tail(&log)
     );
+    let lines: Vec<&str> = log.lines().collect();
+    let at = lines
+        .iter()
+        .position(|line| line.contains(fault))
+        .unwrap_or_else(|| panic!("the log shows `{fault}`:\n{}", tail(&log)));
+    let after = &lines[at..];
+    assert!(
+        !after.iter().any(|line| line.contains("EVT seg")),
+        "no edge after `{fault}`:\n{}",
+        after.join("\n")
+    );
+    let stream = hil::read_stream(log.as_bytes()).expect("the event stream is readable");
+    let ending: Vec<&Event> = stream.events.iter().rev().take(2).rev().collect();
+    assert!(
+        matches!(
+            ending[..],
+            [Event::Zero { .. }, Event::Enable { enabled: false, .. }]
+        ),
+        "the run ends with zero output and the driver disabled: {ending:?}\n{}",
+        after.join("\n")
+    );
+    (log, stream)
+}
+
+/// The last segment that began before the log line that contains `fault`.
+fn last_segment_before(log: &str, fault: &str) -> SegmentEvent {
+    let before = &log[..log.find(fault).expect("the fault is logged")];
+    let stream = hil::read_stream(before.as_bytes()).expect("the event stream is readable");
+    stream
+        .events
+        .iter()
+        .rev()
+        .find_map(|event| match event {
+            Event::Segment(segment) => Some(*segment),
+            _ => None,
+        })
+        .expect("segments began before the fault")
+}
+
+#[test]
+#[ignore = "needs the QEMU firmware; run by cargo xtask test"]
+fn a_panic_in_thread_mode_zeroes_the_output_and_drops_the_enable_before_the_next_edge() {
+    let (log, _) = failed_run_ends_safe(&["cycles=100", "panic_at=30"], "panic in thread mode");
     assert!(
         log.contains("panic requested at cycle 30"),
         "the panic message is shown:\n{}",
         tail(&log)
+    );
+    let playing = last_segment_before(&log, "panic in thread mode");
+    assert!(
+        playing.cycle >= 30 && playing.kind != SegmentKind::Idle,
+        "the control loop was driving the plate: {playing:?}"
+    );
+}
+
+#[test]
+#[ignore = "needs the QEMU firmware; run by cargo xtask test"]
+fn a_stack_overflow_zeroes_the_output_and_drops_the_enable_from_the_hardfault_entry() {
+    let fault = "the exception frame could not be stacked";
+    let (log, _) = failed_run_ends_safe(&["cycles=100", "overflow_at=30"], fault);
+    assert!(
+        log.contains("HardFault in thread mode"),
+        "the recursion in thread mode overflowed:\n{}",
+        tail(&log)
+    );
+    let playing = last_segment_before(&log, fault);
+    assert!(
+        playing.cycle >= 30 && playing.kind != SegmentKind::Idle,
+        "the control loop was driving the plate: {playing:?}"
+    );
+}
+
+#[test]
+#[ignore = "needs the QEMU firmware; run by cargo xtask test"]
+fn a_critical_section_longer_than_two_segments_is_a_missed_edge_that_halts_the_output() {
+    let (log, stream) = failed_run_ends_safe(
+        &["cycles=100", "mask_at=30"],
+        "scenario: the firmware faulted",
+    );
+    assert!(
+        log.contains("interrupts masked for 40000 us"),
+        "two periods of 50 Hz:\n{}",
+        tail(&log)
+    );
+    assert!(
+        log.contains("fault: EdgeMissed (stop: Immediate)"),
+        "the missed edge is a category-0 fault:\n{}",
+        tail(&log)
+    );
+    let mut checker = Checker::new();
+    for event in &stream.events {
+        checker.feed(event);
+    }
+    let (report, _, _) = checker.finish(false);
+    // Every segment that began is the shared plan's; the missed edge is the one problem.
+    assert_eq!(report.missed.len(), 1, "{:?}", report.problems);
+    assert_eq!(report.problems.len(), 1, "{:?}", report.problems);
+    assert_eq!(report.matched, report.edges);
+    assert_eq!((report.missing, report.unexpected), (0, 0));
+
+    // The timer played the segment preloaded before the mask on its tick, found nothing
+    // preloaded at its end and played it again, as TIM2 does, until the control loop ran again
+    // and zeroed the output.
+    let replay = stream
+        .events
+        .iter()
+        .position(|event| matches!(event, Event::Replay(_)))
+        .expect("the missed edge is reported");
+    let Event::Replay(replayed) = stream.events[replay] else {
+        unreachable!()
+    };
+    let Some(Event::Segment(played)) = stream.events[..replay].last() else {
+        panic!("no segment began before the replay");
+    };
+    assert_eq!(
+        (replayed.cycle, replayed.kind, replayed.level),
+        (played.cycle, played.kind, played.level)
+    );
+    let played_end = played.actual_tick + u64::from(played.ticks);
+    assert_eq!(replayed.actual_tick, played_end);
+    assert_eq!(replayed.slack_ticks, None, "nothing was preloaded");
+    let zeroed = match stream.events.get(replay + 1) {
+        Some(Event::Zero { actual_tick }) => *actual_tick,
+        other => panic!("the halt zeroes the output: {other:?}"),
+    };
+    assert!(zeroed > replayed.actual_tick);
+
+    // From the halt on, the output stays at zero: idle periods only.
+    let after: Vec<&SegmentEvent> = stream.events[replay..]
+        .iter()
+        .filter_map(|event| match event {
+            Event::Segment(segment) => Some(segment),
+            _ => None,
+        })
+        .collect();
+    assert!(
+        after
+            .iter()
+            .all(|segment| segment.kind == SegmentKind::Idle && segment.level == 0),
+        "{after:?}"
     );
 }

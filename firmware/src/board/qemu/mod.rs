@@ -12,9 +12,9 @@
 //!   recipes kept in RAM: the feeder waits, stopped, for commands and the emulation runs until
 //!   QEMU is ended. The script's image contains no console, so its run (and its `EVT` stream)
 //!   does not depend on the console's code.
-//! * Executors: all tasks run on two interrupt executors and thread mode sleeps in `wfi`. QEMU
-//!   executes `wfe` as a no-op, so embassy's thread executor would spin instead of letting
-//!   `-icount` skip idle time.
+//! * Executors: all tasks run on two interrupt executors and thread mode spins ([`idle`], where a
+//!   script also provokes its thread-mode faults). QEMU executes `wfe` as a no-op, so embassy's
+//!   thread executor would spin instead of letting `-icount` skip idle time.
 //! * Output registers: the stage's model keeps its state in three words of the machine's FPGA
 //!   block RAM ([`OUTPUT_CODE`], [`OUTPUT_RUN`], [`DRIVER_ENABLE`]), which the image links nothing
 //!   into: fixed addresses, as a peripheral's are, so that the fault stores
@@ -57,11 +57,17 @@ use crate::trace;
 use time_driver::CYCLES_PER_TICK;
 
 #[cfg(not(feature = "console"))]
-pub use scenario::spawn_operator;
+pub use scenario::{idle, spawn_operator};
 
 /// With the console the operator is on the serial port: there is no script to spawn.
 #[cfg(feature = "console")]
 pub fn spawn_operator(_: SendSpawner, _: TickClock) {}
+
+/// Thread mode with the console: nothing to do.
+#[cfg(feature = "console")]
+pub fn idle() -> ! {
+    sleep_forever()
+}
 
 /// Virtual time per instruction under `-icount shift=4`: 2⁴ ns.
 const INSTRUCTION_S: f64 = 16e-9;

@@ -13,7 +13,9 @@
 //! | `stroke_m=X`        | stroke (peak-to-peak plate travel)              | the firmware default |
 //! | `new_duty=D`        | duty of the live change at N/2 cycles           | `duty` + 0.02        |
 //! | `ramp=R`            | soft start/stop cycles                          | the firmware default |
-//! | `panic_at=C`        | panic once C cycles have begun (tests failures) | never                |
+//! | `panic_at=C`        | panic in thread mode once C cycles have begun   | never                |
+//! | `overflow_at=C`     | overflow the stack in thread mode from cycle C  | never                |
+//! | `mask_at=C`         | mask interrupts for two periods at cycle C      | never                |
 //! | `late_preload_at=C` | preload cycle C's first segment too late        | never                |
 //! | `changes=K`         | K random changes instead of the one at N/2      | none                 |
 //! | `seed=S`            | seed of the random changes (`changes`)          | 1                    |
@@ -22,6 +24,13 @@
 //! the output is idle again, with the work per edge (`EVT work`) and `EVT end`. The missed edge
 //! of `late_preload_at` halts the output with the driver disabled; the operator then resets and
 //! starts again, once. Any other fault ends the run with a failure code.
+//!
+//! `panic_at`, `overflow_at` and `mask_at` are carried out by thread mode ([`idle`]), below the
+//! interrupt executors, which keep running the output: a panic, a recursion without bound
+//! (a HardFault once the stack crosses the bottom of RAM) and a critical section that holds the
+//! control loop off past its edges (a missed edge when interrupts come back).
+
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m_semihosting::debug::{self, EXIT_SUCCESS};
 use cortex_m_semihosting::nr::GET_CMDLINE;
@@ -32,7 +41,8 @@ use feeder_shared::scenario::parse_setting;
 use feeder_shared::{Drive, ScenarioError, ScenarioSetting, TickClock, WaveformSpec};
 
 use super::changes::RandomChanges;
-use super::{after_fault, edge_work, provoke_late_preload, sleep_forever, time_driver};
+use super::time_driver::{self, CYCLES_PER_TICK};
+use super::{after_fault, edge_work, provoke_late_preload, sleep_forever};
 use crate::app::{self, OperatorRequest, OperatorView};
 use crate::{config, trace};
 
@@ -41,12 +51,66 @@ const POLL_MS: u64 = 5;
 /// Cycles past the stop request by which the output must be idle again.
 const STOP_GRACE_CYCLES: u32 = 100;
 
+/// The cycles from which thread mode panics, recurses without bound or masks interrupts
+/// (`u32::MAX`: never), set before the start.
+static PANIC_AT: AtomicU32 = AtomicU32::new(u32::MAX);
+static OVERFLOW_AT: AtomicU32 = AtomicU32::new(u32::MAX);
+static MASK_AT: AtomicU32 = AtomicU32::new(u32::MAX);
+/// How long thread mode masks interrupts, in timer cycles.
+static MASK_CYCLES: AtomicU32 = AtomicU32::new(0);
+
+/// Thread mode under a script: spins below the interrupt executors (see `sleep_forever`), or,
+/// once its cycle has begun, makes the fault the scenario asks for while they run the output.
+pub fn idle() -> ! {
+    loop {
+        let begun = app::cycles_begun();
+        let panic_at = PANIC_AT.load(Ordering::Relaxed);
+        if begun >= panic_at {
+            panic!("scenario: panic requested at cycle {}", panic_at);
+        }
+        if begun >= OVERFLOW_AT.load(Ordering::Relaxed) {
+            info!("scenario: thread mode recurses without bound");
+            recurse(0);
+        }
+        if begun >= MASK_AT.load(Ordering::Relaxed) {
+            MASK_AT.store(u32::MAX, Ordering::Relaxed);
+            mask_interrupts(MASK_CYCLES.load(Ordering::Relaxed).into());
+        }
+    }
+}
+
+/// Calls itself until the stack runs out. Each call keeps an array that `black_box` makes the
+/// compiler put on the stack and reads it after the inner call, so the recursion stays a
+/// recursion.
+#[allow(unconditional_recursion)]
+#[inline(never)]
+fn recurse(depth: u32) -> u32 {
+    let mut frame = [depth; 64];
+    core::hint::black_box(&mut frame);
+    recurse(depth.wrapping_add(1)).wrapping_add(frame[depth as usize % frame.len()])
+}
+
+/// Masks interrupts for `cycles` timer cycles, busy-waiting on the clock timer: a critical
+/// section that holds the control loop off past its edges.
+fn mask_interrupts(cycles: u64) {
+    info!(
+        "scenario: interrupts masked for {=u64} us",
+        cycles / CYCLES_PER_TICK
+    );
+    cortex_m::interrupt::free(|_| {
+        let until = time_driver::now_cycles() + cycles;
+        while time_driver::now_cycles() < until {}
+    });
+}
+
 struct Scenario {
     stop_after_cycles: u32,
     spec: WaveformSpec,
     new_duty: f64,
     ramp_cycles: u16,
     panic_at_cycle: Option<u32>,
+    overflow_cycle: Option<u32>,
+    mask_cycle: Option<u32>,
     late_preload_cycle: Option<u32>,
     random_changes: u32,
     seed: u32,
@@ -62,6 +126,8 @@ impl Scenario {
             new_duty: f64::NAN,
             ramp_cycles: config::RAMP_CYCLES,
             panic_at_cycle: None,
+            overflow_cycle: None,
+            mask_cycle: None,
             late_preload_cycle: None,
             random_changes: 0,
             seed: 1,
@@ -78,6 +144,8 @@ impl Scenario {
                 ScenarioSetting::NewDuty(d) => scenario.new_duty = d,
                 ScenarioSetting::Ramp(r) => scenario.ramp_cycles = r,
                 ScenarioSetting::PanicAt(c) => scenario.panic_at_cycle = Some(c),
+                ScenarioSetting::OverflowAt(c) => scenario.overflow_cycle = Some(c),
+                ScenarioSetting::MaskAt(c) => scenario.mask_cycle = Some(c),
                 ScenarioSetting::LatePreloadAt(c) => scenario.late_preload_cycle = Some(c),
                 ScenarioSetting::Changes(k) => scenario.random_changes = k,
                 ScenarioSetting::Seed(seed) => scenario.seed = seed,
@@ -144,13 +212,7 @@ impl Operator {
     async fn until_cycle(&mut self, cycle: u32) {
         loop {
             self.watch_faults().await;
-            let begun = app::cycles_begun();
-            if let Some(panic_at) = self.scenario.panic_at_cycle {
-                if begun >= panic_at {
-                    panic!("scenario: panic requested at cycle {}", panic_at);
-                }
-            }
-            if begun >= cycle {
+            if app::cycles_begun() >= cycle {
                 return;
             }
             Timer::after_millis(POLL_MS).await;
@@ -195,6 +257,17 @@ async fn operator_task(clock: TickClock) {
     if let Some(cycle) = scenario.late_preload_cycle {
         provoke_late_preload(cycle);
     }
+    // Two periods: longer than the segment playing when the mask begins and the one preloaded
+    // after it together, so at least one edge passes with nothing preloaded.
+    let mask_cycles = u64::from(first.plan.period_ticks) * 2 * CYCLES_PER_TICK;
+    MASK_CYCLES.store(
+        u32::try_from(mask_cycles).unwrap_or(u32::MAX),
+        Ordering::Relaxed,
+    );
+    let never = |cycle: Option<u32>| cycle.unwrap_or(u32::MAX);
+    PANIC_AT.store(never(scenario.panic_at_cycle), Ordering::Relaxed);
+    OVERFLOW_AT.store(never(scenario.overflow_cycle), Ordering::Relaxed);
+    MASK_AT.store(never(scenario.mask_cycle), Ordering::Relaxed);
     let (stop_after, ramp_cycles) = (scenario.stop_after_cycles, scenario.ramp_cycles);
     let (count, start_spec) = (scenario.random_changes, first.spec);
     let mut random = RandomChanges::new(scenario.seed, clock, start_spec, ramp_cycles);
