@@ -63,6 +63,9 @@ pub const RAMP_CYCLES: u16 = 25;
 /// Calibration of the analog driver input (see [`DacCalibration::DEFAULT`]).
 pub const DAC: DacCalibration = DacCalibration::DEFAULT;
 
+// No level the machine's limits allow leaves the DAC's linear range.
+const _: () = assert!(LIMITS.max_accel_mps2 <= DAC.linear_limit_mps2());
+
 #[cfg(feature = "board-g474")]
 /// Calibration of the PWM driver input (see [`PwmCalibration::DEFAULT`]).
 pub const PWM: PwmCalibration = PwmCalibration::DEFAULT;
