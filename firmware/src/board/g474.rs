@@ -1,4 +1,4 @@
-//! NUCLEO-G474RE: clocks, pins, the two output stages, watchdog and the emergency stop.
+//! NUCLEO-G474RE: clocks, pins, the two output stages, watchdog and the safe state.
 //!
 //! | Signal                    | Pin  | Nucleo header |
 //! |---------------------------|------|---------------|
@@ -22,6 +22,8 @@
 //! and its repetition counter counts the segment in carrier periods; the update event at the end
 //! of the repetitions loads the preloaded compare values (duty and direction) and repetition count.
 //! In both, the update interrupt only tells the control loop that the preload slot is free.
+//!
+//! The safe state is [`SAFE_STATE_WRITES`].
 
 use core::future::poll_fn;
 use core::sync::atomic::{AtomicU32, Ordering};
@@ -35,6 +37,7 @@ use embassy_stm32::gpio::{self, Level, OutputType, Pull, Speed};
 use embassy_stm32::interrupt::typelevel::{self, Handler};
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
 use embassy_stm32::mode::{Async, Blocking};
+use embassy_stm32::pac::timer::regs::{BdtrAdv, Cr1Gp16, EgrGp16};
 use embassy_stm32::pac::timer::vals::{Ossi, Urs};
 use embassy_stm32::peripherals::{DAC1, IWDG, PA4, PA8, PA9, TIM1, TIM2};
 use embassy_stm32::timer::low_level::{MasterMode, OutputCompareMode, Timer};
@@ -47,6 +50,7 @@ use feeder_shared::{DacLevels, Direction, DriveError, PwmLevels, Segment, TickCl
 
 use crate::app;
 use crate::config::{self, OutputStage};
+use crate::fault::RegisterWrite;
 use crate::output::{EdgeMissed, SegmentOutput, SegmentStart};
 
 pub type Output = G474Output;
@@ -68,8 +72,109 @@ const CYCLES_PER_INSTRUCTION: f64 = 1.5;
 const MIN_SEGMENT_S: f64 =
     config::EDGE_WORK_MARGIN * config::EDGE_WORK_INSTRUCTIONS * CYCLES_PER_INSTRUCTION / CORE_HZ;
 
-/// Pin number of the driver enable on GPIOA (PA10), for the emergency stop.
+/// Pin number of the driver enable on GPIOA (PA10).
 const DRIVER_ENABLE_PIN: usize = 10;
+
+/// GPIOA_BSRR: a 1 in bit 16 + n drives PAn low (RM0440, GPIO, "GPIO port bit set/reset register").
+const GPIOA_BSRR: u32 = 0x4800_0018;
+/// DAC1_DHR12R1: channel 1's 12-bit right-aligned holding register.
+#[cfg(not(feature = "output-pwm"))]
+const DAC1_DHR12R1: u32 = 0x5000_0808;
+/// TIM2's control register 1, interrupt enable and event generation registers.
+#[cfg(not(feature = "output-pwm"))]
+const TIM2_CR1: u32 = 0x4000_0000;
+#[cfg(not(feature = "output-pwm"))]
+const TIM2_DIER: u32 = 0x4000_000C;
+#[cfg(not(feature = "output-pwm"))]
+const TIM2_EGR: u32 = 0x4000_0014;
+/// TIM1's control register 1, interrupt enable and break and dead-time registers.
+#[cfg(feature = "output-pwm")]
+const TIM1_CR1: u32 = 0x4001_2C00;
+#[cfg(feature = "output-pwm")]
+const TIM1_DIER: u32 = 0x4001_2C0C;
+#[cfg(feature = "output-pwm")]
+const TIM1_BDTR: u32 = 0x4001_2C44;
+
+/// CR1 of a segment timer, stopped: ARPE (bit 7, the auto-reload is preloaded) and URS (bit 2,
+/// only counter overflows raise the update interrupt), CEN (bit 0) clear.
+const SEGMENT_TIMER_CR1_STOPPED: u32 = 1 << 7 | 1 << 2;
+/// EGR with UG (bit 0): a forced update event.
+const EGR_UPDATE: u32 = 1;
+/// TIM1's BDTR with the main output off: OSSI (bit 10: with MOE clear the outputs are driven to
+/// their idle level, low); MOE (bit 15) clear (RM0440, TIM1/TIM8/TIM20, "TIMx break and dead-time
+/// register").
+const TIM1_BDTR_OUTPUT_OFF: u32 = 1 << 10;
+
+// The raw values above mean what their comments say, as the PAC decodes them.
+const _: () = {
+    let cr1 = Cr1Gp16(SEGMENT_TIMER_CR1_STOPPED);
+    assert!(cr1.arpe() && !cr1.cen() && cr1.urs().to_bits() == Urs::COUNTER_ONLY.to_bits());
+    assert!(EgrGp16(EGR_UPDATE).ug());
+    let bdtr = BdtrAdv(TIM1_BDTR_OUTPUT_OFF);
+    assert!(!bdtr.moe() && !bdtr.aoe());
+    assert!(bdtr.ossi().to_bits() == Ossi::IDLE_LEVEL.to_bits());
+    assert!(pac::gpio::regs::Bsrr(1 << (16 + DRIVER_ENABLE_PIN)).br(DRIVER_ENABLE_PIN));
+};
+
+/// The stores that make the output safe, in order, made by the HardFault entry before it
+/// touches the stack.
+///
+/// The driver enable goes low first, then the command goes to zero: the zero code into the
+/// holding register, then a forced update of TIM2, whose TRGO is the DAC's trigger (TEN set), so
+/// the code reaches the output three bus clock cycles later (RM0440, DAC, "DAC conversion"); an
+/// update of TIM2's own between the two stores latches the zero code as well. The trigger stays
+/// on: clearing TEN with a plain store would have to repeat every other bit of DAC_CR. Then TIM2
+/// stops, with its update interrupt off. Only the stage this image drives is stored to: the other
+/// one's peripherals are not clocked.
+#[cfg(not(feature = "output-pwm"))]
+pub static SAFE_STATE_WRITES: [RegisterWrite; 5] = [
+    RegisterWrite {
+        address: GPIOA_BSRR,
+        value: 1 << (16 + DRIVER_ENABLE_PIN),
+    },
+    RegisterWrite {
+        address: DAC1_DHR12R1,
+        value: config::DAC.zero_code as u32,
+    },
+    RegisterWrite {
+        address: TIM2_EGR,
+        value: EGR_UPDATE,
+    },
+    RegisterWrite {
+        address: TIM2_CR1,
+        value: SEGMENT_TIMER_CR1_STOPPED,
+    },
+    RegisterWrite {
+        address: TIM2_DIER,
+        value: 0,
+    },
+];
+
+/// The stores that make the output safe, in order, made by the HardFault entry before it
+/// touches the stack.
+///
+/// The driver enable goes low first, then TIM1's main output goes off, which drives PA8 and PA9
+/// low at once; then TIM1 stops, with its update interrupt off. Only the stage this image drives
+/// is stored to: the other one's peripherals are not clocked.
+#[cfg(feature = "output-pwm")]
+pub static SAFE_STATE_WRITES: [RegisterWrite; 4] = [
+    RegisterWrite {
+        address: GPIOA_BSRR,
+        value: 1 << (16 + DRIVER_ENABLE_PIN),
+    },
+    RegisterWrite {
+        address: TIM1_BDTR,
+        value: TIM1_BDTR_OUTPUT_OFF,
+    },
+    RegisterWrite {
+        address: TIM1_CR1,
+        value: SEGMENT_TIMER_CR1_STOPPED,
+    },
+    RegisterWrite {
+        address: TIM1_DIER,
+        value: 0,
+    },
+];
 
 /// Everything the application needs from the board.
 pub struct Board {
@@ -302,26 +407,16 @@ fn clocks() -> Config {
     config
 }
 
-/// After a panic or HardFault: wait for the independent watchdog to reset the board.
+/// After a panic or HardFault, whose handler has made the safe state: interrupts off, so that no
+/// handler (the control loop) runs again and undoes it, the safe state once more (the segment
+/// timers stopped, their update interrupts off), then wait for the independent watchdog to reset
+/// the board.
 pub fn after_fault() -> ! {
+    cortex_m::interrupt::disable();
+    crate::fault::make_safe();
     loop {
         cortex_m::asm::wfi();
     }
-}
-
-/// Zeroes the command and drops the driver enable through the registers alone, whatever state
-/// the drivers are in. Writes to a stage that was never clocked are ignored by the hardware.
-pub fn emergency_stop() {
-    pac::DAC1
-        .dhr12r(0)
-        .write(|w| w.set_dhr(config::DAC.zero_code));
-    // The update event makes the DAC latch the zero code through TRGO.
-    pac::TIM2.egr().write(|w| w.set_ug(true));
-    pac::TIM2.cr1().modify(|w| w.set_cen(false));
-    pac::TIM1.bdtr().modify(|w| w.set_moe(false));
-    pac::GPIOA
-        .bsrr()
-        .write(|w| w.set_br(DRIVER_ENABLE_PIN, true));
 }
 
 impl app::Watchdog for Watchdog {
@@ -555,8 +650,11 @@ impl PwmStage {
             timer.set_compare_value(channel, 0);
             timer.enable_channel(channel, true);
         }
-        // With the main output off, drive both pins to their idle level (low).
-        timer.set_ossi(Ossi::IDLE_LEVEL);
+        // Main output off, both pins at their idle level (low).
+        timer
+            .regs_advanced()
+            .bdtr()
+            .write_value(BdtrAdv(TIM1_BDTR_OUTPUT_OFF));
         timer
             .regs_core()
             .cr1()
