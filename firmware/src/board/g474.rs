@@ -23,7 +23,9 @@
 //! of the repetitions loads the preloaded compare values (duty and direction) and repetition count.
 //! In both, the update interrupt only tells the control loop that the preload slot is free.
 //!
-//! The safe state is [`SAFE_STATE_WRITES`].
+//! The safe state is [`SAFE_STATE_WRITES`]. On a debugger halt the timers freeze (TIM1's outputs
+//! then go inactive) and the independent watchdog, left running, resets the board; a core lockup
+//! breaks TIM1.
 
 use core::future::poll_fn;
 use core::sync::atomic::{AtomicU32, Ordering};
@@ -38,7 +40,7 @@ use embassy_stm32::interrupt::typelevel::{self, Handler};
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
 use embassy_stm32::mode::{Async, Blocking};
 use embassy_stm32::pac::timer::regs::{BdtrAdv, Cr1Gp16, EgrGp16};
-use embassy_stm32::pac::timer::vals::{Ossi, Urs};
+use embassy_stm32::pac::timer::vals::{Bkp, Ossi, Urs};
 use embassy_stm32::peripherals::{DAC1, IWDG, PA4, PA8, PA9, TIM1, TIM2};
 use embassy_stm32::timer::low_level::{MasterMode, OutputCompareMode, Timer};
 use embassy_stm32::timer::simple_pwm::PwmPin;
@@ -100,10 +102,11 @@ const TIM1_BDTR: u32 = 0x4001_2C44;
 const SEGMENT_TIMER_CR1_STOPPED: u32 = 1 << 7 | 1 << 2;
 /// EGR with UG (bit 0): a forced update event.
 const EGR_UPDATE: u32 = 1;
-/// TIM1's BDTR with the main output off: OSSI (bit 10: with MOE clear the outputs are driven to
+/// TIM1's BDTR with the main output off: BKP (bit 13, break active high), BKE (bit 12, break
+/// enabled: a core lockup clears MOE) and OSSI (bit 10: with MOE clear the outputs are driven to
 /// their idle level, low); MOE (bit 15) clear (RM0440, TIM1/TIM8/TIM20, "TIMx break and dead-time
 /// register").
-const TIM1_BDTR_OUTPUT_OFF: u32 = 1 << 10;
+const TIM1_BDTR_OUTPUT_OFF: u32 = 1 << 13 | 1 << 12 | 1 << 10;
 
 // The raw values above mean what their comments say, as the PAC decodes them.
 const _: () = {
@@ -111,7 +114,8 @@ const _: () = {
     assert!(cr1.arpe() && !cr1.cen() && cr1.urs().to_bits() == Urs::COUNTER_ONLY.to_bits());
     assert!(EgrGp16(EGR_UPDATE).ug());
     let bdtr = BdtrAdv(TIM1_BDTR_OUTPUT_OFF);
-    assert!(!bdtr.moe() && !bdtr.aoe());
+    assert!(bdtr.bke(0) && !bdtr.moe() && !bdtr.aoe());
+    assert!(bdtr.bkp(0).to_bits() == Bkp::ACTIVE_HIGH.to_bits());
     assert!(bdtr.ossi().to_bits() == Ossi::IDLE_LEVEL.to_bits());
     assert!(pac::gpio::regs::Bsrr(1 << (16 + DRIVER_ENABLE_PIN)).br(DRIVER_ENABLE_PIN));
 };
@@ -360,6 +364,7 @@ pub fn init() -> Board {
         OutputStage::Dac => G474Output::Dac(DacStage::new(p.DAC1, p.PA4, p.TIM2)),
         OutputStage::PwmDir => G474Output::Pwm(PwmStage::new(p.TIM1, p.PA8, p.PA9)),
     };
+    freeze_on_halt();
     let mut watchdog = IndependentWatchdog::new(p.IWDG, config::WATCHDOG_TIMEOUT_US);
     watchdog.unleash();
 
@@ -405,6 +410,19 @@ fn clocks() -> Config {
     config.rcc.sys = rcc::Sysclk::PLL1_R;
     config.rcc.boost = true;
     config
+}
+
+/// On a debugger halt the segment timers stop (DBGMCU_APB1FZR1, APB2FZR): TIM1's outputs then
+/// go inactive, as if MOE were cleared (RM0440, TIM1/TIM8/TIM20, "Debug mode"), while TIM2 stops
+/// with the DAC holding its code. The independent watchdog keeps running (DBG_IWDG_STOP cleared,
+/// whatever a debugger set before): a halt longer than its timeout resets the board, which leaves
+/// PA4 at high impedance and the driver enable low.
+fn freeze_on_halt() {
+    pac::DBGMCU.apb1lfzr().modify(|w| {
+        w.set_tim2(true);
+        w.set_iwdg(false);
+    });
+    pac::DBGMCU.apb2fzr().modify(|w| w.set_tim1(true));
 }
 
 /// After a panic or HardFault, whose handler has made the safe state: interrupts off, so that no
@@ -650,11 +668,13 @@ impl PwmStage {
             timer.set_compare_value(channel, 0);
             timer.enable_channel(channel, true);
         }
-        // Main output off, both pins at their idle level (low).
-        timer
-            .regs_advanced()
-            .bdtr()
-            .write_value(BdtrAdv(TIM1_BDTR_OUTPUT_OFF));
+        // Main output off, both pins at their idle level (low); a core lockup breaks the timer
+        // (SYSCFG_CFGR2.CLL, RM0440, SYSCFG, "SYSCFG configuration register 2"), which clears
+        // MOE at once. The break input pin is not used.
+        pac::SYSCFG.cfgr2().modify(|w| w.set_cll(true));
+        let registers = timer.regs_advanced();
+        registers.af1().modify(|w| w.set_bkine(false));
+        registers.bdtr().write_value(BdtrAdv(TIM1_BDTR_OUTPUT_OFF));
         timer
             .regs_core()
             .cr1()
