@@ -1,4 +1,5 @@
-//! NUCLEO-G474RE: clocks, pins, the two output stages, watchdog and the safe state.
+//! NUCLEO-G474RE: clocks, pins, the two output stages, the edge counter, watchdog and the safe
+//! state.
 //!
 //! | Signal                    | Pin  | Nucleo header |
 //! |---------------------------|------|---------------|
@@ -21,14 +22,18 @@
 //! makes the DAC latch the preloaded holding register (the next code). PWM: TIM1 runs the carrier
 //! and its repetition counter counts the segment in carrier periods; the update event at the end
 //! of the repetitions loads the preloaded compare values (duty and direction) and repetition count.
-//! In both, the update interrupt only tells the control loop that the preload slot is free.
+//!
+//! The segment timer's TRGO (its update event) also clocks TIM3, which so counts the edges in
+//! hardware: the control loop decides from that count whether exactly one edge has passed, so an
+//! edge is never lost to a late interrupt or to two updates that collapse into one pending
+//! interrupt. The update interrupt only wakes the control loop.
 //!
 //! The safe state is [`SAFE_STATE_WRITES`]. On a debugger halt the timers freeze (TIM1's outputs
 //! then go inactive) and the independent watchdog, left running, resets the board; a core lockup
 //! breaks TIM1.
 
 use core::future::poll_fn;
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::{AtomicU16, Ordering};
 use core::task::Poll;
 
 use defmt_rtt as _;
@@ -41,8 +46,11 @@ use embassy_stm32::interrupt::{self, InterruptExt, Priority};
 use embassy_stm32::mode::{Async, Blocking};
 use embassy_stm32::pac::timer::regs::{BdtrAdv, Cr1Gp16, EgrGp16};
 use embassy_stm32::pac::timer::vals::{Bkp, Ossi, Urs};
-use embassy_stm32::peripherals::{DAC1, IWDG, PA4, PA8, PA9, TIM1, TIM2};
-use embassy_stm32::timer::low_level::{MasterMode, OutputCompareMode, Timer};
+use embassy_stm32::pac::timer::TimCore;
+use embassy_stm32::peripherals::{DAC1, IWDG, PA4, PA8, PA9, TIM1, TIM2, TIM3};
+use embassy_stm32::timer::low_level::{
+    MasterMode, OutputCompareMode, SlaveMode, Timer, TriggerSource,
+};
 use embassy_stm32::timer::simple_pwm::PwmPin;
 use embassy_stm32::timer::{Ch1, Ch2, Channel};
 use embassy_stm32::wdg::IndependentWatchdog;
@@ -196,7 +204,11 @@ pub struct Board {
     pub console: Console,
 }
 
-static EDGES: EdgeSignal = EdgeSignal::new();
+/// Wakes the control loop at every update event of the segment timer.
+static EDGE_WAKER: AtomicWaker = AtomicWaker::new();
+/// TIM3's count (see [`edges`]) when the playing segment began: the edges the control loop has
+/// taken. Written by the control loop only.
+static EDGES_TAKEN: AtomicU16 = AtomicU16::new(0);
 static CONTROL_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 
 bind_interrupts!(struct Irqs {
@@ -206,20 +218,35 @@ bind_interrupts!(struct Irqs {
     UART4 => ControlExecutor;
 });
 
-/// Update interrupt of the segment timer: one edge has passed.
+/// Update interrupt of the segment timer: wakes the control loop, which counts on TIM3.
 struct SegmentEdge;
 
 impl Handler<typelevel::TIM2> for SegmentEdge {
     unsafe fn on_interrupt() {
-        pac::TIM2.sr().modify(|w| w.set_uif(false));
-        EDGES.record();
+        let status = pac::TIM2.sr();
+        if status.read().uif() {
+            // The flags are rc_w0: a 1 leaves a flag as it is, so only UIF clears (a
+            // read-modify-write would also clear a flag set between its read and its write).
+            status.write(|w| {
+                w.0 = !0;
+                w.set_uif(false)
+            });
+            EDGE_WAKER.wake();
+        }
     }
 }
 
 impl Handler<typelevel::TIM1_UP_TIM16> for SegmentEdge {
     unsafe fn on_interrupt() {
-        pac::TIM1.sr().modify(|w| w.set_uif(false));
-        EDGES.record();
+        let status = pac::TIM1.sr();
+        if status.read().uif() {
+            // As for TIM2: only UIF clears.
+            status.write(|w| {
+                w.0 = !0;
+                w.set_uif(false)
+            });
+            EDGE_WAKER.wake();
+        }
     }
 }
 
@@ -361,8 +388,8 @@ pub fn init() -> Board {
     let led = gpio::Output::new(p.PA5, Level::Low, Speed::Low);
     let button = ExtiInput::new(p.PC13, p.EXTI13, Pull::Down, Irqs);
     let output = match config::OUTPUT_STAGE {
-        OutputStage::Dac => G474Output::Dac(DacStage::new(p.DAC1, p.PA4, p.TIM2)),
-        OutputStage::PwmDir => G474Output::Pwm(PwmStage::new(p.TIM1, p.PA8, p.PA9)),
+        OutputStage::Dac => G474Output::Dac(DacStage::new(p.DAC1, p.PA4, p.TIM2, p.TIM3)),
+        OutputStage::PwmDir => G474Output::Pwm(PwmStage::new(p.TIM1, p.PA8, p.PA9, p.TIM3)),
     };
     freeze_on_halt();
     let mut watchdog = IndependentWatchdog::new(p.IWDG, config::WATCHDOG_TIMEOUT_US);
@@ -372,7 +399,7 @@ pub fn init() -> Board {
     for edge_irq in [interrupt::TIM2, interrupt::TIM1_UP_TIM16] {
         edge_irq.set_priority(Priority::P0);
         edge_irq.unpend();
-        // SAFETY: both handlers are bound above and touch only their timer's flag and EDGES.
+        // SAFETY: both handlers are bound above and touch only their timer's flag and the waker.
         unsafe { edge_irq.enable() };
     }
     interrupt::UART4.set_priority(Priority::P1);
@@ -412,14 +439,15 @@ fn clocks() -> Config {
     config
 }
 
-/// On a debugger halt the segment timers stop (DBGMCU_APB1FZR1, APB2FZR): TIM1's outputs then
-/// go inactive, as if MOE were cleared (RM0440, TIM1/TIM8/TIM20, "Debug mode"), while TIM2 stops
-/// with the DAC holding its code. The independent watchdog keeps running (DBG_IWDG_STOP cleared,
-/// whatever a debugger set before): a halt longer than its timeout resets the board, which leaves
-/// PA4 at high impedance and the driver enable low.
+/// On a debugger halt the segment timers and the edge counter stop (DBGMCU_APB1FZR1, APB2FZR):
+/// TIM1's outputs then go inactive, as if MOE were cleared (RM0440, TIM1/TIM8/TIM20, "Debug
+/// mode"), while TIM2 stops with the DAC holding its code. The independent watchdog keeps running
+/// (DBG_IWDG_STOP cleared, whatever a debugger set before): a halt longer than its timeout resets
+/// the board, which leaves PA4 at high impedance and the driver enable low.
 fn freeze_on_halt() {
     pac::DBGMCU.apb1lfzr().modify(|w| {
         w.set_tim2(true);
+        w.set_tim3(true);
         w.set_iwdg(false);
     });
     pac::DBGMCU.apb2fzr().modify(|w| w.set_tim1(true));
@@ -441,6 +469,43 @@ impl app::Watchdog for Watchdog {
     fn feed(&mut self) {
         self.pet();
     }
+}
+
+/// TIM3's count of the segment timer's update events (wrapping at 16 bits).
+fn edges() -> u16 {
+    pac::TIM3.cnt().read().cnt()
+}
+
+/// Starts TIM3 counting the update events of a segment timer: external clock mode 1 (SMS = 0111)
+/// clocked by the internal trigger `segment_timer_trgo`, TIM3's ITR0 = TIM1_TRGO or
+/// ITR1 = TIM2_TRGO (RM0440, TIM2/TIM3/TIM4/TIM5, "TIMx internal trigger connection"; "Using one
+/// timer as prescaler for another timer"), whose TRGO is set to its update event.
+fn start_edge_counter(
+    tim: Peri<'static, TIM3>,
+    segment_timer_trgo: TriggerSource,
+) -> Timer<'static, TIM3> {
+    let counter = Timer::new(tim);
+    counter.set_trigger_source(segment_timer_trgo);
+    counter.set_slave_mode(SlaveMode::EXT_CLOCK_MODE);
+    counter.start();
+    EDGES_TAKEN.store(edges(), Ordering::Relaxed);
+    counter
+}
+
+/// Forces an update event of a stopped segment timer: its preloaded registers load and its TRGO
+/// fires, which TIM3 counts as one edge, taken here as the control loop's own (URS keeps the
+/// update interrupt quiet).
+fn forced_update(timer: TimCore) {
+    EDGES_TAKEN.store(edges().wrapping_add(1), Ordering::Relaxed);
+    timer.egr().write(|w| w.set_ug(true));
+}
+
+/// Clears a pending update flag by a write (the flags are rc_w0, see [`SegmentEdge`]).
+fn clear_update_flag(timer: TimCore) {
+    timer.sr().write(|w| {
+        w.0 = !0;
+        w.set_uif(false)
+    });
 }
 
 /// The output stage chosen by [`config::OUTPUT_STAGE`].
@@ -479,28 +544,36 @@ impl SegmentOutput for G474Output {
     }
 
     fn preload(&mut self, segment: &Segment) -> Result<(), EdgeMissed> {
-        let (seen, pending) = match self {
+        let update_pending = match self {
             G474Output::Dac(stage) => stage.preload(segment)?,
             G474Output::Pwm(stage) => stage.preload(segment),
         };
-        // An edge during the writes may have split the preload across two segments.
-        if pending || EDGES.count() != seen {
+        // An edge before the writes completed may have split the preload across two segments.
+        // TIM3 counts it a few timer cycles after the update event; UIF shows it at once, until
+        // the update interrupt, which preempts this code, clears it.
+        if update_pending || edges() != EDGES_TAKEN.load(Ordering::Relaxed) {
             return Err(EdgeMissed);
         }
         Ok(())
     }
 
     async fn wait_edge(&mut self) -> Result<(), EdgeMissed> {
-        let seen = match self {
-            G474Output::Dac(stage) => &mut stage.seen,
-            G474Output::Pwm(stage) => &mut stage.seen,
-        };
-        let (now, passed) = EDGES.wait_past(*seen).await;
-        *seen = now;
+        let taken = EDGES_TAKEN.load(Ordering::Relaxed);
+        let now = poll_fn(|cx| {
+            EDGE_WAKER.register(cx.waker());
+            let now = edges();
+            if now == taken {
+                Poll::Pending
+            } else {
+                Poll::Ready(now)
+            }
+        })
+        .await;
+        EDGES_TAKEN.store(now, Ordering::Relaxed);
         if let G474Output::Dac(stage) = self {
             stage.playing_slack_ticks = stage.queued_slack_ticks.take();
         }
-        if passed == 1 {
+        if now.wrapping_sub(taken) == 1 {
             Ok(())
         } else {
             Err(EdgeMissed)
@@ -527,20 +600,24 @@ impl SegmentOutput for G474Output {
     }
 }
 
-/// Analog command on PA4, edges timed by TIM2.
+/// Analog command on PA4, edges timed by TIM2 and counted by TIM3.
 pub struct DacStage {
     dac: DacChannel<'static, Blocking>,
     timer: Timer<'static, TIM2>,
+    _edge_counter: Timer<'static, TIM3>,
     levels: Option<DacLevels>,
-    /// Edge count when the playing segment began.
-    seen: u32,
     /// Preload slack of the preloaded segment and of the playing one (`None`: restarted).
     queued_slack_ticks: Option<u32>,
     playing_slack_ticks: Option<u32>,
 }
 
 impl DacStage {
-    fn new(dac: Peri<'static, DAC1>, pin: Peri<'static, PA4>, tim: Peri<'static, TIM2>) -> Self {
+    fn new(
+        dac: Peri<'static, DAC1>,
+        pin: Peri<'static, PA4>,
+        tim: Peri<'static, TIM2>,
+        edge_counter: Peri<'static, TIM3>,
+    ) -> Self {
         let mut dac = DacChannel::new_blocking(dac, pin);
         // Untriggered, the zero code reaches the pin at once.
         dac.set(Value::Bit12Right(config::DAC.zero_code));
@@ -566,8 +643,8 @@ impl DacStage {
         Self {
             dac,
             timer,
+            _edge_counter: start_edge_counter(edge_counter, TriggerSource::ITR1),
             levels: None,
-            seen: EDGES.count(),
             queued_slack_ticks: None,
             playing_slack_ticks: None,
         }
@@ -592,19 +669,17 @@ impl DacStage {
             .regs_gp32()
             .arr()
             .write_value(segment.ticks.saturating_sub(1));
-        // Loads the length and, through TRGO, the code; no interrupt (URS).
-        self.timer.regs_core().egr().write(|w| w.set_ug(true));
-        self.timer.clear_update_interrupt();
-        self.seen = EDGES.count();
+        // Loads the length and, through TRGO, the code.
+        forced_update(self.timer.regs_core());
+        clear_update_flag(self.timer.regs_core());
         self.queued_slack_ticks = None;
         self.playing_slack_ticks = None;
         self.timer.start();
     }
 
     /// Writes the next code and length and keeps the slack left when they were written (the
-    /// playing segment's auto-reload + 1 − the count); returns the edge count to check and
-    /// whether an update is pending.
-    fn preload(&mut self, segment: &Segment) -> Result<(u32, bool), EdgeMissed> {
+    /// playing segment's auto-reload + 1 − the count); returns whether an update is pending.
+    fn preload(&mut self, segment: &Segment) -> Result<bool, EdgeMissed> {
         // A one-tick segment would stop the counter (auto-reload 0) and cannot be prepared.
         if segment.ticks < 2 {
             return Err(EdgeMissed);
@@ -618,32 +693,38 @@ impl DacStage {
                 .wrapping_add(1)
                 .wrapping_sub(counter.cnt().read()),
         );
-        Ok((self.seen, self.timer.regs_core().sr().read().uif()))
+        // Both writes done (the DAC's is on another bus) before the checks.
+        cortex_m::asm::dsb();
+        Ok(self.timer.regs_core().sr().read().uif())
     }
 
     fn halt(&mut self) {
         self.timer.stop();
         self.dac.set(Value::Bit12Right(config::DAC.zero_code));
-        self.timer.regs_core().egr().write(|w| w.set_ug(true));
+        forced_update(self.timer.regs_core());
     }
 }
 
 /// PWM magnitude on PA8 and direction on PA9 (high = forward), segments counted in carrier
-/// periods by TIM1's repetition counter.
+/// periods by TIM1's repetition counter and in segments by TIM3.
 pub struct PwmStage {
     timer: Timer<'static, TIM1>,
     _magnitude: PwmPin<'static, TIM1, Ch1>,
     _direction: PwmPin<'static, TIM1, Ch2>,
+    _edge_counter: Timer<'static, TIM3>,
     /// Timer counts per carrier period (100 % duty).
     period_counts: u16,
     clock: TickClock,
     levels: Option<PwmLevels>,
-    /// Edge count when the playing segment began.
-    seen: u32,
 }
 
 impl PwmStage {
-    fn new(tim: Peri<'static, TIM1>, pwm: Peri<'static, PA8>, dir: Peri<'static, PA9>) -> Self {
+    fn new(
+        tim: Peri<'static, TIM1>,
+        pwm: Peri<'static, PA8>,
+        dir: Peri<'static, PA9>,
+        edge_counter: Peri<'static, TIM3>,
+    ) -> Self {
         let magnitude = PwmPin::new(pwm, OutputType::PushPull);
         let direction = PwmPin::new(dir, OutputType::PushPull);
         let timer = Timer::new(tim);
@@ -675,6 +756,7 @@ impl PwmStage {
         let registers = timer.regs_advanced();
         registers.af1().modify(|w| w.set_bkine(false));
         registers.bdtr().write_value(BdtrAdv(TIM1_BDTR_OUTPUT_OFF));
+        timer.set_master_mode(MasterMode::UPDATE);
         timer
             .regs_core()
             .cr1()
@@ -684,13 +766,13 @@ impl PwmStage {
             timer,
             _magnitude: magnitude,
             _direction: direction,
+            _edge_counter: start_edge_counter(edge_counter, TriggerSource::ITR0),
             period_counts,
             // The repetition counter has 16 bits.
             clock: TickClock::new(carrier_hz)
                 .with_max_segment_ticks(1 << 16)
                 .with_min_segment_s(MIN_SEGMENT_S),
             levels: None,
-            seen: EDGES.count(),
         }
     }
 
@@ -717,60 +799,21 @@ impl PwmStage {
         self.timer.stop();
         self.timer.reset();
         self.write(segment);
-        self.timer.regs_core().egr().write(|w| w.set_ug(true));
-        self.timer.clear_update_interrupt();
-        self.seen = EDGES.count();
+        forced_update(self.timer.regs_core());
+        clear_update_flag(self.timer.regs_core());
         self.timer.set_moe(true);
         self.timer.start();
     }
 
-    fn preload(&mut self, segment: &Segment) -> (u32, bool) {
+    /// Writes the next duty, direction and length; returns whether an update is pending.
+    fn preload(&mut self, segment: &Segment) -> bool {
         self.write(segment);
-        (self.seen, self.timer.regs_core().sr().read().uif())
+        cortex_m::asm::dsb();
+        self.timer.regs_core().sr().read().uif()
     }
 
     fn halt(&mut self) {
         self.timer.set_moe(false);
         self.timer.stop();
-    }
-}
-
-/// Edge count of the segment timer, shared between its interrupt and the output stage.
-pub struct EdgeSignal {
-    edges: AtomicU32,
-    waker: AtomicWaker,
-}
-
-impl EdgeSignal {
-    pub const fn new() -> Self {
-        Self {
-            edges: AtomicU32::new(0),
-            waker: AtomicWaker::new(),
-        }
-    }
-
-    /// Records one edge; called from the segment timer's interrupt.
-    pub fn record(&self) {
-        self.edges.fetch_add(1, Ordering::Release);
-        self.waker.wake();
-    }
-
-    /// Edges recorded so far (wrapping).
-    pub fn count(&self) -> u32 {
-        self.edges.load(Ordering::Acquire)
-    }
-
-    /// Waits until the count differs from `seen` and returns how many edges have passed.
-    pub async fn wait_past(&self, seen: u32) -> (u32, u32) {
-        poll_fn(|cx| {
-            self.waker.register(cx.waker());
-            let now = self.count();
-            if now == seen {
-                Poll::Pending
-            } else {
-                Poll::Ready((now, now.wrapping_sub(seen)))
-            }
-        })
-        .await
     }
 }
