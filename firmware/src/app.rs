@@ -70,6 +70,9 @@ static PHASE: AtomicU8 = AtomicU8::new(Phase::Stopped as u8);
 static CYCLE_COUNTER_RUNS: AtomicBool = AtomicBool::new(false);
 /// Counts the control loop's progress (segment starts, or parking ticks).
 static HEARTBEAT: AtomicU32 = AtomicU32::new(0);
+/// Counts thread mode's progress (see [`thread_heartbeat_task`]).
+#[cfg(feature = "board-g474")]
+static THREAD_HEARTBEAT: AtomicU32 = AtomicU32::new(0);
 /// CPU cost of the work per edge since the last report.
 static COST: EdgeCost = EdgeCost::new();
 
@@ -218,10 +221,25 @@ pub fn start(spawner: SendSpawner, board: Board) -> TickClock {
     board.control_spawner.spawn(unwrap!(control_task(control)));
     spawner.spawn(unwrap!(button_task(board.button)));
     spawner.spawn(unwrap!(led_task(board.led)));
-    spawner.spawn(unwrap!(monitor_task(board.watchdog)));
+    spawn_monitor(spawner, board.control_spawner, board.watchdog);
     #[cfg(feature = "console")]
     spawner.spawn(unwrap!(board::console_task(board.console, clock)));
     clock
+}
+
+/// On the board the monitor runs on the control executor: the watchdog's timeout
+/// ([`config::WATCHDOG_TIMEOUT_US`]) is shorter than the longest thread-mode work (a recipe write,
+/// tens of milliseconds), so thread mode beats for it instead.
+#[cfg(feature = "board-g474")]
+fn spawn_monitor(spawner: SendSpawner, control_spawner: SendSpawner, watchdog: board::Watchdog) {
+    control_spawner.spawn(unwrap!(monitor_task(watchdog)));
+    spawner.spawn(unwrap!(thread_heartbeat_task()));
+}
+
+/// Under QEMU, which models no watchdog, the monitor runs with the other tasks.
+#[cfg(not(feature = "board-g474"))]
+fn spawn_monitor(spawner: SendSpawner, _control_spawner: SendSpawner, watchdog: board::Watchdog) {
+    spawner.spawn(unwrap!(monitor_task(watchdog)));
 }
 
 #[embassy_executor::task]
@@ -265,34 +283,91 @@ async fn led_task(mut led: board::Led) {
     }
 }
 
-/// Feeds the watchdog while the control loop makes progress and logs the CPU cost of the edges.
+/// Feeds the watchdog every [`config::MONITOR_PERIOD_US`] while the application makes progress,
+/// and logs the CPU cost of the edges.
+///
+/// The control loop beats at every segment start, so it may go a whole segment without one: the
+/// monitor stops feeding (and warns, once) only when it has not beaten for
+/// [`config::CONTROL_PROGRESS_WINDOW_US`]. On the board, where the monitor runs above thread mode
+/// (see [`start`]), thread mode beats for it too.
 #[embassy_executor::task]
 async fn monitor_task(mut watchdog: board::Watchdog) {
-    let mut ticker = Ticker::every(Duration::from_millis(config::MONITOR_PERIOD_MS));
-    let mut last_beat = HEARTBEAT.load(Ordering::Relaxed);
+    let mut ticker = Ticker::every(Duration::from_micros(config::MONITOR_PERIOD_US));
+    let mut control = Progress::new(&HEARTBEAT, config::CONTROL_PROGRESS_WINDOW_US);
+    #[cfg(feature = "board-g474")]
+    let mut thread_mode = Progress::new(&THREAD_HEARTBEAT, config::THREAD_PROGRESS_WINDOW_US);
     let mut periods = 0u32;
     let mut report_start = cycles();
     loop {
         ticker.next().await;
-        let beat = HEARTBEAT.load(Ordering::Relaxed);
-        if beat != last_beat {
+        let alive = control.check("control loop");
+        #[cfg(feature = "board-g474")]
+        let alive = thread_mode.check("thread mode") && alive;
+        if alive {
             watchdog.feed();
-            last_beat = beat;
-        } else {
-            warn!(
-                "control loop made no progress for {=u64} ms",
-                config::MONITOR_PERIOD_MS
-            );
         }
         periods += 1;
-        if periods == config::REPORT_EVERY_MONITOR_PERIODS
-            && CYCLE_COUNTER_RUNS.load(Ordering::Relaxed)
-        {
+        if periods == REPORT_EVERY_MONITOR_PERIODS && CYCLE_COUNTER_RUNS.load(Ordering::Relaxed) {
             periods = 0;
             let now = cycles();
             COST.report(now.wrapping_sub(report_start));
             report_start = now;
         }
+    }
+}
+
+/// Monitor periods between two reports of the CPU cost of the edges.
+const REPORT_EVERY_MONITOR_PERIODS: u32 =
+    (config::REPORT_PERIOD_US / config::MONITOR_PERIOD_US) as u32;
+
+/// Beats of one part of the application, as the monitor sees them.
+struct Progress {
+    beats: &'static AtomicU32,
+    last_beat: u32,
+    /// Monitor periods since the last beat.
+    quiet_periods: u32,
+    /// Monitor periods without a beat after which the part counts as stuck.
+    window_periods: u32,
+}
+
+impl Progress {
+    fn new(beats: &'static AtomicU32, window_us: u64) -> Self {
+        Self {
+            beats,
+            last_beat: beats.load(Ordering::Relaxed),
+            quiet_periods: 0,
+            window_periods: window_us.div_ceil(config::MONITOR_PERIOD_US) as u32,
+        }
+    }
+
+    /// True while the part has beaten within its window; warns once when it stops.
+    fn check(&mut self, part: &str) -> bool {
+        let beat = self.beats.load(Ordering::Relaxed);
+        if beat != self.last_beat {
+            self.last_beat = beat;
+            self.quiet_periods = 0;
+            return true;
+        }
+        self.quiet_periods = self.quiet_periods.saturating_add(1);
+        if self.quiet_periods == self.window_periods {
+            warn!(
+                "{=str} made no progress for {=u64} µs: the watchdog is no longer fed",
+                part,
+                u64::from(self.quiet_periods) * config::MONITOR_PERIOD_US
+            );
+        }
+        self.quiet_periods < self.window_periods
+    }
+}
+
+/// Beats for the monitor from thread mode, where the button, the LED and the console run.
+#[cfg(feature = "board-g474")]
+#[embassy_executor::task]
+async fn thread_heartbeat_task() {
+    let mut ticker = Ticker::every(Duration::from_millis(config::THREAD_HEARTBEAT_MS));
+    loop {
+        THREAD_HEARTBEAT.fetch_add(1, Ordering::Relaxed);
+        ticker.next().await;
     }
 }
 
@@ -391,12 +466,13 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         Some(plan)
     }
 
-    /// Invalid settings: stay at zero with the driver disabled; only a reset helps.
+    /// Invalid settings: stay at zero with the driver disabled; only a reset helps. Beats for the
+    /// monitor well within its window, so that the watchdog stays fed.
     async fn park(mut self) -> ! {
         self.handle(SupervisorEvent::Fault(Fault::InvalidSettings), None);
         loop {
             HEARTBEAT.fetch_add(1, Ordering::Relaxed);
-            Timer::after_millis(config::MONITOR_PERIOD_MS).await;
+            Timer::after_millis(config::PARK_HEARTBEAT_MS).await;
         }
     }
 

@@ -1,16 +1,17 @@
-//! NUCLEO-G474RE: clocks, pins, the two output stages, the edge counter, watchdog and the safe
-//! state.
+//! NUCLEO-G474RE: clocks, pins, the two output stages, the edge counter, the watchdog and the
+//! safe state.
 //!
-//! | Signal                    | Pin  | Nucleo header |
-//! |---------------------------|------|---------------|
-//! | analog command (DAC1 ch1) | PA4  | A2            |
-//! | PWM magnitude (TIM1 CH1)  | PA8  | D7            |
-//! | direction (TIM1 CH2)      | PA9  | D8            |
-//! | driver enable (high = on) | PA10 | D2            |
-//! | start/stop button B1      | PC13 | —             |
-//! | status LED LD2            | PA5  | D13           |
-//! | console TX (LPUART1)      | PA2  | ST-LINK VCP   |
-//! | console RX (LPUART1)      | PA3  | ST-LINK VCP   |
+//! | Signal                      | Pin  | Nucleo header |
+//! |-----------------------------|------|---------------|
+//! | analog command (DAC1 ch1)   | PA4  | A2            |
+//! | PWM magnitude (TIM1 CH1)    | PA8  | D7            |
+//! | direction (TIM1 CH2)        | PA9  | D8            |
+//! | driver enable (high = on)   | PA10 | D2            |
+//! | feed pulses (enable keeper) | PB5  | D4            |
+//! | start/stop button B1        | PC13 | —             |
+//! | status LED LD2              | PA5  | D13           |
+//! | console TX (LPUART1)        | PA2  | ST-LINK VCP   |
+//! | console RX (LPUART1)        | PA3  | ST-LINK VCP   |
 //!
 //! The operator's console runs on LPUART1 (115200 8N1), which the NUCLEO routes to the ST-LINK's
 //! virtual COM port. Recipes live in the last 2 KiB page of flash (bank 2 in the factory-default
@@ -30,7 +31,8 @@
 //!
 //! The safe state is [`SAFE_STATE_WRITES`]. On a debugger halt the timers freeze (TIM1's outputs
 //! then go inactive) and the independent watchdog, left running, resets the board; a core lockup
-//! breaks TIM1.
+//! breaks TIM1. Every feed of the watchdog also toggles PB5, for an external retriggerable
+//! monostable that keeps the driver enabled only while the feeds go on (`firmware/README.md`).
 
 use core::future::poll_fn;
 use core::sync::atomic::{AtomicU16, Ordering};
@@ -67,7 +69,7 @@ pub type Output = G474Output;
 pub type DriverEnable = gpio::Output<'static>;
 pub type Led = gpio::Output<'static>;
 pub type Button = ExtiInput<'static, Async>;
-pub type Watchdog = IndependentWatchdog<'static, IWDG>;
+pub type Watchdog = OutputWatchdog;
 
 /// Core clock (`clocks`).
 const CORE_HZ: f64 = 170e6;
@@ -392,8 +394,14 @@ pub fn init() -> Board {
         OutputStage::PwmDir => G474Output::Pwm(PwmStage::new(p.TIM1, p.PA8, p.PA9, p.TIM3)),
     };
     freeze_on_halt();
-    let mut watchdog = IndependentWatchdog::new(p.IWDG, config::WATCHDOG_TIMEOUT_US);
-    watchdog.unleash();
+    // The first period after the start counts down from the reset value 0xFFF (512 ms at LSI/4,
+    // RM0440, IWDG, "Independent watchdog functional description"), which covers the rest of the
+    // start-up; every feed then reloads the configured timeout.
+    let mut watchdog = OutputWatchdog {
+        iwdg: IndependentWatchdog::new(p.IWDG, config::WATCHDOG_TIMEOUT_US),
+        feed_pulses: gpio::Output::new(p.PB5, Level::Low, Speed::Low),
+    };
+    watchdog.iwdg.unleash();
 
     // Edges above the control executor, which is above the thread-mode tasks.
     for edge_irq in [interrupt::TIM2, interrupt::TIM1_UP_TIM16] {
@@ -455,8 +463,8 @@ fn freeze_on_halt() {
 
 /// After a panic or HardFault, whose handler has made the safe state: interrupts off, so that no
 /// handler (the control loop) runs again and undoes it, the safe state once more (the segment
-/// timers stopped, their update interrupts off), then wait for the independent watchdog to reset
-/// the board.
+/// timers stopped, their update interrupts off), then no more feeds: the independent watchdog
+/// resets the board within its timeout, and the enable keeper drops the enable.
 pub fn after_fault() -> ! {
     cortex_m::interrupt::disable();
     crate::fault::make_safe();
@@ -465,9 +473,23 @@ pub fn after_fault() -> ! {
     }
 }
 
-impl app::Watchdog for Watchdog {
+/// The independent watchdog, fed only while the output plays what the control loop preloaded,
+/// and the feed pulses on PB5: every feed toggles it, for an external retriggerable monostable
+/// that keeps the driver enabled only while the pulses go on (`firmware/README.md`).
+pub struct OutputWatchdog {
+    iwdg: IndependentWatchdog<'static, IWDG>,
+    feed_pulses: gpio::Output<'static>,
+}
+
+impl app::Watchdog for OutputWatchdog {
+    /// Feeds unless the output replays a segment: two or more edges past the ones the control
+    /// loop has taken mean that the segment timer has started the playing segment again.
     fn feed(&mut self) {
-        self.pet();
+        if edges().wrapping_sub(EDGES_TAKEN.load(Ordering::Relaxed)) >= 2 {
+            return;
+        }
+        self.iwdg.pet();
+        self.feed_pulses.toggle();
     }
 }
 
