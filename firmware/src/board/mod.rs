@@ -1,5 +1,5 @@
 //! Board support: everything that touches registers. Exactly one board is selected by a cargo
-//! feature; each provides the same items (`Board`, `init`, `emergency_stop`, `after_fault` and
+//! feature; each provides the same items (`Board`, `init`, `SAFE_STATE_WRITES`, `after_fault` and
 //! the pin types).
 
 #[cfg(all(feature = "board-g474", feature = "board-qemu"))]
