@@ -80,7 +80,7 @@ const CORE_HZ: f64 = 170e6;
 const CYCLES_PER_INSTRUCTION: f64 = 1.5;
 
 /// The shortest segment either output stage takes: the worst work per edge measured in
-/// instructions, at this core's speed, times the margin (about 281 µs).
+/// instructions, at this core's speed, times the margin (about 285 µs).
 const MIN_SEGMENT_S: f64 =
     config::EDGE_WORK_MARGIN * config::EDGE_WORK_INSTRUCTIONS * CYCLES_PER_INSTRUCTION / CORE_HZ;
 
