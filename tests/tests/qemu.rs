@@ -175,14 +175,7 @@ fn thousand_cycles(frequency_hz: &str, stroke_m: &str) {
     assert!(least > 0, "least slack {least} ticks");
 
     // The scenario's plans: the initial one, its own start plan and the live duty change.
-    let specs: Vec<WaveformSpec> = stream
-        .events
-        .iter()
-        .filter_map(|event| match event {
-            Event::Plan { spec, .. } => Some(*spec),
-            _ => None,
-        })
-        .collect();
+    let specs = plan_specs(&stream);
     let final_spec = *specs.last().expect("plans are reported");
     assert_eq!(
         final_spec.period_s,
@@ -209,15 +202,7 @@ fn thousand_cycles(frequency_hz: &str, stroke_m: &str) {
         planned.feed_rate_mps,
         predicted.feed_rate_mps
     );
-    let bound_m: f64 = specs
-        .iter()
-        .map(|spec| {
-            let waveform = Waveform::new(*spec, &Limits::NONE).unwrap();
-            TickPlan::new(&waveform, TickClock::new(clock_hz))
-                .unwrap()
-                .drift_bound_m
-        })
-        .sum();
+    let bound_m = drift_bound_m(&specs, clock_hz);
     assert!(
         planned.plate_drift_m.abs() <= bound_m,
         "plate drift {} m > {} m",
@@ -250,23 +235,8 @@ fn random_changes_on_the_scripted_image_follow_the_shared_plan() {
     assert!(stops > 5, "{stops} stops");
     assert!(refused > 10, "{refused} changes refused: some must fall past the range");
 
-    let specs: Vec<WaveformSpec> = stream
-        .events
-        .iter()
-        .filter_map(|event| match event {
-            Event::Plan { spec, .. } => Some(*spec),
-            _ => None,
-        })
-        .collect();
-    let bound_m: f64 = specs
-        .iter()
-        .map(|spec| {
-            let waveform = Waveform::new(*spec, &Limits::NONE).unwrap();
-            TickPlan::new(&waveform, TickClock::new(clock_hz))
-                .unwrap()
-                .drift_bound_m
-        })
-        .sum();
+    let specs = plan_specs(&stream);
+    let bound_m = drift_bound_m(&specs, clock_hz);
     let contact = Contact::kinetic(1.0, 1e-3).unwrap();
     let planned = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Planned);
     assert!(
@@ -275,6 +245,32 @@ fn random_changes_on_the_scripted_image_follow_the_shared_plan() {
         planned.plate_drift_m,
         bound_m
     );
+}
+
+/// The waveforms of the plans the firmware took, in order.
+fn plan_specs(stream: &Stream) -> Vec<WaveformSpec> {
+    stream
+        .events
+        .iter()
+        .filter_map(|event| match event {
+            Event::Plan { spec, .. } => Some(*spec),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The plans' drift bounds added up: how far the plate may be from its start at a cycle
+/// boundary after running each of them.
+fn drift_bound_m(specs: &[WaveformSpec], clock_hz: u32) -> f64 {
+    specs
+        .iter()
+        .map(|spec| {
+            let waveform = Waveform::new(*spec, &Limits::NONE).unwrap();
+            TickPlan::new(&waveform, TickClock::new(clock_hz))
+                .unwrap()
+                .drift_bound_m
+        })
+        .sum()
 }
 
 fn tail(log: &str) -> String {
