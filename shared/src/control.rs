@@ -56,7 +56,9 @@ pub struct Snapshot {
     pub cycles: u64,
 }
 
-/// What the control loop must do after a command.
+/// What the control loop must do after a command. `Configure` carries the whole plan: it is
+/// made once per command and moved to the control loop without an allocator to box it.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Action {
