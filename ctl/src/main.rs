@@ -47,7 +47,11 @@ struct Options {
     /// One command (e.g. `set feed 30`, `set duty -0.5`); without it, commands are read from
     /// standard input. Exit code 0 for `OK`, 1 for `ERR`, 2 for bad arguments, a connection
     /// error or no reply in time.
-    #[arg(trailing_var_arg = true, allow_hyphen_values = true, value_name = "COMMAND")]
+    #[arg(
+        trailing_var_arg = true,
+        allow_hyphen_values = true,
+        value_name = "COMMAND"
+    )]
     command: Vec<String>,
 }
 

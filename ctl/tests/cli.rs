@@ -63,7 +63,15 @@ fn a_negative_value_after_a_space_is_sent_as_typed() {
             format!("ERR 1 unexpected `{line}`")
         }
     });
-    let output = feeder_ctl(&["--tcp", &address, "--timeout-ms", "2000", "set", "duty", "-0.5"]);
+    let output = feeder_ctl(&[
+        "--tcp",
+        &address,
+        "--timeout-ms",
+        "2000",
+        "set",
+        "duty",
+        "-0.5",
+    ]);
     assert_eq!(output.status.code(), Some(1), "ERR replies exit with 1");
     assert_eq!(
         String::from_utf8_lossy(&output.stdout),
@@ -77,7 +85,10 @@ fn a_negative_timeout_after_a_space_is_refused_with_its_value_named() {
     let output = feeder_ctl(&["--tcp", "127.0.0.1:9", "--timeout-ms", "-5", "status"]);
     assert_eq!(output.status.code(), Some(2));
     let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(stderr.contains("'-5'") && stderr.contains("1..=3600000"), "{stderr}");
+    assert!(
+        stderr.contains("'-5'") && stderr.contains("1..=3600000"),
+        "{stderr}"
+    );
 }
 
 #[test]

@@ -595,7 +595,11 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     }
 
     /// Feeds `event` to the supervisor, carries out its decision and returns it.
-    fn handle(&mut self, event: SupervisorEvent, scheduler: Option<&mut Scheduler>) -> MotionRequest {
+    fn handle(
+        &mut self,
+        event: SupervisorEvent,
+        scheduler: Option<&mut Scheduler>,
+    ) -> MotionRequest {
         let before = self.supervisor.state();
         let request = self.supervisor.handle(event);
         if let Some(scheduler) = scheduler {

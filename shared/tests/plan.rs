@@ -148,8 +148,18 @@ fn a_segment_below_the_output_floor_is_refused_with_its_length_and_the_floor() {
     // The paper's point has its shortest segment at 1713 µs: well above the floor.
     assert!(TickPlan::new(&waveform(50.0, 0.586, 0.0025), clock).is_ok());
     // The floor rounds up to whole ticks and is never below one.
-    assert_eq!(TickClock::new(1_000_000).with_min_segment_s(120.2e-6).min_segment_ticks, 121);
-    assert_eq!(TickClock::new(1_000_000).with_min_segment_s(0.0).min_segment_ticks, 1);
+    assert_eq!(
+        TickClock::new(1_000_000)
+            .with_min_segment_s(120.2e-6)
+            .min_segment_ticks,
+        121
+    );
+    assert_eq!(
+        TickClock::new(1_000_000)
+            .with_min_segment_s(0.0)
+            .min_segment_ticks,
+        1
+    );
 }
 
 proptest! {

@@ -7,31 +7,80 @@ use proptest::prelude::*;
 
 #[test]
 fn each_key_reads_its_value() {
-    assert_eq!(parse_setting("cycles=1000"), Ok(ScenarioSetting::Cycles(1000)));
-    assert_eq!(parse_setting("freq_hz=100"), Ok(ScenarioSetting::FreqHz(100.0)));
-    assert_eq!(parse_setting("duty=0.606"), Ok(ScenarioSetting::Duty(0.606)));
-    assert_eq!(parse_setting("stroke_m=6e-4"), Ok(ScenarioSetting::StrokeM(6e-4)));
-    assert_eq!(parse_setting("new_duty=-0.5"), Ok(ScenarioSetting::NewDuty(-0.5)));
+    assert_eq!(
+        parse_setting("cycles=1000"),
+        Ok(ScenarioSetting::Cycles(1000))
+    );
+    assert_eq!(
+        parse_setting("freq_hz=100"),
+        Ok(ScenarioSetting::FreqHz(100.0))
+    );
+    assert_eq!(
+        parse_setting("duty=0.606"),
+        Ok(ScenarioSetting::Duty(0.606))
+    );
+    assert_eq!(
+        parse_setting("stroke_m=6e-4"),
+        Ok(ScenarioSetting::StrokeM(6e-4))
+    );
+    assert_eq!(
+        parse_setting("new_duty=-0.5"),
+        Ok(ScenarioSetting::NewDuty(-0.5))
+    );
     assert_eq!(parse_setting("ramp=0"), Ok(ScenarioSetting::Ramp(0)));
-    assert_eq!(parse_setting("ramp=65535"), Ok(ScenarioSetting::Ramp(u16::MAX)));
+    assert_eq!(
+        parse_setting("ramp=65535"),
+        Ok(ScenarioSetting::Ramp(u16::MAX))
+    );
     assert_eq!(parse_setting("panic_at=0"), Ok(ScenarioSetting::PanicAt(0)));
-    assert_eq!(parse_setting("overflow_at=30"), Ok(ScenarioSetting::OverflowAt(30)));
+    assert_eq!(
+        parse_setting("overflow_at=30"),
+        Ok(ScenarioSetting::OverflowAt(30))
+    );
     assert_eq!(parse_setting("mask_at=0"), Ok(ScenarioSetting::MaskAt(0)));
-    assert_eq!(parse_setting("changes=200"), Ok(ScenarioSetting::Changes(200)));
-    assert_eq!(parse_setting("seed=4294967295"), Ok(ScenarioSetting::Seed(u32::MAX)));
-    assert_eq!(parse_setting("late_preload_at=30"), Ok(ScenarioSetting::LatePreloadAt(30)));
+    assert_eq!(
+        parse_setting("changes=200"),
+        Ok(ScenarioSetting::Changes(200))
+    );
+    assert_eq!(
+        parse_setting("seed=4294967295"),
+        Ok(ScenarioSetting::Seed(u32::MAX))
+    );
+    assert_eq!(
+        parse_setting("late_preload_at=30"),
+        Ok(ScenarioSetting::LatePreloadAt(30))
+    );
 }
 
 #[test]
 fn counts_are_whole_numbers_in_range() {
     for word in ["overflow_at=-1", "mask_at=2.5", "mask_at="] {
         let error = parse_setting(word).unwrap_err();
-        assert!(matches!(error, ScenarioError::NotACount { min: 0, .. }), "{word}: {error:?}");
+        assert!(
+            matches!(error, ScenarioError::NotACount { min: 0, .. }),
+            "{word}: {error:?}"
+        );
         assert!(error.to_string().starts_with(word), "{error}");
     }
-    for word in ["cycles=0", "cycles=-5", "cycles=1.5", "cycles=4294967296", "cycles="] {
+    for word in [
+        "cycles=0",
+        "cycles=-5",
+        "cycles=1.5",
+        "cycles=4294967296",
+        "cycles=",
+    ] {
         let error = parse_setting(word).unwrap_err();
-        assert!(matches!(error, ScenarioError::NotACount { key: "cycles", min: 1, .. }), "{word}");
+        assert!(
+            matches!(
+                error,
+                ScenarioError::NotACount {
+                    key: "cycles",
+                    min: 1,
+                    ..
+                }
+            ),
+            "{word}"
+        );
         assert!(error.to_string().starts_with(word), "{error}");
     }
     assert_eq!(
@@ -42,17 +91,37 @@ fn counts_are_whole_numbers_in_range() {
 
 #[test]
 fn physical_values_are_finite_decimals() {
-    for word in ["freq_hz=inf", "duty=NaN", "stroke_m=2.5mm", "freq_hz=", "duty=1e400"] {
+    for word in [
+        "freq_hz=inf",
+        "duty=NaN",
+        "stroke_m=2.5mm",
+        "freq_hz=",
+        "duty=1e400",
+    ] {
         let error = parse_setting(word).unwrap_err();
-        assert!(matches!(error, ScenarioError::NotFinite { .. }), "{word}: {error:?}");
-        assert!(error.to_string().ends_with("must be a finite decimal number"), "{error}");
+        assert!(
+            matches!(error, ScenarioError::NotFinite { .. }),
+            "{word}: {error:?}"
+        );
+        assert!(
+            error
+                .to_string()
+                .ends_with("must be a finite decimal number"),
+            "{error}"
+        );
     }
 }
 
 #[test]
 fn malformed_words_and_unknown_keys_are_named() {
-    assert_eq!(parse_setting("cycles"), Err(ScenarioError::NotKeyValue("cycles")));
-    assert_eq!(parse_setting("speed=3"), Err(ScenarioError::UnknownKey("speed")));
+    assert_eq!(
+        parse_setting("cycles"),
+        Err(ScenarioError::NotKeyValue("cycles"))
+    );
+    assert_eq!(
+        parse_setting("speed=3"),
+        Err(ScenarioError::UnknownKey("speed"))
+    );
     let unknown = parse_setting("speed=3").unwrap_err().to_string();
     assert!(unknown.contains("`speed`"), "{unknown}");
     for (key, _) in SCENARIO_KEYS {

@@ -339,7 +339,10 @@ fn a_start_after_a_controlled_stop_ramps_up_from_rest() {
     while scheduler.next_segment().kind != SegmentKind::Idle {}
     scheduler.start();
     let first = scheduler.next_segment();
-    assert_eq!((first.kind, first.amplitude.step, first.phase), (SegmentKind::Accelerate, 1, Phase::Starting));
+    assert_eq!(
+        (first.kind, first.amplitude.step, first.phase),
+        (SegmentKind::Accelerate, 1, Phase::Starting)
+    );
 }
 
 #[test]
@@ -353,7 +356,10 @@ fn the_longest_ramp_set_at_full_amplitude_keeps_full_amplitude() {
     for _ in 0..3 {
         let first = scheduler.next_segment();
         assert_eq!(first.kind, SegmentKind::Accelerate);
-        assert_eq!((first.amplitude.step, first.amplitude.steps), (u16::MAX, u16::MAX));
+        assert_eq!(
+            (first.amplitude.step, first.amplitude.steps),
+            (u16::MAX, u16::MAX)
+        );
         assert_eq!(first.phase, Phase::Running);
         for _ in 0..3 {
             scheduler.next_segment();

@@ -91,8 +91,14 @@ fn a_controlled_fault_finishes_the_cycle_with_the_driver_on_then_disables_it() {
     supervisor.handle(Start);
     let settings = SupervisorEvent::Fault(Fault::InvalidSettings);
     assert_eq!(supervisor.handle(settings), MotionRequest::QuickStop);
-    assert_eq!(supervisor.state(), RunState::Faulted(Fault::InvalidSettings));
-    assert!(supervisor.driver_enabled(), "the driver carries the cycle to rest");
+    assert_eq!(
+        supervisor.state(),
+        RunState::Faulted(Fault::InvalidSettings)
+    );
+    assert!(
+        supervisor.driver_enabled(),
+        "the driver carries the cycle to rest"
+    );
     assert_eq!(supervisor.led(), Led::Blink);
     // A missed edge while braking leaves nothing to trust: the stop becomes immediate.
     let mut escalated = supervisor;
@@ -105,7 +111,10 @@ fn a_controlled_fault_finishes_the_cycle_with_the_driver_on_then_disables_it() {
     // Otherwise the first idle period ends the stop.
     assert_eq!(supervisor.handle(Idle), MotionRequest::Keep);
     assert!(!supervisor.driver_enabled());
-    assert_eq!(supervisor.state(), RunState::Faulted(Fault::InvalidSettings));
+    assert_eq!(
+        supervisor.state(),
+        RunState::Faulted(Fault::InvalidSettings)
+    );
     assert_eq!(supervisor.handle(Reset), MotionRequest::Keep);
     assert_eq!(supervisor.handle(Start), MotionRequest::Start);
     assert!(supervisor.driver_enabled());
@@ -118,7 +127,10 @@ fn a_reset_during_a_controlled_stop_keeps_the_driver_until_idle() {
     supervisor.handle(SupervisorEvent::Fault(Fault::InvalidSettings));
     supervisor.handle(Reset);
     assert_eq!(supervisor.state(), RunState::Stopped);
-    assert!(supervisor.driver_enabled(), "the cycle in progress still needs it");
+    assert!(
+        supervisor.driver_enabled(),
+        "the cycle in progress still needs it"
+    );
     supervisor.handle(Idle);
     assert!(!supervisor.driver_enabled());
 }

@@ -223,9 +223,16 @@ fn thousand_cycles(frequency_hz: &str, stroke_m: &str) {
 fn random_changes_on_the_scripted_image_follow_the_shared_plan() {
     let (log, stream, report, edges, clock_hz) =
         checked_run(&["cycles=3000", "changes=150", "seed=7", "ramp=8"]);
-    assert!(stream.errors.is_empty(), "firmware errors: {:?}", stream.errors);
+    assert!(
+        stream.errors.is_empty(),
+        "firmware errors: {:?}",
+        stream.errors
+    );
     assert!(report.passed(), "edge check failed: {:?}", report.problems);
-    assert_eq!(report.matched, report.edges, "every edge equals the shared plan");
+    assert_eq!(
+        report.matched, report.edges,
+        "every edge equals the shared plan"
+    );
     assert!(report.missed.is_empty());
     let count = |wanted: fn(&Event) -> bool| stream.events.iter().filter(|e| wanted(e)).count();
     let plans = count(|event| matches!(event, Event::Plan { .. }));
@@ -233,7 +240,10 @@ fn random_changes_on_the_scripted_image_follow_the_shared_plan() {
     let refused = log.matches("scenario: change refused").count();
     assert!(plans > 30, "{plans} plans taken");
     assert!(stops > 5, "{stops} stops");
-    assert!(refused > 10, "{refused} changes refused: some must fall past the range");
+    assert!(
+        refused > 10,
+        "{refused} changes refused: some must fall past the range"
+    );
 
     let specs = plan_specs(&stream);
     let bound_m = drift_bound_m(&specs, clock_hz);

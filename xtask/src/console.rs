@@ -157,7 +157,10 @@ fn command(port: u16, words: &[&str]) -> Result<String> {
         .map_err(|error| format!("cannot run feeder-ctl: {error}"))?;
     match output.status.code() {
         Some(0 | 1) => Ok(String::from_utf8_lossy(&output.stdout).trim().to_string()),
-        _ => Err(format!("feeder-ctl {words:?} failed with {}", output.status)),
+        _ => Err(format!(
+            "feeder-ctl {words:?} failed with {}",
+            output.status
+        )),
     }
 }
 

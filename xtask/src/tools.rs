@@ -87,12 +87,13 @@ pub fn isolate() -> Result {
     let hidden = cargo_home_bin();
     let inherited = std::env::var_os("PATH").unwrap_or_default();
     let mut directories = vec![tools_root().join("bin"), toolchain.clone()];
-    directories.extend(
-        std::env::split_paths(&inherited)
-            .filter(|dir| hidden.as_deref().is_none_or(|hidden| !same_dir(dir, hidden))),
-    );
-    let path: OsString = std::env::join_paths(directories)
-        .map_err(|error| format!("cannot build PATH: {error}"))?;
+    directories.extend(std::env::split_paths(&inherited).filter(|dir| {
+        hidden
+            .as_deref()
+            .is_none_or(|hidden| !same_dir(dir, hidden))
+    }));
+    let path: OsString =
+        std::env::join_paths(directories).map_err(|error| format!("cannot build PATH: {error}"))?;
     // Single-threaded here: nothing else reads the environment concurrently.
     std::env::set_var("PATH", path);
     std::env::set_var("CARGO", toolchain.join("cargo"));

@@ -104,8 +104,9 @@ impl RandomChanges {
         match self.random.below(3) {
             0 => spec.duty = self.random.around(0.5, 1.0),
             1 => {
-                let frequency_hz =
-                    self.random.around(limits.min_frequency_hz, limits.max_frequency_hz);
+                let frequency_hz = self
+                    .random
+                    .around(limits.min_frequency_hz, limits.max_frequency_hz);
                 spec.period_s = 1.0 / frequency_hz;
             }
             _ => {

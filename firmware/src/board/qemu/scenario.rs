@@ -284,7 +284,12 @@ async fn operator_task(clock: TickClock) {
     let first_cycle = app::cycles_begun();
     for index in 0..count {
         operator
-            .until_cycle(RandomChanges::cycle_of(index, count, first_cycle, stop_after))
+            .until_cycle(RandomChanges::cycle_of(
+                index,
+                count,
+                first_cycle,
+                stop_after,
+            ))
             .await;
         random.change().await;
     }
