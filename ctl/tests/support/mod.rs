@@ -191,10 +191,25 @@ impl Console {
         self.writer.write_all(bytes)
     }
 
-    /// The next reply line, without its CR LF.
+    /// The next reply line, without its CR LF, within [`REPLY_TIMEOUT`].
     pub fn reply(&mut self) -> io::Result<String> {
+        self.reply_within(REPLY_TIMEOUT)
+    }
+
+    /// The next reply line, without its CR LF, waiting up to about `limit` for it (in steps of
+    /// the socket's read timeout); a part of the line that arrived before a timeout is kept.
+    pub fn reply_within(&mut self, limit: Duration) -> io::Result<String> {
+        let deadline = Instant::now() + limit;
         let mut bytes = Vec::new();
-        self.reader.read_until(b'\n', &mut bytes)?;
+        loop {
+            match self.reader.read_until(b'\n', &mut bytes) {
+                Ok(_) => break,
+                Err(error)
+                    if matches!(error.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut)
+                        && Instant::now() < deadline => {}
+                Err(error) => return Err(error),
+            }
+        }
         match bytes.strip_suffix(b"\n") {
             Some(line) => {
                 let line = line.strip_suffix(b"\r").unwrap_or(line);
