@@ -15,6 +15,7 @@
 pub mod control;
 pub mod drive;
 pub mod error;
+pub mod event;
 pub mod model;
 pub mod number;
 pub mod plan;
