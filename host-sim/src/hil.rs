@@ -824,7 +824,7 @@ pub enum EdgeTimes {
 }
 
 /// The part simulated on the recorded edges.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct PartReport {
     /// Mean part velocity over the last [`STEADY_WINDOW_CYCLES`] full-amplitude cycles of the
     /// final plan (fewer if the run had fewer).
