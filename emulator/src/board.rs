@@ -1,0 +1,144 @@
+//! The emulated board while it runs: QEMU with `defmt-print` decoding its log, and a scripted
+//! run taken to its end.
+
+use std::io::{self, Read};
+use std::path::Path;
+use std::process::{Child, ChildStdout, Command, ExitStatus, Stdio};
+use std::thread;
+use std::time::{Duration, Instant};
+
+use crate::command::{command, Serial};
+use crate::{LaunchError, DECODER, QEMU};
+
+/// Pause between looks at whether a run has ended.
+const EXIT_POLL_INTERVAL: Duration = Duration::from_millis(20);
+
+/// QEMU running a firmware image and the decoder of its log. Dropping it ends QEMU, after which
+/// the decoder ends at the end of its input.
+pub struct Board {
+    emulator: Child,
+    decoder: Child,
+}
+
+impl Board {
+    /// Starts `elf` under QEMU with the scenario words and UART0 on `serial`, and `defmt-print`
+    /// on QEMU's standard output; the decoded log goes to `decoded` (with [`Stdio::piped`], take
+    /// it with [`Board::decoded_log`]).
+    pub fn start<S: AsRef<str>>(
+        elf: &Path,
+        scenario: &[S],
+        serial: Serial,
+        decoded: Stdio,
+    ) -> Result<Self, LaunchError> {
+        let mut emulator = command(elf, scenario, serial)
+            .stdout(Stdio::piped())
+            .spawn()
+            .map_err(|source| LaunchError::Start {
+                program: QEMU,
+                source,
+            })?;
+        let decoder = match emulator.stdout.take() {
+            Some(raw) => Command::new(DECODER)
+                .arg("-e")
+                .arg(elf)
+                .stdin(raw)
+                .stdout(decoded)
+                .spawn()
+                .map_err(|source| LaunchError::Start {
+                    program: DECODER,
+                    source,
+                }),
+            None => Err(LaunchError::NoOutput { program: QEMU }),
+        };
+        match decoder {
+            Ok(decoder) => Ok(Board { emulator, decoder }),
+            Err(error) => {
+                let _ = emulator.kill();
+                let _ = emulator.wait();
+                Err(error)
+            }
+        }
+    }
+
+    /// The decoded log, when it was started with [`Stdio::piped`] and not taken yet.
+    pub fn decoded_log(&mut self) -> Result<ChildStdout, LaunchError> {
+        self.decoder
+            .stdout
+            .take()
+            .ok_or(LaunchError::NoOutput { program: DECODER })
+    }
+
+    /// The firmware's exit status, once QEMU has ended.
+    pub fn try_exit_status(&mut self) -> Result<Option<ExitStatus>, LaunchError> {
+        self.emulator
+            .try_wait()
+            .map_err(|source| LaunchError::Wait {
+                program: QEMU,
+                source,
+            })
+    }
+
+    /// Waits for the firmware to end and for the decoder to write the rest of the log; the
+    /// firmware's exit status.
+    pub fn wait(&mut self) -> Result<ExitStatus, LaunchError> {
+        let status = self.emulator.wait().map_err(|source| LaunchError::Wait {
+            program: QEMU,
+            source,
+        })?;
+        self.decoder.wait().map_err(|source| LaunchError::Wait {
+            program: DECODER,
+            source,
+        })?;
+        Ok(status)
+    }
+
+    /// Ends QEMU and waits for the decoder to write the rest of the log.
+    pub fn stop(&mut self) -> Result<(), LaunchError> {
+        let _ = self.emulator.kill();
+        self.wait().map(drop)
+    }
+}
+
+impl Drop for Board {
+    fn drop(&mut self) {
+        let _ = self.stop();
+    }
+}
+
+/// A scripted run that has ended.
+#[derive(Debug)]
+pub struct Run {
+    /// The firmware's exit status: success unless the run failed.
+    pub status: ExitStatus,
+    /// The decoded log, every line as `defmt-print` wrote it.
+    pub log: String,
+}
+
+/// Runs `elf` with the scenario words and UART0 unconnected until the firmware ends, at most
+/// `limit` (then QEMU is ended and the run fails).
+pub fn run_to_end<S: AsRef<str>>(
+    elf: &Path,
+    scenario: &[S],
+    limit: Duration,
+) -> Result<Run, LaunchError> {
+    let mut board = Board::start(elf, scenario, Serial::None, Stdio::piped())?;
+    let mut decoded = board.decoded_log()?;
+    let reader = thread::spawn(move || {
+        let mut log = String::new();
+        decoded.read_to_string(&mut log).map(|_| log)
+    });
+    let started = Instant::now();
+    while board.try_exit_status()?.is_none() {
+        if started.elapsed() > limit {
+            board.stop()?;
+            return Err(LaunchError::Timeout { limit });
+        }
+        thread::sleep(EXIT_POLL_INTERVAL);
+    }
+    let status = board.wait()?;
+    let log = reader
+        .join()
+        .map_err(|_| LaunchError::Log(io::Error::other("the log reader panicked")))?
+        .map_err(LaunchError::Log)?;
+    Ok(Run { status, log })
+}
