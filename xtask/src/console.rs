@@ -7,11 +7,13 @@
 use std::fs::File;
 use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Stdio};
+use std::process::Stdio;
 use std::thread;
 use std::time::{Duration, Instant};
 
-use crate::qemu::{self, Image, Serial};
+use feeder_emulator::{Board, Serial};
+
+use crate::qemu::{self, Image};
 use crate::{exec, host_sim, root, tools, workspace_binary, Result};
 
 /// Longest to wait for QEMU to open its serial port.
@@ -64,8 +66,7 @@ pub fn console() -> Result {
 
 /// The emulated feeder: QEMU and the decoder writing its log. Both end when this is dropped.
 struct Feeder {
-    emulator: Child,
-    decoder: Child,
+    board: Board,
     port: u16,
 }
 
@@ -76,13 +77,9 @@ impl Feeder {
         let port = free_port()?;
         let file = File::create(log)
             .map_err(|error| format!("cannot create {}: {error}", log.display()))?;
-        let (emulator, decoder) =
-            qemu::spawn_decoded(elf, &[], Serial::Tcp { port }, Stdio::from(file))?;
-        let mut feeder = Feeder {
-            emulator,
-            decoder,
-            port,
-        };
+        let board = Board::start(elf, &[] as &[&str], Serial::Tcp { port }, Stdio::from(file))
+            .map_err(|error| error.to_string())?;
+        let mut feeder = Feeder { board, port };
         feeder.wait_for_port()?;
         Ok(feeder)
     }
@@ -90,7 +87,7 @@ impl Feeder {
     fn wait_for_port(&mut self) -> Result {
         let deadline = Instant::now() + PORT_OPEN_TIMEOUT;
         loop {
-            if let Ok(Some(status)) = self.emulator.try_wait() {
+            if let Ok(Some(status)) = self.board.try_exit_status() {
                 return Err(format!(
                     "QEMU ended before its serial port opened: {status}"
                 ));
@@ -110,22 +107,7 @@ impl Feeder {
 
     /// Ends QEMU and waits for the decoder to write the rest of the log.
     fn stop(&mut self) -> Result {
-        let _ = self.emulator.kill();
-        self.emulator
-            .wait()
-            .map_err(|error| format!("cannot wait for QEMU: {error}"))?;
-        self.decoder
-            .wait()
-            .map_err(|error| format!("cannot wait for defmt-print: {error}"))?;
-        Ok(())
-    }
-}
-
-impl Drop for Feeder {
-    fn drop(&mut self) {
-        let _ = self.emulator.kill();
-        let _ = self.emulator.wait();
-        let _ = self.decoder.wait();
+        self.board.stop().map_err(|error| error.to_string())
     }
 }
 

@@ -22,6 +22,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode, Stdio};
 
 use clap::{Args, Parser, Subcommand};
+use feeder_emulator::{Board, Serial};
 use feeder_shared::scenario::{parse_setting, SCENARIO_KEYS};
 
 const THUMB_TARGET: &str = "thumbv7em-none-eabihf";
@@ -199,14 +200,13 @@ fn run(args: &RunArgs) -> Result {
             .arg(root().join("target").join("hil-run.svg"));
     }
     hil.args(hil_flags);
-    let (mut emulator, mut decoder) =
-        qemu::spawn_decoded(&elf, scenario, qemu::Serial::None, Stdio::piped())?;
-    hil.stdin(decoder.stdout.take().ok_or("no decoder output")?);
+    let mut board = Board::start(&elf, scenario, Serial::None, Stdio::piped())
+        .map_err(|error| error.to_string())?;
+    hil.stdin(board.decoded_log().map_err(|error| error.to_string())?);
     let report = hil
         .status()
         .map_err(|error| format!("cannot run host-sim hil: {error}"))?;
-    let firmware_status = emulator.wait().map_err(|error| error.to_string())?;
-    decoder.wait().map_err(|error| error.to_string())?;
+    let firmware_status = board.wait().map_err(|error| error.to_string())?;
     if !firmware_status.success() {
         return Err(format!("the firmware ended with {firmware_status}"));
     }
