@@ -11,7 +11,7 @@ use std::hint::black_box;
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use feeder_shared::model::STANDARD_GRAVITY_MPS2;
 use feeder_shared::{Drive, WaveformSpec};
-use host_sim::scenario::exact_cycle;
+use host_sim::segments::exact_cycle;
 use host_sim::{Contact, OperatingPoint, PlateSegment};
 use rapier2d::prelude::*;
 

@@ -12,7 +12,7 @@ use feeder_shared::model::STANDARD_GRAVITY_MPS2;
 use feeder_shared::{Drive, WaveformSpec};
 use host_sim::figures;
 use host_sim::reference::run_fixed_step;
-use host_sim::scenario::{exact_cycle, scheduler_segments};
+use host_sim::segments::{exact_cycle, scheduler_segments};
 use host_sim::sim::CycleTable;
 use host_sim::{run_segments, run_table, Contact, OperatingPoint, RunOptions, Timing};
 

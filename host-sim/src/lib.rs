@@ -1,11 +1,12 @@
 //! Host simulator of the vibrating-plate parts feeder.
 //!
 //! [`plant`] is the exact event-driven stick–slip model of a point-mass part on the plate;
-//! [`sim`] runs it over any stream of plate segments with steady-state detection; [`scenario`]
-//! builds those streams from the shared crate (scheduler tick plan or exact waveform times) and
-//! holds the analytic predictions; [`reference`] is a fixed-step integrator for validation;
-//! [`figures`] reproduces the paper's figures' data; [`hil`] checks a running firmware's event
-//! stream against the shared scheduler and drives the plant with its actual edge times.
+//! [`segments`] takes the plate's segments from the shared crate (exact waveform times or the
+//! scheduler's tick plan); [`sim`] runs the plant over any stream of them with steady-state
+//! detection; [`scenario`] is an operating point, its run and its analytic predictions;
+//! [`reference`] is a fixed-step integrator for validation; [`figures`] reproduces the paper's
+//! figures' data; [`hil`] checks a running firmware's event stream against the shared scheduler
+//! and drives the plant with its actual edge times.
 
 pub mod error;
 pub mod figures;
@@ -13,6 +14,7 @@ pub mod hil;
 pub mod plant;
 pub mod reference;
 pub mod scenario;
+pub mod segments;
 pub mod sim;
 
 pub use error::SimError;

@@ -1,13 +1,11 @@
 //! An operating point of the feeder (waveform, contact, timing) and its analytic predictions.
-//!
-//! The plate's segments come only from the shared crate: the scheduler's integer-tick plan
-//! divided by the clock, or `Waveform::segments()` for the exact real-valued times.
 
 use feeder_shared::model::{self, Regime};
-use feeder_shared::{Limits, Scheduler, SegmentKind, TickClock, TickPlan, Waveform, WaveformSpec};
+use feeder_shared::{Limits, TickClock, TickPlan, Waveform, WaveformSpec};
 
 use crate::error::SimError;
-use crate::plant::{Contact, PlateSegment};
+use crate::plant::Contact;
+pub use crate::segments::{exact_cycle, scheduler_segments};
 use crate::sim::{run_segments, run_table, Criteria, CycleTable, RunOptions, RunResult};
 
 /// Where the segment edges come from.
@@ -133,28 +131,4 @@ pub struct Prediction {
     pub stick_fraction: f64,
     /// Eq. 16.
     pub duty_sat_nqs: f64,
-}
-
-/// One cycle of the waveform's exact real-valued segments (`Waveform::segments`, Eq. 1–5).
-pub fn exact_cycle(waveform: &Waveform) -> [PlateSegment; 4] {
-    waveform.segments().map(|segment| PlateSegment {
-        duration_s: segment.duration_s,
-        accel_mps2: f64::from(segment.level.sign()) * waveform.accel_mps2,
-        starts_cycle: segment.kind == SegmentKind::Accelerate,
-    })
-}
-
-/// The shared scheduler's segments for `plan`, started at once at full amplitude, in seconds
-/// (ticks ÷ clock). Endless.
-pub fn scheduler_segments(plan: TickPlan) -> impl Iterator<Item = PlateSegment> {
-    let mut scheduler = Scheduler::new(plan, 1);
-    scheduler.start();
-    std::iter::repeat_with(move || {
-        let segment = scheduler.next_segment();
-        PlateSegment {
-            duration_s: plan.ticks_to_s(u64::from(segment.ticks)),
-            accel_mps2: segment.accel_mps2(),
-            starts_cycle: segment.starts_cycle(),
-        }
-    })
 }

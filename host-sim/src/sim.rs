@@ -10,6 +10,7 @@
 use serde::Serialize;
 
 use crate::plant::{advance, Contact, EventKind, Observer, PlateSegment, Rates, Span};
+use crate::segments::exact_cycle;
 
 /// When a run counts as converged.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -156,7 +157,7 @@ impl CycleTable {
 
     /// The waveform's exact real-valued segments (`Waveform::segments`, Eq. 1–5).
     pub fn exact(waveform: &feeder_shared::Waveform, contact: &Contact) -> Self {
-        Self::new(&crate::scenario::exact_cycle(waveform), contact)
+        Self::new(&exact_cycle(waveform), contact)
     }
 
     pub fn period_s(&self) -> f64 {

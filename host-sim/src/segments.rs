@@ -1,0 +1,30 @@
+//! The plate's segments, taken only from the shared crate: one cycle of the waveform's exact
+//! real-valued times (Eq. 1–5), or the scheduler's integer-tick plan divided by its clock.
+
+use feeder_shared::{Scheduler, SegmentKind, TickPlan, Waveform};
+
+use crate::plant::PlateSegment;
+
+/// One cycle of the waveform's exact real-valued segments (`Waveform::segments`, Eq. 1–5).
+pub fn exact_cycle(waveform: &Waveform) -> [PlateSegment; 4] {
+    waveform.segments().map(|segment| PlateSegment {
+        duration_s: segment.duration_s,
+        accel_mps2: f64::from(segment.level.sign()) * waveform.accel_mps2,
+        starts_cycle: segment.kind == SegmentKind::Accelerate,
+    })
+}
+
+/// The shared scheduler's segments for `plan`, started at once at full amplitude, in seconds
+/// (ticks ÷ clock). Endless.
+pub fn scheduler_segments(plan: TickPlan) -> impl Iterator<Item = PlateSegment> {
+    let mut scheduler = Scheduler::new(plan, 1);
+    scheduler.start();
+    std::iter::repeat_with(move || {
+        let segment = scheduler.next_segment();
+        PlateSegment {
+            duration_s: plan.ticks_to_s(u64::from(segment.ticks)),
+            accel_mps2: segment.accel_mps2(),
+            starts_cycle: segment.starts_cycle(),
+        }
+    })
+}
