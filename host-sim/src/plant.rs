@@ -20,6 +20,9 @@ use feeder_shared::{Error, Friction, Quantity};
 
 use crate::error::SimError;
 
+/// The paper's part mass, 0.1 g.
+pub const PAPER_PART_MASS_KG: f64 = 1e-4;
+
 /// Coulomb contact between part and plate, and the constant external force on the part.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Contact {
@@ -79,6 +82,12 @@ impl Contact {
     /// Equal static and kinetic friction, standard gravity, no external force.
     pub fn kinetic(mu: f64, mass_kg: f64) -> Result<Self, SimError> {
         Self::new(mu, mu, STANDARD_GRAVITY_MPS2, mass_kg, 0.0)
+    }
+
+    /// The paper's part ([`PAPER_PART_MASS_KG`]) with equal static and kinetic friction and no
+    /// external force, under `gravity_mps2`.
+    pub fn paper_part(mu: f64, gravity_mps2: f64) -> Result<Self, SimError> {
+        Self::new(mu, mu, gravity_mps2, PAPER_PART_MASS_KG, 0.0)
     }
 
     /// The kinetic friction as the shared crate's model sees it.
