@@ -6,11 +6,11 @@
 //! These tests need the QEMU firmware's ELF in `FEEDER_QEMU_ELF`, `qemu-system-arm` and
 //! `defmt-print`; `cargo xtask test` provides all three and runs them with `--ignored`.
 
-use std::io::Read;
 use std::path::{Path, PathBuf};
-use std::process::{Command, ExitStatus, Stdio};
-use std::time::{Duration, Instant};
+use std::process::ExitStatus;
+use std::time::Duration;
 
+use feeder_emulator::{Run, NS_PER_INSTRUCTION};
 use feeder_shared::{Limits, SegmentKind, TickClock, TickPlan, Waveform, WaveformSpec};
 use host_sim::hil::{self, CheckReport, Checker, Edge, EdgeTimes, Event, SegmentEvent, Stream};
 use host_sim::plant::Contact;
@@ -27,58 +27,8 @@ fn elf() -> PathBuf {
 
 /// Runs the QEMU firmware with the scenario arguments; returns its exit status and decoded log.
 fn run_scenario(arguments: &[&str]) -> (ExitStatus, String) {
-    let elf = elf();
-    // The first argument is the program's name, as in C's argv: without any `arg=`, QEMU would
-    // pass the kernel's path in its place.
-    let mut semihosting = String::from("enable=on,target=native,arg=feeder-firmware");
-    for argument in arguments {
-        semihosting.push_str(",arg=");
-        semihosting.push_str(argument);
-    }
-    let mut emulator = Command::new("qemu-system-arm")
-        .args([
-            "-machine",
-            "mps2-an386",
-            "-cpu",
-            "cortex-m4",
-            "-display",
-            "none",
-        ])
-        .args(["-monitor", "none", "-serial", "none", "-icount", "shift=4"])
-        .args(["-semihosting-config", &semihosting, "-kernel"])
-        .arg(&elf)
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("qemu-system-arm must be installed");
-    let raw = emulator.stdout.take().expect("piped");
-    let mut decoder = Command::new("defmt-print")
-        .arg("-e")
-        .arg(&elf)
-        .stdin(raw)
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("defmt-print must be installed");
-    let mut decoded = decoder.stdout.take().expect("piped");
-    let reader = std::thread::spawn(move || {
-        let mut log = String::new();
-        decoded.read_to_string(&mut log).map(|_| log)
-    });
-    let started = Instant::now();
-    let status = loop {
-        if let Some(status) = emulator.try_wait().expect("QEMU can be waited for") {
-            break status;
-        }
-        if started.elapsed() > TIMEOUT {
-            let _ = emulator.kill();
-            panic!("the scenario {arguments:?} ran longer than {TIMEOUT:?}");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    let log = reader
-        .join()
-        .expect("reader thread")
-        .expect("decoded log is text");
-    let _ = decoder.wait();
+    let Run { status, log } = feeder_emulator::run_to_end(&elf(), arguments, TIMEOUT)
+        .unwrap_or_else(|error| panic!("the scenario {arguments:?}: {error}"));
     (status, log)
 }
 
@@ -116,7 +66,7 @@ fn short_scenario_log_matches_the_golden_file_byte_for_byte() {
     }
 }
 
-/// The worst work per edge under QEMU, in instructions (`-icount shift=4`: 16 ns each): from the
+/// The worst work per edge under QEMU, in instructions ([`NS_PER_INSTRUCTION`] each): from the
 /// edge, when the output switched, through the wake-up, the `EVT` trace and the supervision to
 /// the preload of the next segment. Measured: 10738 at most (the edge that takes the start
 /// request and the new plan, with its log lines), 4057–4079 on average, in 1000 cycles at
@@ -315,12 +265,13 @@ fn the_work_per_edge_stays_within_its_instruction_budget() {
         report.edges - 1,
         "every edge but the last is measured"
     );
-    let worst = work.max_ns() / hil::QEMU_NS_PER_INSTRUCTION;
+    let ns_per_instruction = f64::from(NS_PER_INSTRUCTION);
+    let worst = work.max_ns() / ns_per_instruction;
     assert!(
         worst <= EDGE_WORK_BUDGET_INSTRUCTIONS,
         "the worst edge took {worst} instructions (mean {}), over the budget of \
          {EDGE_WORK_BUDGET_INSTRUCTIONS}",
-        work.mean_ns() / hil::QEMU_NS_PER_INSTRUCTION
+        work.mean_ns() / ns_per_instruction
     );
 }
 

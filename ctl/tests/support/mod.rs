@@ -1,9 +1,7 @@
-//! The QEMU console image under test, shared by the QEMU-backed tests: QEMU running the firmware
-//! built with the `console` feature (`FEEDER_QEMU_ELF`), its serial port on a free loopback TCP
-//! port, its defmt log decoded by `defmt-print` line by line into a [`LogSink`], and a client
-//! for the console that reads one reply line at a time.
-//!
-//! The QEMU command line is the one `cargo xtask` uses (`xtask/src/qemu.rs`).
+//! The QEMU console image under test, shared by the QEMU-backed tests: the firmware built with
+//! the `console` feature (`FEEDER_QEMU_ELF`) started by `feeder-emulator` with its serial port
+//! on a free loopback TCP port, its decoded log handed line by line to a [`LogSink`], and a
+//! client for the console that reads one reply line at a time.
 
 // Each test uses its own part of this module.
 #![allow(dead_code)]
@@ -11,12 +9,11 @@
 use std::io::{self, BufRead, BufReader, ErrorKind, Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Stdio;
 use std::thread::{self, JoinHandle};
 use std::time::{Duration, Instant};
 
-/// `-icount shift=4`: one instruction is 16 ns of virtual time.
-const ICOUNT_SHIFT: &str = "4";
+use feeder_emulator::{Board, Serial};
 
 /// Longest to wait for QEMU to open its serial port.
 const PORT_OPEN_TIMEOUT: Duration = Duration::from_secs(20);
@@ -46,8 +43,7 @@ impl LogSink for Vec<String> {
 
 /// QEMU and its log decoder; both are ended when this is dropped, however the test ends.
 pub struct Emulator<S> {
-    qemu: Child,
-    decoder: Child,
+    board: Board,
     log_thread: Option<JoinHandle<S>>,
     port: u16,
 }
@@ -57,26 +53,12 @@ impl<S: LogSink> Emulator<S> {
     /// going to `sink`.
     pub fn launch(elf: &Path, sink: S) -> Self {
         let port = free_port();
-        let mut qemu = qemu_command(elf, port)
-            .stdout(Stdio::piped())
-            .spawn()
-            .expect("qemu-system-arm runs");
-        let raw_log = qemu.stdout.take().expect("QEMU's standard output");
-        let mut decoder = Command::new("defmt-print")
-            .arg("-e")
-            .arg(elf)
-            .stdin(raw_log)
-            .stdout(Stdio::piped())
-            .spawn()
-            .expect("defmt-print runs");
-        let decoded = decoder
-            .stdout
-            .take()
-            .expect("defmt-print's standard output");
+        let mut board = Board::start(elf, &[] as &[&str], Serial::Tcp { port }, Stdio::piped())
+            .unwrap_or_else(|error| panic!("the emulated board starts: {error}"));
+        let decoded = board.decoded_log().expect("the decoded log is piped");
         let log_thread = thread::spawn(move || forward_lines(decoded, sink));
         Emulator {
-            qemu,
-            decoder,
+            board,
             log_thread: Some(log_thread),
             port,
         }
@@ -86,7 +68,7 @@ impl<S: LogSink> Emulator<S> {
     pub fn connect(&mut self) -> Console {
         let deadline = Instant::now() + PORT_OPEN_TIMEOUT;
         loop {
-            if let Ok(Some(status)) = self.qemu.try_wait() {
+            if let Ok(Some(status)) = self.board.try_exit_status() {
                 panic!("QEMU ended before its serial port opened: {status}");
             }
             match TcpStream::connect(("127.0.0.1", self.port)) {
@@ -99,43 +81,15 @@ impl<S: LogSink> Emulator<S> {
 
     /// Ends QEMU, lets the decoder drain and returns the sink, which has seen every line.
     pub fn shut_down(mut self) -> S {
-        self.stop_processes();
+        self.board
+            .stop()
+            .unwrap_or_else(|error| panic!("the emulated board stops: {error}"));
         self.log_thread
             .take()
             .expect("the log thread runs until shut down")
             .join()
             .expect("the log thread does not panic")
     }
-}
-
-impl<S> Emulator<S> {
-    fn stop_processes(&mut self) {
-        let _ = self.qemu.kill();
-        let _ = self.qemu.wait();
-        // defmt-print ends at the end of QEMU's output.
-        let _ = self.decoder.wait();
-    }
-}
-
-impl<S> Drop for Emulator<S> {
-    fn drop(&mut self) {
-        self.stop_processes();
-    }
-}
-
-/// The QEMU command line of `xtask/src/qemu.rs` with UART0 on loopback TCP `port`.
-fn qemu_command(elf: &Path, port: u16) -> Command {
-    let mut command = Command::new("qemu-system-arm");
-    command
-        .args(["-machine", "mps2-an386", "-cpu", "cortex-m4"])
-        .args(["-display", "none", "-monitor", "none"])
-        .args(["-semihosting-config", "enable=on,target=native"])
-        .args(["-icount", &format!("shift={ICOUNT_SHIFT}")])
-        .arg("-serial")
-        .arg(format!("tcp:127.0.0.1:{port},server=on,wait=off"))
-        .arg("-kernel")
-        .arg(elf);
-    command
 }
 
 fn free_port() -> u16 {
