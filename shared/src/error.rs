@@ -6,6 +6,7 @@
 use core::fmt;
 
 use crate::number::Significant;
+use crate::segment::SegmentKind;
 
 /// The physical or configuration quantity an [`Error`] refers to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -47,34 +48,6 @@ impl Quantity {
             Quantity::MaxFrequencyLimitHz => "maximum frequency limit (Hz)",
             Quantity::AccelLimitMps2 => "motor acceleration limit (m/s²)",
             Quantity::StrokeLimitM => "stroke travel limit (m)",
-        }
-    }
-}
-
-/// A segment of the three-level acceleration waveform, in the order it is output within a cycle.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum SegmentKind {
-    /// `+a` on `[0, t1)`: the plate speeds up forward.
-    Accelerate,
-    /// `0` on `[t1, t2)`: the plateau `P` at `v_max`.
-    Plateau,
-    /// `−a` on `[t2, t3)`: the plate brakes and swings backward.
-    Reverse,
-    /// `+a` on `[t3, T)`: the plate returns to rest at the cycle boundary.
-    Return,
-    /// `0` for a whole period while the scheduler is stopped.
-    Idle,
-}
-
-impl SegmentKind {
-    pub const fn name(self) -> &'static str {
-        match self {
-            SegmentKind::Accelerate => "accelerate",
-            SegmentKind::Plateau => "plateau",
-            SegmentKind::Reverse => "reverse",
-            SegmentKind::Return => "return",
-            SegmentKind::Idle => "idle",
         }
     }
 }

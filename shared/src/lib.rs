@@ -23,6 +23,7 @@ pub mod protocol;
 pub mod recipe;
 pub mod scenario;
 pub mod scheduler;
+pub mod segment;
 pub mod supervisor;
 pub mod waveform;
 
@@ -30,7 +31,7 @@ pub use control::{Action, Controller, Outcome, RecipeStore, Snapshot};
 pub use drive::{
     DacCalibration, DacLevels, Direction, DriveError, PwmCalibration, PwmCommand, PwmLevels,
 };
-pub use error::{Error, Quantity, SegmentKind};
+pub use error::{Error, Quantity};
 pub use model::{Friction, Regime, SteadyState};
 pub use plan::{CycleTicks, TickClock, TickPlan};
 pub use protocol::{
@@ -39,6 +40,7 @@ pub use protocol::{
 pub use recipe::{Loaded, RecipeSlot, RecordError};
 pub use scenario::{ScenarioError, ScenarioSetting};
 pub use scheduler::{Amplitude, Phase, Scheduler, Segment};
+pub use segment::SegmentKind;
 pub use supervisor::{
     Fault, Led, MotionRequest, RunState, StopCategory, Supervisor, SupervisorEvent,
 };

@@ -18,7 +18,8 @@
 //! `E + X₋ ∈ (X₋, X₊]`. The plate's position at every cycle boundary therefore stays within
 //! [`TickPlan::drift_bound_m`] `= max(X₊, −X₋)·a/f²` of its start, forever.
 
-use crate::error::{positive, Error, Quantity, SegmentKind};
+use crate::error::{positive, Error, Quantity};
+use crate::segment::SegmentKind;
 use crate::waveform::Waveform;
 use libm::{fabs, round, sqrt};
 

@@ -11,8 +11,9 @@
 //! and then idles. Every cycle, scaled or not, ends at rest, and its displacement residual (see
 //! [`crate::plan`]) is fed back through the choice of the next cycle's variant.
 
-use crate::error::{Error, SegmentKind};
+use crate::error::Error;
 use crate::plan::TickPlan;
+use crate::segment::SegmentKind;
 use crate::waveform::Level;
 use libm::round;
 

@@ -5,7 +5,8 @@
 //! `+a` on `[t3, T)`, with `t3 = F + B/2` (errata: the backward swing turns at the middle of `B`).
 //! The plate is at rest at `t = 0`, `F` and `T`, and returns to its start every cycle.
 
-use crate::error::{finite, positive, Error, Quantity, SegmentKind};
+use crate::error::{finite, positive, Error, Quantity};
+use crate::segment::SegmentKind;
 use libm::sqrt;
 
 /// How the amplitude of the waveform is specified: exactly one of stroke or peak acceleration.
