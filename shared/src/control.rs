@@ -20,9 +20,10 @@
 
 use crate::error::Error;
 use crate::plan::TickPlan;
-use crate::protocol::{Applied, Command, Machine, Reply, ReplyError, Settings, Status};
+use crate::protocol::{Command, Reply, ReplyError, Status};
 use crate::recipe::{self, RecipeSlot, RecordError, RECIPE_SLOTS, RECORD_LEN};
 use crate::scheduler::Phase;
+use crate::settings::{Applied, Machine, Settings};
 use crate::supervisor::{Fault, RunState};
 use crate::waveform::WaveformSpec;
 

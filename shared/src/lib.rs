@@ -24,6 +24,7 @@ pub mod recipe;
 pub mod scenario;
 pub mod scheduler;
 pub mod segment;
+pub mod settings;
 pub mod supervisor;
 pub mod waveform;
 
@@ -34,13 +35,12 @@ pub use drive::{
 pub use error::{Error, Quantity};
 pub use model::{Friction, Regime, SteadyState};
 pub use plan::{CycleTicks, TickClock, TickPlan};
-pub use protocol::{
-    Applied, Command, LineAssembler, Machine, Param, Reply, ReplyError, Setting, Settings, Status,
-};
+pub use protocol::{Command, LineAssembler, Param, Reply, ReplyError, Status};
 pub use recipe::{Loaded, RecipeSlot, RecordError};
 pub use scenario::{ScenarioError, ScenarioSetting};
 pub use scheduler::{Amplitude, Phase, Scheduler, Segment};
 pub use segment::SegmentKind;
+pub use settings::{Applied, Machine, Setting, Settings};
 pub use supervisor::{
     Fault, Led, MotionRequest, RunState, StopCategory, Supervisor, SupervisorEvent,
 };

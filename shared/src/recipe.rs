@@ -22,7 +22,7 @@
 use core::fmt;
 
 use crate::error::Error;
-use crate::protocol::{Applied, Machine, Settings};
+use crate::settings::{Applied, Machine, Settings};
 use crate::waveform::Drive;
 
 /// Number of recipe slots.

@@ -1,0 +1,279 @@
+//! What a command line means: the commands, their parameters and the parser.
+//!
+//! Words are separated by blanks; keywords and units are case-insensitive. A number
+//! ([`crate::number::split_decimal`]) takes an optional unit, attached (`50hz`) or as the next word
+//! (`50 Hz`), that must be the documented one.
+
+use super::refusal::ReplyError;
+use crate::number::split_decimal;
+use crate::recipe::{RecipeSlot, RECIPE_SLOTS};
+use crate::settings::Setting;
+
+/// A parsed command line.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Command {
+    /// `start`: soft start at the next cycle boundary.
+    Start,
+    /// `stop`: soft stop at the next cycle boundary.
+    Stop,
+    /// `status`: state, active parameters, predicted feed rate, fault, uptime, cycle count.
+    Status,
+    /// `get <param>`: one active parameter.
+    Get(Param),
+    /// `set <param> <value>`: change one parameter, validated before anything changes.
+    Set(Setting),
+    /// `recipe save <n>`: store the current settings in slot `n`.
+    RecipeSave(RecipeSlot),
+    /// `recipe load <n>`: load slot `n` (defaults if the record is missing or corrupt).
+    RecipeLoad(RecipeSlot),
+    /// `recipe list`: what each slot holds.
+    RecipeList,
+    /// `reset`: clear a latched fault.
+    Reset,
+    /// `help`: the command summary.
+    Help,
+}
+
+/// A parameter that `get` reports and `set` changes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Param {
+    /// Drive frequency, Hz.
+    Frequency,
+    /// Duty cycle `d`, a fraction in (0.5, 1).
+    Duty,
+    /// Peak-to-peak stroke `x_max`, mm.
+    Stroke,
+    /// Peak acceleration `a_max`, m/s².
+    Accel,
+    /// Feed rate, mm/s: predicted by `get`, targeted by `set` through the inverse model.
+    Feed,
+    /// Soft start/stop length, cycles.
+    Ramp,
+}
+
+impl Param {
+    /// Every parameter, in reply order.
+    pub const ALL: [Param; 6] = [
+        Param::Frequency,
+        Param::Duty,
+        Param::Stroke,
+        Param::Accel,
+        Param::Ramp,
+        Param::Feed,
+    ];
+
+    /// The keyword used in `get` and `set`.
+    pub const fn keyword(self) -> &'static str {
+        match self {
+            Param::Frequency => "freq",
+            Param::Duty => "duty",
+            Param::Stroke => "stroke",
+            Param::Accel => "accel",
+            Param::Feed => "feed",
+            Param::Ramp => "ramp",
+        }
+    }
+
+    /// The key, with its unit, used in replies (`freq_hz=50`).
+    pub const fn reply_key(self) -> &'static str {
+        match self {
+            Param::Frequency => "freq_hz",
+            Param::Duty => "duty",
+            Param::Stroke => "stroke_mm",
+            Param::Accel => "accel_mps2",
+            Param::Feed => "feed_mmps",
+            Param::Ramp => "ramp_cycles",
+        }
+    }
+
+    /// What the number after `set <param>` stands for.
+    const fn value(self) -> Value {
+        match self {
+            Param::Frequency => Value {
+                what: "the frequency in Hz",
+                units: &["hz"],
+            },
+            Param::Duty => Value {
+                what: "the duty cycle as a plain fraction",
+                units: &[],
+            },
+            Param::Stroke => Value {
+                what: "the stroke in mm",
+                units: &["mm"],
+            },
+            Param::Accel => Value {
+                what: "the peak acceleration in m/s2",
+                units: &["m/s2", "m/s^2", "m/s²"],
+            },
+            Param::Feed => Value {
+                what: "the feed rate in mm/s",
+                units: &["mm/s"],
+            },
+            Param::Ramp => Value {
+                what: "the ramp length in cycles",
+                units: &["cycles", "cycle"],
+            },
+        }
+    }
+}
+
+/// What a number on a command line stands for, and the units it may carry.
+#[derive(Clone, Copy)]
+struct Value {
+    what: &'static str,
+    units: &'static [&'static str],
+}
+
+const SLOT: Value = Value {
+    what: "a recipe slot number from 0 to 7",
+    units: &[],
+};
+
+/// Parses one command line (without its terminator).
+pub fn parse(line: &str) -> Result<Command, ReplyError> {
+    let mut words = line.split_ascii_whitespace();
+    let keyword = words.next().ok_or(ReplyError::UnknownCommand)?;
+    let command = match lookup(keyword, &COMMANDS).ok_or(ReplyError::UnknownCommand)? {
+        Keyword::Ready(command) => command,
+        Keyword::Get => Command::Get(param(words.next())?),
+        Keyword::Set => {
+            let param = param(words.next())?;
+            Command::Set(setting(param, &mut words)?)
+        }
+        Keyword::Recipe => {
+            let action = words.next().ok_or(ReplyError::MissingArgument {
+                what: "save, load or list",
+            })?;
+            match lookup(action, &RECIPE_ACTIONS).ok_or(ReplyError::UnknownCommand)? {
+                RecipeAction::Save => Command::RecipeSave(slot(&mut words)?),
+                RecipeAction::Load => Command::RecipeLoad(slot(&mut words)?),
+                RecipeAction::List => Command::RecipeList,
+            }
+        }
+    };
+    match words.next() {
+        Some(_) => Err(ReplyError::UnexpectedArgument),
+        None => Ok(command),
+    }
+}
+
+#[derive(Clone, Copy)]
+enum Keyword {
+    Ready(Command),
+    Get,
+    Set,
+    Recipe,
+}
+
+const COMMANDS: [(&str, Keyword); 9] = [
+    ("start", Keyword::Ready(Command::Start)),
+    ("stop", Keyword::Ready(Command::Stop)),
+    ("status", Keyword::Ready(Command::Status)),
+    ("get", Keyword::Get),
+    ("set", Keyword::Set),
+    ("recipe", Keyword::Recipe),
+    ("reset", Keyword::Ready(Command::Reset)),
+    ("help", Keyword::Ready(Command::Help)),
+    ("?", Keyword::Ready(Command::Help)),
+];
+
+#[derive(Clone, Copy)]
+enum RecipeAction {
+    Save,
+    Load,
+    List,
+}
+
+const RECIPE_ACTIONS: [(&str, RecipeAction); 3] = [
+    ("save", RecipeAction::Save),
+    ("load", RecipeAction::Load),
+    ("list", RecipeAction::List),
+];
+
+fn lookup<T: Copy>(word: &str, table: &[(&str, T)]) -> Option<T> {
+    table
+        .iter()
+        .find(|(name, _)| name.eq_ignore_ascii_case(word))
+        .map(|&(_, value)| value)
+}
+
+fn param(word: Option<&str>) -> Result<Param, ReplyError> {
+    let word = word.ok_or(ReplyError::MissingArgument {
+        what: "a parameter: freq, duty, stroke, accel, feed or ramp",
+    })?;
+    Param::ALL
+        .into_iter()
+        .find(|param| param.keyword().eq_ignore_ascii_case(word))
+        .ok_or(ReplyError::UnknownParameter)
+}
+
+fn setting<'a>(
+    param: Param,
+    words: &mut impl Iterator<Item = &'a str>,
+) -> Result<Setting, ReplyError> {
+    let value = param.value();
+    Ok(match param {
+        Param::Frequency => Setting::FrequencyHz(number(value, words)?),
+        Param::Duty => Setting::Duty(number(value, words)?),
+        Param::Stroke => Setting::StrokeMm(number(value, words)?),
+        Param::Accel => Setting::AccelMps2(number(value, words)?),
+        Param::Feed => Setting::FeedMmps(number(value, words)?),
+        Param::Ramp => Setting::RampCycles(whole(value, words, u16::MAX)?),
+    })
+}
+
+fn slot<'a>(words: &mut impl Iterator<Item = &'a str>) -> Result<RecipeSlot, ReplyError> {
+    let max = RECIPE_SLOTS as u16 - 1;
+    let index = whole(SLOT, words, max)?;
+    RecipeSlot::new(index as u8).ok_or(ReplyError::OutOfRange {
+        what: SLOT.what,
+        min: 0,
+        max: max.into(),
+    })
+}
+
+/// A whole number in `0..=max`.
+fn whole<'a>(
+    value: Value,
+    words: &mut impl Iterator<Item = &'a str>,
+    max: u16,
+) -> Result<u16, ReplyError> {
+    let number = number(value, words)?;
+    if !(0.0..=f64::from(max)).contains(&number) {
+        return Err(ReplyError::OutOfRange {
+            what: value.what,
+            min: 0,
+            max: max.into(),
+        });
+    }
+    let whole = number as u16;
+    if f64::from(whole) != number {
+        return Err(ReplyError::NotWholeNumber { what: value.what });
+    }
+    Ok(whole)
+}
+
+/// A finite number with an optional unit, attached or as the next word.
+fn number<'a>(value: Value, words: &mut impl Iterator<Item = &'a str>) -> Result<f64, ReplyError> {
+    let word = words
+        .next()
+        .ok_or(ReplyError::MissingArgument { what: value.what })?;
+    let (number, attached) =
+        split_decimal(word).ok_or(ReplyError::BadNumber { what: value.what })?;
+    if !number.is_finite() {
+        return Err(ReplyError::NotFinite);
+    }
+    let unit = if attached.is_empty() {
+        words.next()
+    } else {
+        Some(attached)
+    };
+    match unit {
+        Some(unit) if !value.units.iter().any(|u| u.eq_ignore_ascii_case(unit)) => {
+            Err(ReplyError::WrongUnit { what: value.what })
+        }
+        _ => Ok(number),
+    }
+}
