@@ -9,15 +9,15 @@
 //! `ERR`. Without, reads commands from standard input (with a prompt on a terminal) and prints
 //! each reply. Exit code 2: bad arguments or a connection or timeout error.
 
-use std::io::{self, BufRead, IsTerminal, Read, Write};
-use std::net::TcpStream;
+mod console;
+
+use std::io::{self, BufRead, IsTerminal, Write};
 use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::{ArgGroup, Parser};
+use console::{Console, Target};
 
-/// Longest reply line accepted, in bytes.
-const MAX_REPLY_BYTES: usize = 1024;
 /// Longest reply timeout accepted: an hour.
 const MAX_TIMEOUT_MS: u32 = 3_600_000;
 
@@ -55,21 +55,6 @@ struct Options {
     command: Vec<String>,
 }
 
-/// Where the console is.
-enum Target<'a> {
-    Serial { path: &'a str, baud: u32 },
-    Tcp(&'a str),
-}
-
-impl std::fmt::Display for Target<'_> {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Target::Serial { path, baud } => write!(f, "serial port {path} at {baud} baud"),
-            Target::Tcp(address) => write!(f, "TCP {address}"),
-        }
-    }
-}
-
 impl Options {
     fn target(&self) -> Target<'_> {
         match (&self.port, &self.tcp) {
@@ -80,71 +65,6 @@ impl Options {
             (None, Some(address)) => Target::Tcp(address),
             (None, None) => unreachable!("clap requires one of --port and --tcp"),
         }
-    }
-}
-
-/// A connection to the console: one command line out, one reply line back.
-struct Console {
-    link: Box<dyn Link>,
-}
-
-trait Link: Read + Write {}
-impl<T: Read + Write> Link for T {}
-
-impl Console {
-    fn open(target: &Target, timeout: Duration) -> io::Result<Self> {
-        let link: Box<dyn Link> = match *target {
-            Target::Serial { path, baud } => {
-                let port = serialport::new(path, baud).timeout(timeout).open()?;
-                port.clear(serialport::ClearBuffer::Input)?;
-                Box::new(port)
-            }
-            Target::Tcp(address) => {
-                let stream = TcpStream::connect(address)?;
-                stream.set_read_timeout(Some(timeout))?;
-                stream.set_nodelay(true)?;
-                Box::new(stream)
-            }
-        };
-        Ok(Console { link })
-    }
-
-    /// Sends `line` and returns the reply line without its terminator.
-    fn command(&mut self, line: &str) -> io::Result<String> {
-        self.link.write_all(line.as_bytes())?;
-        self.link.write_all(b"\r\n")?;
-        self.link.flush()?;
-        self.reply()
-    }
-
-    fn reply(&mut self) -> io::Result<String> {
-        let mut reply = Vec::new();
-        let mut byte = [0u8];
-        loop {
-            match self.link.read(&mut byte) {
-                Ok(0) => {
-                    return Err(io::Error::new(
-                        io::ErrorKind::UnexpectedEof,
-                        "connection closed",
-                    ))
-                }
-                Ok(_) if byte[0] == b'\n' => break,
-                Ok(_) if byte[0] == b'\r' => {}
-                Ok(_) if reply.len() < MAX_REPLY_BYTES => reply.push(byte[0]),
-                Ok(_) => {}
-                Err(error) if error.kind() == io::ErrorKind::Interrupted => {}
-                Err(error)
-                    if matches!(
-                        error.kind(),
-                        io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
-                    ) =>
-                {
-                    return Err(io::Error::new(io::ErrorKind::TimedOut, "no reply in time"))
-                }
-                Err(error) => return Err(error),
-            }
-        }
-        Ok(String::from_utf8_lossy(&reply).into_owned())
     }
 }
 
