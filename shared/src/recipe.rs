@@ -149,17 +149,14 @@ impl fmt::Display for RecordError {
     }
 }
 
-/// CRC-32 (IEEE 802.3: polynomial 0x04C11DB7 reflected, initial value and final XOR all ones).
+/// CRC-32 (IEEE 802.3: polynomial 0x04C11DB7 reflected, initial value and final XOR all ones),
+/// computed bit by bit: a lookup table would cost 1 KiB of flash for 36 bytes per record.
+const CRC32: crc::Crc<u32, crc::NoTable> =
+    crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISO_HDLC);
+
+/// The [`CRC32`] of `bytes`.
 pub fn crc32(bytes: &[u8]) -> u32 {
-    let mut crc = !0u32;
-    for &byte in bytes {
-        crc ^= u32::from(byte);
-        for _ in 0..8 {
-            let mask = (crc & 1).wrapping_neg();
-            crc = (crc >> 1) ^ (0xedb8_8320 & mask);
-        }
-    }
-    !crc
+    CRC32.checksum(bytes)
 }
 
 /// The record storing `settings` in `slot`.

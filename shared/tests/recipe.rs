@@ -43,6 +43,13 @@ fn crc32_matches_the_standard_check_values() {
         crc32(b"The quick brown fox jumps over the lazy dog"),
         0x414f_a339
     );
+    // zlib's values for a record's CRC span erased, zeroed, and every byte value once.
+    assert_eq!(crc32(&[0xff; 36]), 0x1999_0159);
+    assert_eq!(crc32(&[0; 36]), 0x6ab6_b2d5);
+    assert_eq!(
+        crc32(&core::array::from_fn::<u8, 256, _>(|n| n as u8)),
+        0x2905_8c73
+    );
 }
 
 #[test]
