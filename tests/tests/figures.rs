@@ -1,5 +1,5 @@
 //! The paper's figures' data, regenerated through the library and compared with the CSVs the CLI
-//! wrote into `tests/figures/` (commands in `tests/figures/README.md`).
+//! wrote into `tests/expected/` (`cargo xtask bless` writes them; what each is: the README there).
 //!
 //! Tolerance: the runs are deterministic and the CSV floats round-trip exactly, so on the machine
 //! that wrote the files every value matches bit for bit. The 1e-9 relative allowance (with an
@@ -28,7 +28,7 @@ const SWEEP_MAX_DUTY: f64 = 0.98;
 
 fn figure_path(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("figures")
+        .join("expected")
         .join(name)
 }
 
@@ -52,7 +52,7 @@ fn assert_matches_file<T: Serialize>(name: &str, rows: &[T]) {
     let regenerated = writer.into_inner().unwrap();
     let mut fresh = csv::Reader::from_reader(regenerated.as_slice());
     let mut stored = csv::Reader::from_path(figure_path(name))
-        .unwrap_or_else(|e| panic!("{name}: {e}; see tests/figures/README.md"));
+        .unwrap_or_else(|e| panic!("{name}: {e}; see tests/expected/README.md"));
     assert_eq!(
         fresh.headers().unwrap(),
         stored.headers().unwrap(),

@@ -32,22 +32,21 @@ fn run_scenario(arguments: &[&str]) -> (ExitStatus, String) {
     (status, log)
 }
 
-fn golden_path() -> PathBuf {
+/// A file in `tests/expected/` (what each is: its README; `cargo xtask bless` makes them).
+fn expected_path(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("golden")
-        .join("qemu-short-scenario.log")
+        .join("expected")
+        .join(name)
 }
 
 #[test]
 #[ignore = "needs the QEMU firmware; run by cargo xtask test"]
 fn short_scenario_log_matches_the_golden_file_byte_for_byte() {
-    let (status, log) = run_scenario(&["cycles=20", "ramp=4"]);
+    let arguments = std::fs::read_to_string(expected_path("qemu-short-scenario.args"))
+        .expect("the scenario's words are readable");
+    let (status, log) = run_scenario(&arguments.split_whitespace().collect::<Vec<_>>());
     assert!(status.success(), "the firmware failed:\n{log}");
-    let path = golden_path();
-    if std::env::var_os("FEEDER_BLESS").is_some() {
-        std::fs::write(&path, &log).expect("golden file is writable");
-        return;
-    }
+    let path = expected_path("qemu-short-scenario.log");
     let golden = std::fs::read_to_string(&path).expect("golden file exists");
     if golden != log {
         let line = golden
@@ -57,7 +56,7 @@ fn short_scenario_log_matches_the_golden_file_byte_for_byte() {
             .unwrap_or_else(|| golden.lines().count().min(log.lines().count()));
         panic!(
             "the event log differs from {} at line {}:\n  expected: {:?}\n  actual:   {:?}\n\
-             (if the change is intended, rerun with FEEDER_BLESS=1)",
+             (if the change is intended, run `cargo xtask bless` and review the diff)",
             path.display(),
             line + 1,
             golden.lines().nth(line),
