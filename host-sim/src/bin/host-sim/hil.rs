@@ -3,7 +3,7 @@
 
 use std::fs::File;
 use std::io::BufReader;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use clap::Args;
 use host_sim::hil::{
@@ -13,9 +13,11 @@ use host_sim::hil::{
 use host_sim::SimError;
 use serde::Serialize;
 
+use crate::args::{ContactArgs, OutputArgs};
+use crate::output::{emit, say};
 use crate::plot::{self, Labels, Mark, Series};
-use crate::{print_json, write_csv, ContactArgs, OutputArgs};
 
+/// The flags of `host-sim hil`.
 #[derive(Args)]
 pub struct HilArgs {
     /// Decoded event stream (defmt-print or probe-rs output); standard input by default.
@@ -125,7 +127,8 @@ impl From<&PartReport> for PartSummary {
     }
 }
 
-pub fn hil(args: &HilArgs) -> Result<(), SimError> {
+/// Runs `host-sim hil`.
+pub fn run(args: &HilArgs) -> Result<(), SimError> {
     args.output.check()?;
     let contact = args.contact.contact()?;
     let source = args
@@ -202,17 +205,13 @@ pub fn hil(args: &HilArgs) -> Result<(), SimError> {
         actual: PartSummary::from(&actual),
         planned: PartSummary::from(&planned),
     };
-    if let Some(path) = &args.output.csv {
-        write_csv(path, &actual.cycles)?;
-    }
-    if let Some(path) = &args.output.plot {
-        plot_run(path, &actual, &planned)?;
-    }
-    if args.output.json {
-        print_json(&report)?;
-    } else {
-        print_report(&report, &check);
-    }
+    emit(
+        &args.output,
+        &actual.cycles,
+        |path| plot_run(path, &actual, &planned),
+        &report,
+        || print_report(&report, &check),
+    )?;
     if passed {
         Ok(())
     } else {
@@ -308,11 +307,7 @@ fn print_report(report: &HilReport, check: &CheckReport) {
 }
 
 /// Per-cycle mean velocities through the run: the part on both timings and the plate's drift.
-fn plot_run(
-    path: &std::path::Path,
-    actual: &PartReport,
-    planned: &PartReport,
-) -> Result<(), SimError> {
+fn plot_run(path: &Path, actual: &PartReport, planned: &PartReport) -> Result<(), SimError> {
     let series =
         |name: &str, part: &PartReport, value: fn(&hil::CyclePoint) -> f64, mark, color| Series {
             name: name.into(),
