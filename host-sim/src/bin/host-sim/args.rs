@@ -1,0 +1,205 @@
+//! The argument groups several commands share, and the checks of counts and grids they make
+//! before anything is computed.
+
+use std::fmt::Display;
+use std::path::PathBuf;
+use std::str::FromStr;
+
+use clap::Args;
+use feeder_shared::model::STANDARD_GRAVITY_MPS2;
+use feeder_shared::{Drive, WaveformSpec};
+use host_sim::plant::PAPER_PART_MASS_KG;
+use host_sim::{Contact, SimError};
+
+use crate::plot;
+
+/// Timer clock of the tick plan when neither `--clock-hz` nor `--exact-times` is given.
+const DEFAULT_CLOCK_HZ: u32 = 1_000_000;
+/// Peak-to-peak stroke when neither `--stroke-m` nor `--accel-mps2` is given.
+const DEFAULT_STROKE_M: f64 = 0.0025;
+/// Most operating points one command simulates to steady state: a_max values × duties for
+/// `sweep`, forces for `viscosity`, a_max values × μ values for `saturation` (40 runs each).
+pub const MAX_POINTS: usize = 10_000;
+
+/// The vibration frequency.
+#[derive(Args, Clone)]
+pub struct FrequencyArgs {
+    /// Vibration frequency 1/T.
+    #[arg(long, default_value_t = 50.0, allow_hyphen_values = true)]
+    pub freq_hz: f64,
+}
+
+impl FrequencyArgs {
+    /// The period `T`; the frequency must be finite and above zero.
+    pub fn period_s(&self) -> Result<f64, SimError> {
+        let frequency_hz = self.freq_hz;
+        if frequency_hz.is_finite() && frequency_hz > 0.0 {
+            Ok(1.0 / frequency_hz)
+        } else {
+            Err(SimError::BadFrequency { frequency_hz })
+        }
+    }
+}
+
+/// The plate's waveform (Eq. 1–5).
+#[derive(Args, Clone)]
+pub struct WaveArgs {
+    #[command(flatten)]
+    pub frequency: FrequencyArgs,
+    /// Duty cycle d = F/T of the plate's velocity profile, in (0.5, 1).
+    #[arg(long, default_value_t = 0.586, allow_hyphen_values = true)]
+    pub duty: f64,
+    /// Peak-to-peak plate stroke x_max (a_max follows from Eq. 5); default 2.5 mm.
+    #[arg(long, conflicts_with = "accel_mps2", allow_hyphen_values = true)]
+    pub stroke_m: Option<f64>,
+    /// Peak plate acceleration a_max (the stroke follows from Eq. 5).
+    #[arg(long, allow_hyphen_values = true)]
+    pub accel_mps2: Option<f64>,
+}
+
+impl WaveArgs {
+    pub fn spec(&self) -> Result<WaveformSpec, SimError> {
+        let drive = match (self.accel_mps2, self.stroke_m) {
+            (Some(accel_mps2), _) => Drive::Accel { accel_mps2 },
+            (None, stroke_m) => Drive::Stroke {
+                stroke_m: stroke_m.unwrap_or(DEFAULT_STROKE_M),
+            },
+        };
+        Ok(WaveformSpec {
+            period_s: self.frequency.period_s()?,
+            duty: self.duty,
+            drive,
+        })
+    }
+}
+
+/// The part's friction on the plate, gravity and the part's mass.
+#[derive(Args, Clone)]
+pub struct FrictionArgs {
+    /// Kinetic friction coefficient μ.
+    #[arg(long, default_value_t = 1.0, allow_hyphen_values = true)]
+    pub mu: f64,
+    /// Static friction coefficient μ_s ≥ μ (default μ).
+    #[arg(long, allow_hyphen_values = true)]
+    pub mu_static: Option<f64>,
+    #[arg(long, default_value_t = STANDARD_GRAVITY_MPS2, allow_hyphen_values = true)]
+    pub gravity_mps2: f64,
+    /// Part mass (the paper's 0.1 g by default).
+    #[arg(long, default_value_t = PAPER_PART_MASS_KG, allow_hyphen_values = true)]
+    pub mass_kg: f64,
+}
+
+impl FrictionArgs {
+    /// The contact under a constant external force `force_n`.
+    pub fn contact(&self, force_n: f64) -> Result<Contact, SimError> {
+        Contact::new(
+            self.mu,
+            self.mu_static.unwrap_or(self.mu),
+            self.gravity_mps2,
+            self.mass_kg,
+            force_n,
+        )
+    }
+}
+
+/// The whole contact: friction, gravity, mass and a constant external force.
+#[derive(Args, Clone)]
+pub struct ContactArgs {
+    #[command(flatten)]
+    pub friction: FrictionArgs,
+    /// Constant external force on the part along the feed direction.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub force_n: f64,
+}
+
+impl ContactArgs {
+    pub fn contact(&self) -> Result<Contact, SimError> {
+        self.friction.contact(self.force_n)
+    }
+}
+
+/// Where the plate's switching times come from.
+#[derive(Args, Clone)]
+pub struct TimingArgs {
+    /// Drive the plate with the shared scheduler's tick plan at this timer clock (default 1 MHz).
+    #[arg(long, conflicts_with = "exact_times", allow_hyphen_values = true)]
+    clock_hz: Option<u32>,
+    /// Use the waveform's exact real-valued switching times instead of a tick plan.
+    #[arg(long)]
+    exact_times: bool,
+}
+
+impl TimingArgs {
+    /// The tick plan's clock, `None` for exact times.
+    pub fn clock_hz(&self) -> Option<u32> {
+        if self.exact_times {
+            None
+        } else {
+            Some(self.clock_hz.unwrap_or(DEFAULT_CLOCK_HZ))
+        }
+    }
+}
+
+/// What a command writes besides its report.
+#[derive(Args, Clone)]
+pub struct OutputArgs {
+    /// Print one JSON document instead of the human-readable report.
+    #[arg(long)]
+    pub json: bool,
+    /// Also write the data as CSV to this file.
+    #[arg(long, value_name = "FILE")]
+    pub csv: Option<PathBuf>,
+    /// Also draw a chart to this file (.svg or .png).
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
+}
+
+impl OutputArgs {
+    /// Refuses a plot file format that cannot be written, before anything is computed.
+    pub fn check(&self) -> Result<(), SimError> {
+        self.plot.as_deref().map_or(Ok(()), plot::check_path)
+    }
+}
+
+/// A clap parser for a count from `min` to `max`; a refusal names the range.
+pub fn count<T>(
+    min: T,
+    max: T,
+) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static
+where
+    T: FromStr + PartialOrd + Display + Copy + Send + Sync + 'static,
+{
+    move |text| {
+        text.parse()
+            .ok()
+            .filter(|count| (min..=max).contains(count))
+            .ok_or_else(|| format!("expected a whole number from {min} to {max}"))
+    }
+}
+
+/// Refuses `rows × columns` operating points beyond [`MAX_POINTS`]; `what` names the two flags.
+pub fn check_grid(rows: usize, columns: usize, what: [&str; 2]) -> Result<(), SimError> {
+    let points = rows.saturating_mul(columns);
+    if points <= MAX_POINTS {
+        return Ok(());
+    }
+    Err(SimError::Request(format!(
+        "{rows} {} values × {} {columns} make {points} operating points; a run computes at most \
+         {MAX_POINTS}",
+        what[0], what[1]
+    )))
+}
+
+/// `points` values from `low` to `high`, both included; `None` unless `points ≥ 2` and
+/// `high > low` (NaN bounds included).
+pub fn evenly_spaced(low: f64, high: f64, points: usize) -> Option<Vec<f64>> {
+    if points < 2 || high.partial_cmp(&low) != Some(std::cmp::Ordering::Greater) {
+        return None;
+    }
+    let span = high - low;
+    Some(
+        (0..points)
+            .map(|i| low + span * (i as f64 / (points - 1) as f64))
+            .collect(),
+    )
+}

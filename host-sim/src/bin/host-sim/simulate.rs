@@ -1,0 +1,228 @@
+//! `host-sim simulate`: one operating point to steady state (or for `--cycles N`), beside the
+//! analytic models.
+
+use std::path::Path;
+use std::time::Instant;
+
+use clap::Args;
+use feeder_shared::model::Regime;
+use host_sim::{OperatingPoint, RunOptions, SimError, Timing};
+use serde::Serialize;
+
+use crate::args::{count, ContactArgs, OutputArgs, TimingArgs, WaveArgs};
+use crate::output::{emit, say};
+use crate::trace::plot_trace;
+
+/// Cycles of steady motion drawn by `--plot`.
+const PLOT_CYCLES: u64 = 3;
+/// Most cycles of `--cycles`: about a second of simulation, a few more with `--csv`.
+const MAX_CYCLES: u64 = 10_000_000;
+
+/// The flags of `host-sim simulate`.
+#[derive(Args)]
+pub struct SimulateArgs {
+    #[command(flatten)]
+    wave: WaveArgs,
+    #[command(flatten)]
+    contact: ContactArgs,
+    #[command(flatten)]
+    timing: TimingArgs,
+    /// Run exactly N cycles (at most 10 000 000) instead of detecting steady state.
+    #[arg(
+        long,
+        value_name = "N",
+        value_parser = count(1, MAX_CYCLES),
+        allow_hyphen_values = true
+    )]
+    cycles: Option<u64>,
+    #[command(flatten)]
+    output: OutputArgs,
+}
+
+#[derive(Serialize)]
+struct SimulateReport {
+    feed_rate_mps: f64,
+    model_feed_rate_mps: Option<f64>,
+    quasi_static_feed_rate_mps: f64,
+    regime: &'static str,
+    stick_fraction: f64,
+    model_stick_fraction: f64,
+    cycles: u64,
+    converged: bool,
+    freq_hz: f64,
+    duty: f64,
+    accel_mps2: f64,
+    stroke_m: f64,
+    duty_sat_nqs: f64,
+    mu: f64,
+    mu_static: f64,
+    gravity_mps2: f64,
+    mass_kg: f64,
+    force_n: f64,
+    clock_hz: Option<u32>,
+    plate_excursion_m: f64,
+    cycles_per_s: f64,
+}
+
+/// Runs `host-sim simulate`.
+pub fn run(args: &SimulateArgs) -> Result<(), SimError> {
+    args.output.check()?;
+    let point = OperatingPoint::new(
+        args.wave.spec()?,
+        args.contact.contact()?,
+        args.timing.clock_hz(),
+    )?;
+    let options = RunOptions {
+        fixed_cycles: args.cycles,
+        record_cycles: args.output.csv.is_some(),
+        ..RunOptions::converge(point.default_criteria())
+    };
+    let started = Instant::now();
+    let run = point.run(&options);
+    let elapsed_s = started.elapsed().as_secs_f64().max(1e-9);
+    let prediction = point.model();
+    let report = SimulateReport {
+        feed_rate_mps: run.feed_rate_mps,
+        model_feed_rate_mps: prediction.feed_rate_mps,
+        quasi_static_feed_rate_mps: prediction.quasi_static_feed_rate_mps,
+        regime: regime_name(prediction.regime),
+        stick_fraction: run.stick_fraction,
+        model_stick_fraction: prediction.stick_fraction,
+        cycles: run.cycles,
+        converged: run.converged,
+        freq_hz: point.waveform.frequency_hz(),
+        duty: point.waveform.duty,
+        accel_mps2: point.waveform.accel_mps2,
+        stroke_m: point.waveform.stroke_m,
+        duty_sat_nqs: prediction.duty_sat_nqs,
+        mu: point.contact.mu,
+        mu_static: point.contact.mu_static,
+        gravity_mps2: point.contact.gravity_mps2,
+        mass_kg: point.contact.mass_kg,
+        force_n: point.contact.force_n,
+        clock_hz: match point.timing {
+            Timing::Exact => None,
+            Timing::Ticks(plan) => Some(plan.clock_hz),
+        },
+        plate_excursion_m: run.plate_excursion_m,
+        cycles_per_s: run.cycles as f64 / elapsed_s,
+    };
+    // Continues from the final state for a few cycles with the event trace on.
+    let plot = |path: &Path| {
+        let steady = RunOptions {
+            fixed_cycles: Some(PLOT_CYCLES),
+            trace: true,
+            initial_rel_velocity_mps: run.final_rel_velocity_mps,
+            ..RunOptions::converge(point.default_criteria())
+        };
+        let title = format!(
+            "Steady state: {} Hz, d = {}, a_max = {:.1} m/s², μ = {} — feed {:.2} mm/s",
+            report.freq_hz,
+            report.duty,
+            report.accel_mps2,
+            report.mu,
+            report.feed_rate_mps * 1e3
+        );
+        plot_trace(
+            path,
+            &title,
+            &point.run(&steady).trace,
+            Some(report.feed_rate_mps),
+        )
+    };
+    emit(&args.output, &run.cycle_stats, plot, &report, || {
+        print_simulation(&report, &point, &args.output)
+    })
+}
+
+fn regime_name(regime: Regime) -> &'static str {
+    match regime {
+        Regime::Stuck => "stuck",
+        Regime::Sliding => "sliding",
+        Regime::Saturated => "saturated",
+    }
+}
+
+fn print_simulation(report: &SimulateReport, point: &OperatingPoint, output: &OutputArgs) {
+    let drive = format!(
+        "stroke {:.4} mm, a_max {:.3} m/s² ({:.2} g)",
+        report.stroke_m * 1e3,
+        report.accel_mps2,
+        report.accel_mps2 / report.gravity_mps2
+    );
+    say!(
+        "operating point   {} Hz, d = {}, {drive}",
+        report.freq_hz,
+        report.duty
+    );
+    say!(
+        "contact           μ = {}, μ_s = {}, g = {} m/s², m = {} kg, f_ext = {} N",
+        report.mu,
+        report.mu_static,
+        report.gravity_mps2,
+        report.mass_kg,
+        report.force_n
+    );
+    match point.timing {
+        Timing::Exact => say!("timing            exact switching times"),
+        Timing::Ticks(plan) => say!(
+            "timing            tick plan, {} Hz clock, {} ticks per period",
+            plan.clock_hz,
+            plan.period_ticks
+        ),
+    }
+    let equation = match point.model().regime {
+        Regime::Stuck => "a ≤ μg",
+        Regime::Sliding => "Eq. 15",
+        Regime::Saturated => "Eq. 18",
+    };
+    say!(
+        "feed rate         {:.6} mm/s (simulated)",
+        report.feed_rate_mps * 1e3
+    );
+    match report.model_feed_rate_mps {
+        Some(model) => {
+            say!(
+                "model             {:.6} mm/s ({equation}, {} regime, d_sat,nqs = {:.4})",
+                model * 1e3,
+                report.regime,
+                report.duty_sat_nqs
+            );
+            if model != 0.0 {
+                say!(
+                    "difference        {:.2e} relative",
+                    report.feed_rate_mps / model - 1.0
+                );
+            }
+        }
+        None => say!("model             outside the linear viscous law (the part sticks)"),
+    }
+    say!(
+        "quasi-static      {:.6} mm/s (Eq. 9)",
+        report.quasi_static_feed_rate_mps * 1e3
+    );
+    say!(
+        "stick fraction    {:.6} (model {:.6})",
+        report.stick_fraction,
+        report.model_stick_fraction
+    );
+    say!(
+        "cycles            {} ({})",
+        report.cycles,
+        if report.converged {
+            "converged"
+        } else {
+            "not converged"
+        }
+    );
+    say!("plate excursion   {:.6} mm", report.plate_excursion_m * 1e3);
+    say!(
+        "speed             {:.3e} simulated cycles/s",
+        report.cycles_per_s
+    );
+    for (what, path) in [("csv", &output.csv), ("plot", &output.plot)] {
+        if let Some(path) = path {
+            say!("{what:<18}{}", path.display());
+        }
+    }
+}

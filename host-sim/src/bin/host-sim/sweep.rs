@@ -1,0 +1,153 @@
+//! `host-sim sweep`: feed rate vs duty for one or more a_max, beside the models (Fig. 4, Fig. 9).
+
+use std::path::Path;
+
+use clap::Args;
+use host_sim::figures::{self, SweepPoint};
+use host_sim::SimError;
+
+use crate::args::{
+    check_grid, count, ContactArgs, FrequencyArgs, OutputArgs, TimingArgs, MAX_POINTS,
+};
+use crate::output::{emit, progress, say};
+use crate::plot::{self, Labels, Mark, Series};
+
+/// Upper end of the swept duties: closer to 1 the first `+a` segment, `T(1 − d)²/(2(d + P/T))`,
+/// gets shorter than a tick of a 1 MHz clock at 50 Hz and the tick plan is refused.
+const MAX_DUTY: f64 = 0.98;
+
+/// The flags of `host-sim sweep`.
+#[derive(Args)]
+pub struct SweepArgs {
+    #[command(flatten)]
+    frequency: FrequencyArgs,
+    /// Peak accelerations to sweep, comma-separated (the paper's Fig. 9 by default).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "100,150,200",
+        allow_hyphen_values = true
+    )]
+    accel_mps2: Vec<f64>,
+    /// Number of duties, evenly spaced strictly inside (0.5, 0.98); at most 10 000 points in all.
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 50,
+        value_parser = count(1, MAX_POINTS),
+        allow_hyphen_values = true
+    )]
+    duties: usize,
+    #[command(flatten)]
+    contact: ContactArgs,
+    #[command(flatten)]
+    timing: TimingArgs,
+    #[command(flatten)]
+    output: OutputArgs,
+}
+
+/// Runs `host-sim sweep`.
+pub fn run(args: &SweepArgs) -> Result<(), SimError> {
+    args.output.check()?;
+    let period_s = args.frequency.period_s()?;
+    check_grid(
+        args.accel_mps2.len(),
+        args.duties,
+        ["--accel-mps2", "--duties"],
+    )?;
+    let contact = args.contact.contact()?;
+    let duties = figures::duty_grid(0.5, MAX_DUTY, args.duties);
+    let progress = progress(args.accel_mps2.len() * duties.len(), args.output.json);
+    let points = figures::sweep(
+        period_s,
+        &args.accel_mps2,
+        &duties,
+        &contact,
+        args.timing.clock_hz(),
+        &|| progress.inc(1),
+    )?;
+    progress.finish_and_clear();
+    emit(
+        &args.output,
+        &points,
+        |path| plot_sweep(path, args, &points),
+        &points,
+        || print_table(&points),
+    )
+}
+
+fn print_table(points: &[SweepPoint]) {
+    say!(
+        "{:>10} {:>7} {:>12} {:>12} {:>12} {:>8} {:>7}",
+        "a_max",
+        "duty",
+        "sim mm/s",
+        "nqs mm/s",
+        "qs mm/s",
+        "stick",
+        "cycles"
+    );
+    for point in points {
+        say!(
+            "{:>10.1} {:>7.4} {:>12.5} {:>12} {:>12.5} {:>8.4} {:>7}{}",
+            point.accel_mps2,
+            point.duty,
+            point.feed_rate_mps * 1e3,
+            point
+                .model_feed_rate_mps
+                .map_or("-".into(), |v| format!("{:.5}", v * 1e3)),
+            point.quasi_static_feed_rate_mps * 1e3,
+            point.stick_fraction,
+            point.cycles,
+            if point.converged {
+                ""
+            } else {
+                " (not converged)"
+            }
+        );
+    }
+}
+
+fn plot_sweep(path: &Path, args: &SweepArgs, points: &[SweepPoint]) -> Result<(), SimError> {
+    let mut series = Vec::new();
+    for (index, &accel) in args.accel_mps2.iter().enumerate() {
+        let of_accel: Vec<&SweepPoint> = points.iter().filter(|p| p.accel_mps2 == accel).collect();
+        let pick = |f: &dyn Fn(&SweepPoint) -> Option<f64>| -> Vec<(f64, f64)> {
+            of_accel
+                .iter()
+                .filter_map(|p| f(p).map(|v| (p.duty, v * 1e3)))
+                .collect()
+        };
+        series.push(Series {
+            name: format!("simulated, a = {accel} m/s²"),
+            points: pick(&|p| Some(p.feed_rate_mps)),
+            mark: Mark::Points,
+            color: index,
+        });
+        series.push(Series {
+            name: format!("non-quasi-static (Eq. 15/18), a = {accel}"),
+            points: pick(&|p| p.model_feed_rate_mps),
+            mark: Mark::Line,
+            color: index,
+        });
+        series.push(Series {
+            name: format!("quasi-static (Eq. 9), a = {accel}"),
+            points: pick(&|p| Some(p.quasi_static_feed_rate_mps)),
+            mark: Mark::DashedLine,
+            color: index,
+        });
+    }
+    let title = format!(
+        "Feed rate vs duty at {} Hz, μ = {}",
+        args.frequency.freq_hz, args.contact.friction.mu
+    );
+    plot::chart(
+        path,
+        Labels {
+            title: &title,
+            x: "duty d",
+            y: "feed rate (mm/s)",
+        },
+        &series,
+    )
+}

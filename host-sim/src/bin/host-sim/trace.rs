@@ -1,0 +1,132 @@
+//! `host-sim trace`: plate and part velocity through N cycles from rest (Fig. 3, 5, 6, 8), and
+//! the velocity chart `simulate --plot` draws too.
+
+use std::path::Path;
+
+use clap::Args;
+use host_sim::sim::TracePoint;
+use host_sim::{OperatingPoint, RunOptions, SimError};
+
+use crate::args::{count, ContactArgs, OutputArgs, TimingArgs, WaveArgs};
+use crate::output::{emit, say};
+use crate::plot::{self, Labels, Mark, Series};
+
+/// Most cycles of `--cycles`: every event is kept for the report and the plot.
+const MAX_CYCLES: u64 = 10_000;
+
+/// The flags of `host-sim trace`.
+#[derive(Args)]
+pub struct TraceArgs {
+    #[command(flatten)]
+    wave: WaveArgs,
+    #[command(flatten)]
+    contact: ContactArgs,
+    #[command(flatten)]
+    timing: TimingArgs,
+    /// Cycles to trace from rest (at most 10 000).
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 5,
+        value_parser = count(1, MAX_CYCLES),
+        allow_hyphen_values = true
+    )]
+    cycles: u64,
+    #[command(flatten)]
+    output: OutputArgs,
+}
+
+/// Runs `host-sim trace`.
+pub fn run(args: &TraceArgs) -> Result<(), SimError> {
+    args.output.check()?;
+    let point = OperatingPoint::new(
+        args.wave.spec()?,
+        args.contact.contact()?,
+        args.timing.clock_hz(),
+    )?;
+    let options = RunOptions {
+        fixed_cycles: Some(args.cycles),
+        trace: true,
+        ..RunOptions::converge(point.default_criteria())
+    };
+    let run = point.run(&options);
+    let plot = |path: &Path| {
+        let title = format!(
+            "Plate and part velocity: {} Hz, d = {}, a_max = {:.1} m/s², μ = {}",
+            point.waveform.frequency_hz(),
+            point.waveform.duty,
+            point.waveform.accel_mps2,
+            point.contact.mu
+        );
+        plot_trace(path, &title, &run.trace, None)
+    };
+    emit(&args.output, &run.trace, plot, &run.trace, || {
+        print_trace(&run.trace)
+    })
+}
+
+fn print_trace(trace: &[TracePoint]) {
+    say!(
+        "{:>12} {:>14} {:>14}  event",
+        "time ms",
+        "plate mm/s",
+        "part mm/s"
+    );
+    for p in trace {
+        say!(
+            "{:>12.6} {:>14.6} {:>14.6}  {:?}",
+            p.time_s * 1e3,
+            p.plate_velocity_mps * 1e3,
+            p.part_velocity_mps * 1e3,
+            p.event
+        );
+    }
+}
+
+/// Plate and part velocity through `trace`, with the mean part velocity `feed_rate_mps` if given.
+pub fn plot_trace(
+    path: &Path,
+    title: &str,
+    trace: &[TracePoint],
+    feed_rate_mps: Option<f64>,
+) -> Result<(), SimError> {
+    let start = trace.first().map_or(0.0, |p| p.time_s);
+    let end = trace.last().map_or(0.0, |p| p.time_s);
+    let mut series = vec![
+        Series {
+            name: "plate".into(),
+            points: trace
+                .iter()
+                .map(|p| (p.time_s * 1e3, p.plate_velocity_mps * 1e3))
+                .collect(),
+            mark: Mark::Line,
+            color: 0,
+        },
+        Series {
+            name: "part".into(),
+            points: trace
+                .iter()
+                .map(|p| (p.time_s * 1e3, p.part_velocity_mps * 1e3))
+                .collect(),
+            mark: Mark::Line,
+            color: 1,
+        },
+    ];
+    if let Some(feed) = feed_rate_mps {
+        series.push(Series {
+            name: "feed rate (mean part velocity)".into(),
+            points: vec![(start * 1e3, feed * 1e3), (end * 1e3, feed * 1e3)],
+            mark: Mark::DashedLine,
+            color: 2,
+        });
+    }
+    plot::chart(
+        path,
+        Labels {
+            title,
+            x: "time (ms)",
+            y: "velocity (mm/s)",
+        },
+        &series,
+    )
+}

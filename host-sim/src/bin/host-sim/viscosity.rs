@@ -1,0 +1,159 @@
+//! `host-sim viscosity`: steady velocity vs external force and the least-squares viscosity K
+//! (Fig. 10, Eq. 10).
+
+use std::path::Path;
+
+use clap::Args;
+use feeder_shared::number::Significant;
+use feeder_shared::{Drive, WaveformSpec};
+use host_sim::figures::{self, Viscosity, ViscosityPoint};
+use host_sim::SimError;
+
+use crate::args::{
+    count, evenly_spaced, FrequencyArgs, FrictionArgs, OutputArgs, TimingArgs, MAX_POINTS,
+};
+use crate::output::{emit, say};
+use crate::plot::{self, Labels, Mark, Series};
+
+/// The flags of `host-sim viscosity`; the defaults are the paper's Section IV.C.
+#[derive(Args)]
+#[command(
+    mut_arg("freq_hz", |arg| arg
+        .default_value("100")
+        .help("The paper's Section IV.C: T = 0.01 s")),
+    mut_arg("mu", |arg| arg.default_value("0.5"))
+)]
+pub struct ViscosityArgs {
+    #[command(flatten)]
+    frequency: FrequencyArgs,
+    /// d ≈ 0.5484, implied by the paper's fitted intercept (errata 10).
+    #[arg(long, default_value_t = 0.5484, allow_hyphen_values = true)]
+    duty: f64,
+    #[arg(long, default_value_t = 100.0, allow_hyphen_values = true)]
+    accel_mps2: f64,
+    #[command(flatten)]
+    friction: FrictionArgs,
+    /// Smallest force (−15 dyn by default).
+    #[arg(long, default_value_t = -1.5e-4, allow_hyphen_values = true)]
+    force_min_n: f64,
+    /// Largest force (15 dyn by default).
+    #[arg(long, default_value_t = 1.5e-4, allow_hyphen_values = true)]
+    force_max_n: f64,
+    /// Number of forces (2 to 10 000), evenly spaced including both ends.
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = 31,
+        value_parser = count(2, MAX_POINTS),
+        allow_hyphen_values = true
+    )]
+    points: usize,
+    #[command(flatten)]
+    timing: TimingArgs,
+    #[command(flatten)]
+    output: OutputArgs,
+}
+
+/// Runs `host-sim viscosity`.
+pub fn run(args: &ViscosityArgs) -> Result<(), SimError> {
+    args.output.check()?;
+    let spec = WaveformSpec {
+        period_s: args.frequency.period_s()?,
+        duty: args.duty,
+        drive: Drive::Accel {
+            accel_mps2: args.accel_mps2,
+        },
+    };
+    let contact = args.friction.contact(0.0)?;
+    let forces =
+        evenly_spaced(args.force_min_n, args.force_max_n, args.points).ok_or_else(|| {
+            SimError::Request(format!(
+                "--force-max-n {} must be above --force-min-n {}",
+                Significant(args.force_max_n),
+                Significant(args.force_min_n)
+            ))
+        })?;
+    let fit = figures::viscosity(spec, &contact, &forces, args.timing.clock_hz())?;
+    emit(
+        &args.output,
+        &fit.points,
+        |path| plot_viscosity(path, &fit),
+        &fit,
+        || print_fit(&fit),
+    )
+}
+
+fn print_fit(fit: &Viscosity) {
+    say!(
+        "{:>12} {:>14} {:>14} {:>8}",
+        "force mN",
+        "sim mm/s",
+        "model mm/s",
+        "stick"
+    );
+    for point in &fit.points {
+        say!(
+            "{:>12.5} {:>14.6} {:>14} {:>8.4}{}",
+            point.force_n * 1e3,
+            point.velocity_mps * 1e3,
+            point
+                .model_velocity_mps
+                .map_or("-".into(), |v| format!("{:.6}", v * 1e3)),
+            point.stick_fraction,
+            if point.sticks {
+                "  sticks: outside the linear law"
+            } else {
+                ""
+            }
+        );
+    }
+    say!(
+        "K fitted {:.9e} N·s/m, Eq. 10 {:.9e} N·s/m ({:.2e} relative); intercept {:.6e} N",
+        fit.k_ns_per_m,
+        fit.model_k_ns_per_m,
+        fit.k_ns_per_m / fit.model_k_ns_per_m - 1.0,
+        fit.intercept_n
+    );
+}
+
+fn plot_viscosity(path: &Path, fit: &Viscosity) -> Result<(), SimError> {
+    let (sliding, sticking): (Vec<_>, Vec<_>) = fit.points.iter().partition(|p| !p.sticks);
+    let to_points = |points: &[&ViscosityPoint]| -> Vec<(f64, f64)> {
+        points
+            .iter()
+            .map(|p| (p.velocity_mps * 1e3, p.force_n * 1e3))
+            .collect()
+    };
+    let velocities = fit.points.iter().map(|p| p.velocity_mps);
+    let (low, high) = velocities.fold((f64::MAX, f64::MIN), |(l, h), v| (l.min(v), h.max(v)));
+    let line = |v: f64| (v * 1e3, (fit.k_ns_per_m * v + fit.intercept_n) * 1e3);
+    let series = vec![
+        Series {
+            name: "simulated, sliding".into(),
+            points: to_points(&sliding),
+            mark: Mark::Points,
+            color: 0,
+        },
+        Series {
+            name: "simulated, sticks".into(),
+            points: to_points(&sticking),
+            mark: Mark::Points,
+            color: 1,
+        },
+        Series {
+            name: format!(
+                "fit K = {:.4e} N·s/m (Eq. 10: {:.4e})",
+                fit.k_ns_per_m, fit.model_k_ns_per_m
+            ),
+            points: vec![line(low), line(high)],
+            mark: Mark::Line,
+            color: 2,
+        },
+    ];
+    let labels = Labels {
+        title: "External force vs steady velocity",
+        x: "velocity v′ (mm/s)",
+        y: "f_ext (mN)",
+    };
+    plot::chart(path, labels, &series)
+}
