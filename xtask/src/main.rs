@@ -9,10 +9,13 @@
 //! * `console` — live control: the QEMU console image at the `feeder-ctl` prompt, then
 //!   `host-sim hil` on what happened.
 //! * `soak` — only the random-operator soak against the QEMU console image, at any length.
+//! * `bless` — makes the expected outputs the tests compare with anew (`tests/expected/`, the
+//!   command-line snapshots) and says which changed.
 //!
 //! Each command installs what it needs (the thumb target, flip-link, qemu-system-arm,
 //! defmt-print; see `tools`) so it works on a fresh machine.
 
+mod bless;
 mod console;
 mod qemu;
 mod size;
@@ -56,6 +59,10 @@ enum Task {
     Console,
     /// The random-operator soak against the QEMU console image alone (also part of `test`).
     Soak(SoakArgs),
+    /// Makes the expected outputs anew after an intended change (tests/expected/: the QEMU
+    /// golden log, the figures' CSVs; the command-line snapshots) and lists the files that
+    /// changed.
+    Bless,
 }
 
 #[derive(Args)]
@@ -105,6 +112,7 @@ fn main() -> ExitCode {
             Task::Size => firmware_size(),
             Task::Console => console::console(),
             Task::Soak(args) => soak_alone(&args),
+            Task::Bless => bless::bless(),
         }
     });
     match outcome {
@@ -332,6 +340,15 @@ mod tests {
             Task::Console
         ));
         assert!(parse(&["console", "cycles=5"]).is_err());
+    }
+
+    #[test]
+    fn bless_takes_no_arguments() {
+        assert!(matches!(
+            parse(&["bless"]).expect("accepted").task,
+            Task::Bless
+        ));
+        assert!(parse(&["bless", "cycles=5"]).is_err());
     }
 
     #[test]
