@@ -125,5 +125,5 @@ pub fn scratch_dir(name: &str) -> PathBuf {
 
 /// The decoded event log of a short QEMU run that passes the check.
 pub fn golden_log() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/golden/qemu-short-scenario.log")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/expected/qemu-short-scenario.log")
 }
