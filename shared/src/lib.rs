@@ -26,6 +26,8 @@ pub mod scheduler;
 pub mod segment;
 pub mod settings;
 pub mod supervisor;
+#[cfg(feature = "testing")]
+pub mod testing;
 pub mod waveform;
 
 pub use control::{Action, Controller, Outcome, RecipeStore, Snapshot};

@@ -5,7 +5,8 @@ use feeder_shared::{Drive, Error, Limits, Machine, RecipeSlot, RecordError, Sett
 use proptest::prelude::*;
 
 mod common;
-use common::{machine, slot};
+use common::slot;
+use feeder_shared::testing::machine;
 
 fn sample() -> Settings {
     Settings {

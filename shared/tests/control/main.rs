@@ -1,0 +1,103 @@
+//! The command controller: every command by table, the run/stop/fault rules, the recipe store,
+//! and properties over arbitrary command sequences and feeder states. The fixtures are here.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod commands;
+mod recipes;
+mod rules;
+mod sequences;
+
+use feeder_shared::protocol;
+use feeder_shared::recipe::{RECIPE_SLOTS, RECORD_LEN};
+use feeder_shared::{
+    Action, Controller, Fault, Friction, Limits, Machine, Outcome, Phase, RecipeSlot, RecipeStore,
+    RunState, Settings, Snapshot, TickClock, WaveformSpec,
+};
+
+/// The machine these tests validate on: 50–100 Hz, 200 m/s², 5 mm, μ = 0.3, a 1 MHz clock.
+fn machine() -> Machine {
+    Machine {
+        limits: Limits {
+            min_frequency_hz: 50.0,
+            max_frequency_hz: 100.0,
+            max_accel_mps2: 200.0,
+            max_stroke_m: 5.0e-3,
+        },
+        friction: Friction::new(0.3, 9.80665).unwrap(),
+        clock: TickClock::new(1_000_000),
+    }
+}
+
+/// Recipe records in RAM; `fail` makes every write fail.
+#[derive(Clone, PartialEq)]
+struct Memory {
+    records: [[u8; RECORD_LEN]; RECIPE_SLOTS],
+    fail: bool,
+}
+
+#[derive(Debug)]
+struct WriteFailed;
+
+impl Memory {
+    fn erased() -> Self {
+        Memory {
+            records: [[0xff; RECORD_LEN]; RECIPE_SLOTS],
+            fail: false,
+        }
+    }
+}
+
+impl RecipeStore for Memory {
+    type Error = WriteFailed;
+
+    fn read(&mut self, slot: RecipeSlot) -> [u8; RECORD_LEN] {
+        self.records[slot.index()]
+    }
+
+    fn write(&mut self, slot: RecipeSlot, record: &[u8; RECORD_LEN]) -> Result<(), WriteFailed> {
+        if self.fail {
+            return Err(WriteFailed);
+        }
+        self.records[slot.index()] = *record;
+        Ok(())
+    }
+}
+
+fn snapshot(state: RunState, phase: Phase, cycles: u64) -> Snapshot {
+    Snapshot {
+        state,
+        phase,
+        uptime_ms: 12_345,
+        cycles,
+    }
+}
+
+fn stopped(cycles: u64) -> Snapshot {
+    snapshot(RunState::Stopped, Phase::Stopped, cycles)
+}
+
+fn running(cycles: u64) -> Snapshot {
+    snapshot(RunState::Running, Phase::Running, cycles)
+}
+
+fn faulted(cycles: u64) -> Snapshot {
+    snapshot(RunState::Faulted(Fault::EdgeMissed), Phase::Stopped, cycles)
+}
+
+fn controller() -> Controller {
+    Controller::new(machine(), Settings::DEFAULT).unwrap()
+}
+
+fn run(controller: &mut Controller, line: &str, at: &Snapshot, store: &mut Memory) -> Outcome {
+    controller.handle(protocol::parse(line), at, store)
+}
+
+fn configure(settings: &Settings) -> Action {
+    Action::Configure {
+        spec: WaveformSpec::from_frequency(settings.frequency_hz, settings.duty, settings.drive),
+        plan: settings.validate(&machine()).unwrap().plan,
+        ramp_cycles: settings.ramp_cycles,
+    }
+}

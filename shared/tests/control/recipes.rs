@@ -1,0 +1,96 @@
+//! The recipe store: a failed write, a round trip, and every unusable record.
+
+use feeder_shared::recipe;
+use feeder_shared::{Action, Settings};
+
+use crate::common::slot;
+use crate::{configure, controller, run, running, stopped, Memory};
+
+#[test]
+fn a_failed_write_is_reported_and_changes_nothing() {
+    let mut controller = controller();
+    let mut store = Memory::erased();
+    store.fail = true;
+    let outcome = run(&mut controller, "recipe save 2", &stopped(0), &mut store);
+    assert!(outcome.reply.as_str().starts_with("ERR 62 "));
+    assert_eq!(outcome.action, Action::None);
+    assert_eq!(controller.settings(), &Settings::DEFAULT);
+}
+
+#[test]
+fn recipes_round_trip_and_load_like_a_set() {
+    let mut controller = controller();
+    let mut store = Memory::erased();
+    let at = stopped(0);
+    for line in ["set accel 120", "set freq 75", "set duty 0.6", "set ramp 4"] {
+        assert!(
+            run(&mut controller, line, &at, &mut store).reply.is_ok(),
+            "{line}"
+        );
+    }
+    let saved = *controller.settings();
+    run(&mut controller, "recipe save 6", &at, &mut store);
+    run(&mut controller, "set freq 50", &at, &mut store);
+    let list = run(&mut controller, "recipe list", &at, &mut store).reply;
+    assert_eq!(
+        list.as_str(),
+        "OK recipes 0=empty 1=empty 2=empty 3=empty 4=empty 5=empty 6=75Hz/0.6/120m/s2/r4 7=empty"
+    );
+    // Loading is allowed while running and applied at a cycle boundary.
+    let outcome = run(&mut controller, "recipe load 6", &running(9), &mut store);
+    assert!(outcome
+        .reply
+        .as_str()
+        .starts_with("OK recipe 6 loaded freq_hz=75 duty=0.6 "));
+    assert_eq!(controller.settings(), &saved);
+    assert_eq!(outcome.action, configure(&saved));
+}
+
+#[test]
+fn unusable_records_load_the_defaults_and_say_why() {
+    let mut controller = controller();
+    let mut store = Memory::erased();
+    let at = stopped(0);
+    run(&mut controller, "set freq 80", &at, &mut store);
+    run(&mut controller, "recipe save 1", &at, &mut store);
+    store.records[1][10] ^= 0x40;
+    store.records[2] = recipe::encode(slot(3), &Settings::DEFAULT);
+    store.records[3] = recipe::encode(
+        slot(3),
+        &Settings {
+            frequency_hz: 150.0,
+            ..Settings::DEFAULT
+        },
+    );
+    let list = run(&mut controller, "recipe list", &at, &mut store).reply;
+    assert!(
+        list.as_str()
+            .starts_with("OK recipes 0=empty 1=corrupt 2=wrong-slot 3=rejected 4=empty"),
+        "{}",
+        list.as_str()
+    );
+    for (slot, reason) in [
+        (1, "corrupt record: CRC"),
+        (2, "record belongs to slot 3, not slot 2"),
+        (3, "stored parameters refused: "),
+    ] {
+        let outcome = run(
+            &mut controller,
+            &format!("recipe load {slot}"),
+            &at,
+            &mut store,
+        );
+        let head = format!("OK recipe {slot} not usable ({reason}");
+        assert!(
+            outcome.reply.as_str().starts_with(&head),
+            "{}",
+            outcome.reply
+        );
+        assert!(outcome
+            .reply
+            .as_str()
+            .contains("defaults loaded freq_hz=50 duty=0.5858 "));
+        assert_eq!(controller.settings(), &Settings::DEFAULT);
+        assert_eq!(outcome.action, configure(&Settings::DEFAULT));
+    }
+}

@@ -1,0 +1,129 @@
+//! The parser: every command and every refused line by table, and whole numbers by property.
+
+use feeder_shared::protocol;
+use feeder_shared::{Command, Param, Setting};
+use proptest::prelude::*;
+
+use crate::common::slot;
+
+fn code(line: &str) -> u16 {
+    match protocol::parse(line) {
+        Err(error) => error.code(),
+        Ok(command) => panic!("{line:?} parsed as {command:?}"),
+    }
+}
+
+#[test]
+fn every_command_parses() {
+    use Command::*;
+    let table: &[(&str, Command)] = &[
+        ("start", Start),
+        ("stop", Stop),
+        ("status", Status),
+        ("reset", Reset),
+        ("help", Help),
+        ("?", Help),
+        ("get freq", Get(Param::Frequency)),
+        ("get duty", Get(Param::Duty)),
+        ("get stroke", Get(Param::Stroke)),
+        ("get accel", Get(Param::Accel)),
+        ("get feed", Get(Param::Feed)),
+        ("get ramp", Get(Param::Ramp)),
+        ("set freq 50", Set(Setting::FrequencyHz(50.0))),
+        ("set freq 62.5Hz", Set(Setting::FrequencyHz(62.5))),
+        ("set freq 62.5 hz", Set(Setting::FrequencyHz(62.5))),
+        ("set freq 1e2", Set(Setting::FrequencyHz(100.0))),
+        ("set duty 0.6", Set(Setting::Duty(0.6))),
+        ("set duty .6", Set(Setting::Duty(0.6))),
+        ("set stroke 2.5", Set(Setting::StrokeMm(2.5))),
+        ("set stroke 2.5mm", Set(Setting::StrokeMm(2.5))),
+        ("set accel 150", Set(Setting::AccelMps2(150.0))),
+        ("set accel 150 m/s2", Set(Setting::AccelMps2(150.0))),
+        ("set accel 150m/s^2", Set(Setting::AccelMps2(150.0))),
+        ("set accel 150 m/s²", Set(Setting::AccelMps2(150.0))),
+        ("set feed 30", Set(Setting::FeedMmps(30.0))),
+        ("set feed 30 mm/s", Set(Setting::FeedMmps(30.0))),
+        ("set feed -3", Set(Setting::FeedMmps(-3.0))),
+        ("set ramp 0", Set(Setting::RampCycles(0))),
+        ("set ramp 12 cycles", Set(Setting::RampCycles(12))),
+        ("set ramp 1 cycle", Set(Setting::RampCycles(1))),
+        ("set ramp 65535", Set(Setting::RampCycles(65535))),
+        ("set ramp 4.0", Set(Setting::RampCycles(4))),
+        ("recipe save 0", RecipeSave(slot(0))),
+        ("recipe save 7", RecipeSave(slot(7))),
+        ("recipe load 3", RecipeLoad(slot(3))),
+        ("recipe list", RecipeList),
+        // Case, blanks and tabs.
+        ("START", Start),
+        ("Set FREQ 50 HZ", Set(Setting::FrequencyHz(50.0))),
+        ("  set\tduty   0.6  ", Set(Setting::Duty(0.6))),
+        ("RECIPE Load 2", RecipeLoad(slot(2))),
+        ("set stroke 2.5 MM", Set(Setting::StrokeMm(2.5))),
+    ];
+    for &(line, expected) in table {
+        assert_eq!(protocol::parse(line), Ok(expected), "{line:?}");
+    }
+}
+
+#[test]
+fn every_parse_error_has_its_code() {
+    let table: &[(&str, u16)] = &[
+        ("", 20),
+        ("go", 20),
+        ("starts", 20),
+        ("recipe erase 1", 20),
+        ("get", 21),
+        ("set", 21),
+        ("set freq", 21),
+        ("set ramp", 21),
+        ("recipe", 21),
+        ("recipe save", 21),
+        ("start now", 22),
+        ("status all", 22),
+        ("get freq hz", 22),
+        ("set freq 50 Hz please", 22),
+        ("recipe list 1", 22),
+        ("get speed", 23),
+        ("set speed 3", 23),
+        ("set freq fifty", 24),
+        ("set freq hz", 24),
+        ("recipe load x", 24),
+        ("set freq inf", 25),
+        ("set freq -inf", 25),
+        ("set duty NaN", 25),
+        ("set freq 1e999", 25),
+        ("set ramp infinity", 25),
+        ("set freq 50 kHz", 26),
+        ("set freq 50mm", 26),
+        ("set stroke 2.5 m", 26),
+        ("set duty 0.6 %", 26),
+        ("set feed 30 m/s", 26),
+        ("set accel 150 g", 26),
+        ("set ramp 3 s", 26),
+        ("recipe save 1x", 26),
+        ("set freq 5e", 26),
+        ("set ramp 2.5", 27),
+        ("recipe load 1.5", 27),
+        ("set ramp -1", 28),
+        ("set ramp 65536", 28),
+        ("recipe save 8", 28),
+        ("recipe load -1", 28),
+    ];
+    for &(line, expected) in table {
+        assert_eq!(code(line), expected, "{line:?}");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    /// Whole numbers: ramp lengths in range are read, others refused with the right code.
+    #[test]
+    fn ramp_lengths_are_checked(n in -100_000i64..200_000) {
+        let parsed = protocol::parse(&format!("set ramp {n}"));
+        match u16::try_from(n) {
+            Ok(cycles) => prop_assert_eq!(parsed, Ok(Command::Set(Setting::RampCycles(cycles)))),
+            Err(_) => prop_assert_eq!(parsed.map_err(|e| e.code()), Err(28)),
+        }
+    }
+}

@@ -1,0 +1,177 @@
+//! The reply lines: status, get, set, the simple replies, recipes, and truncation.
+
+use std::fmt::Write as _;
+
+use feeder_shared::protocol::REPLY_CAPACITY;
+use feeder_shared::recipe::{self, RECIPE_SLOTS, RECORD_LEN};
+use feeder_shared::testing::machine;
+use feeder_shared::{
+    Drive, Limits, Param, Phase, Reply, Setting, Settings, Status, Waveform, WaveformSpec,
+};
+
+use crate::common::slot;
+
+fn status(fault: Option<&str>) -> Status<&str> {
+    let waveform = Waveform::new(
+        WaveformSpec::from_frequency(50.0, 0.6, Drive::Stroke { stroke_m: 0.0025 }),
+        &Limits::NONE,
+    )
+    .unwrap();
+    Status {
+        phase: Phase::Running,
+        fault,
+        waveform,
+        ramp_cycles: 10,
+        feed_rate_mps: 0.0731234,
+        uptime_ms: 12_345,
+        cycles: 617,
+    }
+}
+
+#[test]
+fn status_reports_state_parameters_fault_uptime_and_cycles() {
+    // a = x / (T(1 − d)/2)² = 0.0025 / 0.004² = 156.25 m/s².
+    let expected = "OK state=running freq_hz=50 duty=0.6 stroke_mm=2.5 accel_mps2=156.25 \
+                    ramp_cycles=10 feed_mmps=73.123 uptime_s=12.345 cycles=617 fault=none";
+    assert_eq!(Reply::status(&status(None)).as_str(), expected);
+    let faulted = Reply::status(&status(Some("overcurrent on phase A")));
+    assert!(
+        faulted.as_str().starts_with("OK state=fault freq_hz=50 "),
+        "{faulted}"
+    );
+    assert!(
+        faulted.as_str().ends_with(" fault=overcurrent on phase A"),
+        "{faulted}"
+    );
+    for (phase, name) in [
+        (Phase::Stopped, "stopped"),
+        (Phase::Starting, "starting"),
+        (Phase::Stopping, "stopping"),
+    ] {
+        let reply = Reply::status(&Status {
+            phase,
+            ..status(None)
+        });
+        assert!(
+            reply.as_str().starts_with(&format!("OK state={name} ")),
+            "{reply}"
+        );
+    }
+}
+
+#[test]
+fn get_reports_one_parameter() {
+    let snapshot = status(None);
+    let table = [
+        (Param::Frequency, "OK freq_hz=50"),
+        (Param::Duty, "OK duty=0.6"),
+        (Param::Stroke, "OK stroke_mm=2.5"),
+        (Param::Accel, "OK accel_mps2=156.25"),
+        (Param::Feed, "OK feed_mmps=73.123"),
+        (Param::Ramp, "OK ramp_cycles=10"),
+    ];
+    for (param, expected) in table {
+        assert_eq!(Reply::get(param, &snapshot).as_str(), expected);
+    }
+}
+
+#[test]
+fn set_reply_lists_the_candidate() {
+    let applied = Settings::DEFAULT
+        .apply(Setting::Duty(0.6), &machine())
+        .unwrap();
+    let reply = Reply::applied(&applied);
+    assert!(
+        reply.as_str().starts_with(
+            "OK freq_hz=50 duty=0.6 stroke_mm=2.5 accel_mps2=156.25 ramp_cycles=10 feed_mmps="
+        ),
+        "{reply}"
+    );
+}
+
+#[test]
+fn simple_replies() {
+    assert_eq!(Reply::ok(format_args!("")).as_str(), "OK");
+    assert_eq!(
+        Reply::ok(format_args!("stopping at the next cycle")).as_str(),
+        "OK stopping at the next cycle"
+    );
+    assert_eq!(Reply::recipe_saved(slot(4)).as_str(), "OK recipe 4 saved");
+    let help = Reply::help();
+    assert!(help.is_ok());
+    for word in [
+        "start",
+        "stop",
+        "status",
+        "get",
+        "set freq <Hz>",
+        "set feed <mm/s>",
+        "recipe list",
+        "reset",
+        "help",
+    ] {
+        assert!(help.as_str().contains(word), "{help} lacks {word}");
+    }
+    assert!(help.as_str().len() < REPLY_CAPACITY);
+}
+
+#[test]
+fn replies_are_ascii_single_lines_and_truncate_instead_of_failing() {
+    let reply = Reply::ok(format_args!("a\r\nb\tc μg ² − ≤ ≥ … · 漢"));
+    assert_eq!(reply.as_str(), "OK a  b c mug 2 - <= >= ... * ?");
+    let long = "y".repeat(2 * REPLY_CAPACITY);
+    let reply = Reply::ok(format_args!("{long}"));
+    assert_eq!(reply.as_str().len(), REPLY_CAPACITY);
+    assert!(reply.as_str().starts_with("OK yyy"));
+    let mut reply = Reply::ok(format_args!("x"));
+    write!(reply, "{}", "²".repeat(2 * REPLY_CAPACITY)).unwrap();
+    assert_eq!(reply.as_str().len(), REPLY_CAPACITY);
+}
+
+#[test]
+fn recipe_replies() {
+    let machine = machine();
+    let mut flash = [[0xffu8; RECORD_LEN]; RECIPE_SLOTS];
+    let stored = Settings {
+        frequency_hz: 60.0,
+        duty: 0.6,
+        ..Settings::DEFAULT
+    };
+    flash[1] = recipe::encode(slot(1), &stored);
+    let accel = Settings {
+        drive: Drive::Accel { accel_mps2: 150.0 },
+        ramp_cycles: 3,
+        ..stored
+    };
+    flash[2] = recipe::encode(slot(2), &accel);
+    flash[3] = recipe::encode(slot(3), &stored);
+    flash[3][9] ^= 0x10;
+    flash[4] = recipe::encode(slot(5), &stored);
+
+    let loaded = recipe::load(&flash[1], slot(1), &machine).unwrap();
+    let reply = Reply::recipe_loaded(slot(1), &loaded);
+    assert!(
+        reply
+            .as_str()
+            .starts_with("OK recipe 1 loaded freq_hz=60 duty=0.6 "),
+        "{reply}"
+    );
+
+    let loaded = recipe::load(&flash[0], slot(0), &machine).unwrap();
+    let reply = Reply::recipe_loaded(slot(0), &loaded);
+    assert!(
+        reply.as_str().starts_with(
+            "OK recipe 0 not usable (no recipe saved in this slot), defaults loaded \
+             freq_hz=50 duty=0.5858 "
+        ),
+        "{reply}"
+    );
+
+    let entries: [_; RECIPE_SLOTS] =
+        std::array::from_fn(|index| recipe::decode(&flash[index], slot(index as u8)));
+    assert_eq!(
+        Reply::recipe_list(&entries).as_str(),
+        "OK recipes 0=empty 1=60Hz/0.6/2.5mm/r10 2=60Hz/0.6/150m/s2/r3 3=corrupt 4=wrong-slot \
+         5=empty 6=empty 7=empty"
+    );
+}
