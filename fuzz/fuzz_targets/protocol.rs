@@ -4,22 +4,16 @@
 
 use feeder_shared::protocol::REPLY_CAPACITY;
 use feeder_shared::recipe::{self, RECIPE_SLOTS, RECORD_LEN};
-use feeder_shared::{
-    Command, Friction, Limits, LineAssembler, Machine, Phase, RecipeSlot, Reply, Settings, Status,
-    TickClock,
-};
+use feeder_shared::testing;
+use feeder_shared::{Command, LineAssembler, Machine, Phase, RecipeSlot, Reply, Settings, Status};
 use libfuzzer_sys::fuzz_target;
 
+/// The tests' machine with a 16-bit timer: at most `u16::MAX` ticks per segment.
 fn machine() -> Machine {
+    let machine = testing::machine();
     Machine {
-        limits: Limits {
-            min_frequency_hz: 20.0,
-            max_frequency_hz: 200.0,
-            max_accel_mps2: 500.0,
-            max_stroke_m: 0.005,
-        },
-        friction: Friction::new(1.0, 9.80665).expect("valid friction"),
-        clock: TickClock::new(1_000_000).with_max_segment_ticks(u32::from(u16::MAX)),
+        clock: machine.clock.with_max_segment_ticks(u32::from(u16::MAX)),
+        ..machine
     }
 }
 
