@@ -5,7 +5,7 @@ use feeder_shared::{Limits, TickClock, TickPlan, Waveform, WaveformSpec};
 
 use crate::error::SimError;
 use crate::plant::Contact;
-pub use crate::segments::{exact_cycle, scheduler_segments};
+use crate::segments::scheduler_segments;
 use crate::sim::{run_segments, run_table, Criteria, CycleTable, RunOptions, RunResult};
 
 /// Where the segment edges come from.

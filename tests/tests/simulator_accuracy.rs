@@ -9,7 +9,7 @@ use feeder_shared::{Drive, Error, Limits, Waveform, WaveformSpec};
 use host_sim::figures;
 use host_sim::plant::EventKind;
 use host_sim::reference::run_fixed_step;
-use host_sim::scenario::exact_cycle;
+use host_sim::segments::exact_cycle;
 use host_sim::sim::{CycleTable, RunOptions};
 use host_sim::{run_segments, Contact, OperatingPoint, SimError};
 
