@@ -177,8 +177,10 @@ impl fmt::Display for Fixed {
 /// `10^15` (`0.333333333333333`, `1500`), scientific beyond (`1.5e-7`, `6.02214076e23`); `NaN`,
 /// `inf` and `-inf` as core prints them, and zero as `0`.
 ///
-/// From `10^-8` to below `10^37` the digits are rounded from the exact value; beyond, scaling
-/// takes several roundings and the last digit may be one off.
+/// From `10^-8` to below `10^37` the value is scaled to 15 integer digits with one rounding, then
+/// rounded to an integer: the last digit is the exact value's unless the scaled value lay within
+/// that first rounding of a tie (about 3 % of values), when it may be one off; beyond, scaling
+/// takes several roundings and the last digit may be one off too.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Significant(pub f64);
 
