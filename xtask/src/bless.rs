@@ -5,6 +5,7 @@
 use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
+use std::process::Stdio;
 use std::time::Duration;
 
 use feeder_shared::scenario::parse_setting;
@@ -107,14 +108,15 @@ fn qemu_logs() -> Result {
     Ok(())
 }
 
-/// The figures' CSVs, written by the `host-sim` CLI.
+/// The figures' CSVs, written by the `host-sim` CLI (its report on standard output is left out).
 fn figures() -> Result {
     for (file, arguments) in FIGURES {
         exec(
             host_sim()
                 .args(arguments)
                 .arg("--csv")
-                .arg(expected_dir().join(file)),
+                .arg(expected_dir().join(file))
+                .stdout(Stdio::null()),
         )?;
     }
     Ok(())

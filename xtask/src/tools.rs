@@ -15,7 +15,7 @@ use crate::{exec, root, Result, THUMB_TARGET};
 
 /// A tool from crates.io, installed with `cargo install --locked` at a pinned version.
 struct CargoTool {
-    /// The executable, as `.cargo/config.toml` and the tests call it.
+    /// The executable, as `.cargo/config.toml` and `feeder-emulator` call it.
     program: &'static str,
     package: &'static str,
     version: &'static str,
@@ -36,7 +36,7 @@ const FLIP_LINK: CargoTool = CargoTool {
 
 /// Decodes the firmware's defmt log under QEMU.
 const DEFMT_PRINT: CargoTool = CargoTool {
-    program: "defmt-print",
+    program: feeder_emulator::DECODER,
     package: "defmt-print",
     version: "1.2.0",
     probe: "--version",
@@ -51,7 +51,7 @@ struct AptTool {
 }
 
 const QEMU: AptTool = AptTool {
-    program: "qemu-system-arm",
+    program: feeder_emulator::QEMU,
     package: "qemu-system-arm",
     needed_by: "running the firmware without a board (machine mps2-an386)",
 };
