@@ -149,12 +149,12 @@ impl fmt::Display for RecordError {
     }
 }
 
-/// CRC-32 (IEEE 802.3: polynomial 0x04C11DB7 reflected, initial value and final XOR all ones),
-/// computed bit by bit: a lookup table would cost 1 KiB of flash for 36 bytes per record.
+/// The algorithm of [`crc32`], bit by bit: a lookup table would cost 1 KiB of flash for 36 bytes
+/// per record.
 const CRC32: crc::Crc<u32, crc::NoTable> =
     crc::Crc::<u32, crc::NoTable>::new(&crc::CRC_32_ISO_HDLC);
 
-/// The [`CRC32`] of `bytes`.
+/// CRC-32 (IEEE 802.3: polynomial 0x04C11DB7 reflected, initial value and final XOR all ones).
 pub fn crc32(bytes: &[u8]) -> u32 {
     CRC32.checksum(bytes)
 }

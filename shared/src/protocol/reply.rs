@@ -22,7 +22,7 @@ pub struct Status<F> {
     /// The waveform in force.
     pub waveform: Waveform,
     pub ramp_cycles: u16,
-    /// Predicted steady-state feed rate of `waveform` ([`Machine::feed_rate_mps`]).
+    /// Predicted steady-state feed rate of `waveform` ([`crate::Machine::feed_rate_mps`]).
     pub feed_rate_mps: f64,
     pub uptime_ms: u64,
     /// Cycles (including idle periods) begun since power-up.
