@@ -181,6 +181,7 @@ fn report(before: &BTreeMap<PathBuf, Vec<u8>>, after: &BTreeMap<PathBuf, Vec<u8>
             after.len()
         );
     } else {
-        println!("bless: {changes} files changed; review them with `git diff`");
+        let files = if changes == 1 { "file" } else { "files" };
+        println!("bless: {changes} {files} changed; review them with `git diff`");
     }
 }
