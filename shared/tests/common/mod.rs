@@ -1,4 +1,4 @@
-//! Helpers shared by the protocol and recipe tests.
+//! Helpers shared by the protocol, control and recipe tests.
 
 use feeder_shared::RecipeSlot;
 
