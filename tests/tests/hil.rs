@@ -2,10 +2,11 @@
 //! each kind of fault (dropped edge, shifted edge, extra edge, mid-cycle amplitude change, early
 //! end, missed edge) is found and counted.
 
+use feeder_shared::event::{EdgeWork, Event, SegmentEvent};
 use feeder_shared::{
     Drive, Limits, Scheduler, Segment, SegmentKind, TickClock, TickPlan, Waveform, WaveformSpec,
 };
-use host_sim::hil::{self, Checker, EdgeWork, Event, SegmentEvent};
+use host_sim::hil::{self, Checker};
 use host_sim::plant::Contact;
 
 const CLOCK_HZ: u32 = 1_000_000;
@@ -23,14 +24,23 @@ fn plan(duty: f64) -> TickPlan {
     TickPlan::new(&waveform, TickClock::new(CLOCK_HZ)).unwrap()
 }
 
+/// The `plan` line for `duty` taking effect at `tick`.
+fn plan_line(tick: u64, duty: f64, ramp_cycles: u16) -> String {
+    Event::Plan {
+        tick,
+        spec: spec(duty),
+        clock_hz: CLOCK_HZ,
+        ramp_cycles,
+    }
+    .to_string()
+}
+
 /// What a firmware with `latency_ticks` of output latency prints for: idle, start, 40 cycles,
 /// a duty change, 40 cycles, stop, idle until stopped.
 fn faithful_stream(latency_ticks: u64) -> Vec<String> {
     let ramp = 4;
     let mut scheduler = Scheduler::new(plan(0.586), ramp);
-    let mut lines = vec![format!(
-        "EVT plan tick=0 period_s=0.02 duty=0.586 stroke_m=0.0025 clock_hz={CLOCK_HZ} ramp={ramp}"
-    )];
+    let mut lines = vec![plan_line(0, 0.586, ramp)];
     let emit = |scheduler: &mut Scheduler, lines: &mut Vec<String>, segments: usize| {
         for _ in 0..segments {
             let s = scheduler.next_segment();
@@ -39,27 +49,32 @@ fn faithful_stream(latency_ticks: u64) -> Vec<String> {
             } else {
                 s.start_tick + latency_ticks
             };
-            lines.push(format!(
-                "INFO  noise EVT seg cycle={} kind={} planned={} actual={} ticks={} level={} step={} steps={}",
-                s.cycle, s.kind.name(), s.start_tick, actual, s.ticks, s.level.sign(), s.amplitude.step, s.amplitude.steps
-            ));
+            let event = Event::Segment(SegmentEvent::played(&s, actual, None));
+            lines.push(format!("INFO  noise {event}"));
         }
     };
     emit(&mut scheduler, &mut lines, 2);
     scheduler.start();
-    lines.push(format!("EVT start tick={}", scheduler.next_tick()));
+    lines.push(
+        Event::Start {
+            tick: scheduler.next_tick(),
+        }
+        .to_string(),
+    );
     emit(&mut scheduler, &mut lines, 161);
     scheduler.set_plan(plan(0.6)).unwrap();
     scheduler.set_ramp_cycles(ramp);
-    lines.push(format!(
-        "EVT plan tick={} period_s=0.02 duty=0.6 stroke_m=0.0025 clock_hz={CLOCK_HZ} ramp={ramp}",
-        scheduler.next_tick()
-    ));
+    lines.push(plan_line(scheduler.next_tick(), 0.6, ramp));
     emit(&mut scheduler, &mut lines, 160);
     scheduler.stop();
-    lines.push(format!("EVT stop tick={}", scheduler.next_tick()));
+    lines.push(
+        Event::Stop {
+            tick: scheduler.next_tick(),
+        }
+        .to_string(),
+    );
     emit(&mut scheduler, &mut lines, 20);
-    lines.push("EVT end tick=0".to_string());
+    lines.push(Event::End { tick: 0 }.to_string());
     lines
 }
 
@@ -290,17 +305,8 @@ fn the_part_feeds_on_recorded_edges_and_the_plate_returns() {
 
 /// One `seg` line as the emulated board prints it.
 fn seg_line(segment: &Segment, actual_tick: u64, slack_ticks: Option<u32>) -> String {
-    let slack = slack_ticks.map_or(String::new(), |slack| format!(" slack={slack}"));
-    format!(
-        "EVT seg cycle={} kind={} planned={} actual={actual_tick} ticks={} level={} step={} steps={}{slack}",
-        segment.cycle,
-        segment.kind.name(),
-        segment.start_tick,
-        segment.ticks,
-        segment.level.sign(),
-        segment.amplitude.step,
-        segment.amplitude.steps
-    )
+    let slack_ticks = slack_ticks.map(i64::from);
+    Event::Segment(SegmentEvent::played(segment, actual_tick, slack_ticks)).to_string()
 }
 
 /// Preload slack of a segment preloaded 63 ticks after the edge before it.
@@ -309,9 +315,7 @@ const WORK_TICKS: u32 = 63;
 #[test]
 fn slack_is_summarised_by_its_minimum_and_power_of_two_buckets() {
     let mut scheduler = Scheduler::new(plan(0.586), 4);
-    let mut lines = vec![format!(
-        "EVT plan tick=0 period_s=0.02 duty=0.586 stroke_m=0.0025 clock_hz={CLOCK_HZ} ramp=4"
-    )];
+    let mut lines = vec![plan_line(0, 0.586, 4)];
     let mut previous: Option<Segment> = None;
     let mut emit = |scheduler: &mut Scheduler, lines: &mut Vec<String>, segments: usize| {
         for _ in 0..segments {
@@ -323,7 +327,12 @@ fn slack_is_summarised_by_its_minimum_and_power_of_two_buckets() {
     };
     emit(&mut scheduler, &mut lines, 2);
     scheduler.start();
-    lines.push(format!("EVT start tick={}", scheduler.next_tick()));
+    lines.push(
+        Event::Start {
+            tick: scheduler.next_tick(),
+        }
+        .to_string(),
+    );
     emit(&mut scheduler, &mut lines, 40);
     let stream = hil::read_stream(lines.join("\n").as_bytes()).unwrap();
     let mut checker = Checker::new();
@@ -363,9 +372,7 @@ const RESTART_AFTER_TICKS: u64 = 60;
 fn stream_with_a_missed_edge() -> (Vec<String>, u64) {
     let ramp = 4;
     let mut scheduler = Scheduler::new(plan(0.586), ramp);
-    let mut lines = vec![format!(
-        "EVT plan tick=0 period_s=0.02 duty=0.586 stroke_m=0.0025 clock_hz={CLOCK_HZ} ramp={ramp}"
-    )];
+    let mut lines = vec![plan_line(0, 0.586, ramp)];
     let mut shift = 0i64;
     let emit = |scheduler: &mut Scheduler, lines: &mut Vec<String>, shift: i64, segments| {
         for _ in 0..segments {
@@ -376,7 +383,12 @@ fn stream_with_a_missed_edge() -> (Vec<String>, u64) {
     };
     emit(&mut scheduler, &mut lines, shift, 2);
     scheduler.start();
-    lines.push(format!("EVT start tick={}", scheduler.next_tick()));
+    lines.push(
+        Event::Start {
+            tick: scheduler.next_tick(),
+        }
+        .to_string(),
+    );
     let mut playing = scheduler.next_segment();
     let missed = loop {
         lines.push(seg_line(&playing, playing.start_tick, Some(1_000)));
@@ -387,31 +399,45 @@ fn stream_with_a_missed_edge() -> (Vec<String>, u64) {
         playing = next;
     };
     let deadline = missed.start_tick;
-    lines.push(format!(
-        "EVT replay cycle={} kind={} planned={} actual={deadline} ticks={} level={} step={} steps={} slack=-{LATE_TICKS}",
-        playing.cycle,
-        playing.kind.name(),
-        playing.start_tick,
-        playing.ticks,
-        playing.level.sign(),
-        playing.amplitude.step,
-        playing.amplitude.steps
-    ));
-    lines.push(format!("EVT zero actual={}", deadline + ZERO_AFTER_TICKS));
+    let late_ticks = -i64::try_from(LATE_TICKS).unwrap();
+    let replayed = SegmentEvent::played(&playing, deadline, Some(late_ticks));
+    lines.push(Event::Replay(replayed).to_string());
+    let zeroed_tick = deadline + ZERO_AFTER_TICKS;
+    lines.push(
+        Event::Zero {
+            actual_tick: zeroed_tick,
+        }
+        .to_string(),
+    );
     lines.push("ERROR fault: EdgeMissed (stop: Immediate)".into());
-    lines.push(format!("EVT halt tick={}", scheduler.next_tick()));
+    lines.push(
+        Event::Halt {
+            tick: scheduler.next_tick(),
+        }
+        .to_string(),
+    );
     scheduler.halt();
     let restart = scheduler.next_segment();
     shift = (deadline + RESTART_AFTER_TICKS) as i64 - restart.start_tick as i64;
     lines.push(seg_line(&restart, deadline + RESTART_AFTER_TICKS, None));
     emit(&mut scheduler, &mut lines, shift, 1);
     scheduler.start();
-    lines.push(format!("EVT start tick={}", scheduler.next_tick()));
+    lines.push(
+        Event::Start {
+            tick: scheduler.next_tick(),
+        }
+        .to_string(),
+    );
     emit(&mut scheduler, &mut lines, shift, 80);
     scheduler.stop();
-    lines.push(format!("EVT stop tick={}", scheduler.next_tick()));
+    lines.push(
+        Event::Stop {
+            tick: scheduler.next_tick(),
+        }
+        .to_string(),
+    );
     emit(&mut scheduler, &mut lines, shift, 20);
-    lines.push("EVT end tick=0".to_string());
+    lines.push(Event::End { tick: 0 }.to_string());
     (lines, deadline)
 }
 
