@@ -7,42 +7,11 @@ mod support;
 use std::thread;
 use std::time::Duration;
 
+use feeder_shared::event::{parse_line, Event, SegmentEvent};
 use support::{console_image, Emulator};
 
 /// Longest the feeder may take to reach a requested state.
 const STATE_TIMEOUT: Duration = Duration::from_secs(30);
-
-/// One `EVT seg` line.
-#[derive(Debug)]
-struct Seg {
-    cycle: u64,
-    kind: String,
-    planned: u64,
-    ticks: u64,
-    step: u64,
-    steps: u64,
-}
-
-fn field<'a>(line: &'a str, key: &str) -> &'a str {
-    line.split_whitespace()
-        .find_map(|word| word.strip_prefix(key)?.strip_prefix('='))
-        .unwrap_or_else(|| panic!("no {key} in {line:?}"))
-}
-
-fn number(line: &str, key: &str) -> u64 {
-    field(line, key).parse().unwrap()
-}
-
-fn segment(line: &str) -> Seg {
-    Seg {
-        cycle: number(line, "cycle"),
-        kind: field(line, "kind").to_string(),
-        planned: number(line, "planned"),
-        ticks: number(line, "ticks"),
-        step: number(line, "step"),
-        steps: number(line, "steps"),
-    }
-}
 
 #[test]
 #[ignore = "needs the QEMU firmware; run by cargo xtask test"]
@@ -92,25 +61,26 @@ fn check_event_stream(log: &[String]) {
         "the firmware faulted:\n{}",
         log.join("\n")
     );
-    let events: Vec<&str> = log
+    let events: Vec<Event> = log
         .iter()
-        .filter_map(|line| line.strip_prefix("EVT "))
+        .filter_map(|line| parse_line(line).unwrap_or_else(|error| panic!("{error}: {line}")))
         .collect();
-    let segments: Vec<Seg> = events
+    let segments: Vec<SegmentEvent> = events
         .iter()
-        .filter(|event| event.starts_with("seg "))
-        .map(|event| segment(event))
+        .filter_map(|event| match event {
+            Event::Segment(segment) => Some(*segment),
+            _ => None,
+        })
         .collect();
     assert!(segments.len() > 100, "too few segments: {}", segments.len());
     for pair in segments.windows(2) {
         let (previous, next) = (&pair[0], &pair[1]);
         assert_eq!(
-            next.planned,
-            previous.planned + previous.ticks,
+            next.planned_tick,
+            previous.planned_tick + u64::from(previous.ticks),
             "missing edge between {previous:?} and {next:?}"
         );
-        let boundary = matches!(next.kind.as_str(), "accelerate" | "idle");
-        if boundary {
+        if next.starts_cycle() {
             assert_eq!(next.cycle, previous.cycle + 1, "{previous:?} -> {next:?}");
         } else {
             assert_eq!(next.cycle, previous.cycle, "{previous:?} -> {next:?}");
@@ -123,24 +93,24 @@ fn check_event_stream(log: &[String]) {
     }
     // Each plan takes effect at the first cycle boundary at or after its request.
     let mut plans = 0;
-    for event in events.iter().filter(|event| event.starts_with("plan ")) {
-        let tick = number(event, "tick");
+    for (tick, spec) in events.iter().filter_map(|event| match event {
+        Event::Plan { tick, spec, .. } => Some((*tick, spec)),
+        _ => None,
+    }) {
         if tick == 0 {
             continue;
         }
         plans += 1;
-        let period_ticks = (field(event, "period_s").parse::<f64>().unwrap() * 1e6).round() as u64;
+        let period_ticks = (spec.period_s * 1e6).round() as u64;
         let first = segments
             .iter()
-            .position(|seg| {
-                seg.planned >= tick && matches!(seg.kind.as_str(), "accelerate" | "idle")
-            })
+            .position(|seg| seg.planned_tick >= tick && seg.starts_cycle())
             .unwrap_or_else(|| panic!("the plan at tick {tick} never took effect"));
         let cycle = segments[first].cycle;
         let length: u64 = segments
             .iter()
             .filter(|seg| seg.cycle == cycle)
-            .map(|seg| seg.ticks)
+            .map(|seg| u64::from(seg.ticks))
             .sum();
         assert!(
             length.abs_diff(period_ticks) <= 1,

@@ -11,7 +11,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 
 use feeder_shared::{SegmentKind, WaveformSpec};
-use host_sim::hil::{self, CheckReport, Checker, Edge, Event};
+use host_sim::hil::{self, CheckReport, Checker, Edge, Event, LogLine};
 
 use crate::support::LogSink;
 
@@ -174,16 +174,11 @@ impl LogSink for SoakLog {
         if let Err(error) = writeln!(self.file, "{line}") {
             panic!("cannot write {}: {error}", self.path.display());
         }
-        // One line read as `host-sim hil` reads a whole log: its event, or a firmware error.
-        match hil::read_stream(line.as_bytes()) {
-            Ok(stream) => {
-                for event in &stream.events {
-                    self.event(event);
-                }
-                for error in stream.errors {
-                    self.firmware_error(error);
-                }
-            }
+        // Read as `host-sim hil` reads each line of a log: its event, or a firmware error.
+        match hil::read_line(line) {
+            Ok(LogLine::Event(event)) => self.event(&event),
+            Ok(LogLine::FirmwareError) => self.firmware_error(line.trim_end().to_string()),
+            Ok(LogLine::Other) => {}
             Err(error) => self.unreadable.push(format!("{error}: {line}")),
         }
         if self.recent.len() == CONTEXT_LINES {
