@@ -7,7 +7,7 @@
 //!   and a segment preloaded after its deadline is a missed edge, as on the board. It reports each
 //!   segment's preload slack and measures the work per edge on the 25 MHz timer (40 ns, which
 //!   `-icount shift=4` makes 2.5 instructions).
-//! * Operator: a script read from the semihosting command line (`scenario`) instead of B1; with
+//! * Operator: a script read from the semihosting command line (`script`) instead of B1; with
 //!   the `console` feature, the serial console on UART0 (`uart`, QEMU's `-serial`) instead, with
 //!   recipes kept in RAM: the feeder waits, stopped, for commands and the emulation runs until
 //!   QEMU is ended. The script's image contains no console, so its run (and its `EVT` stream)
@@ -23,9 +23,7 @@
 //!   panic or fault, which first reports the output's state from those registers.
 
 #[cfg(not(feature = "console"))]
-mod changes;
-#[cfg(not(feature = "console"))]
-mod scenario;
+mod script;
 mod time_driver;
 #[cfg(feature = "console")]
 mod uart;
@@ -57,7 +55,7 @@ use crate::trace;
 use time_driver::CYCLES_PER_TICK;
 
 #[cfg(not(feature = "console"))]
-pub use scenario::{idle, spawn_operator};
+pub use script::{idle, spawn_operator};
 
 /// With the console the operator is on the serial port: there is no script to spawn.
 #[cfg(feature = "console")]

@@ -30,6 +30,8 @@
 //! (a HardFault once the stack crosses the bottom of RAM) and a critical section that holds the
 //! control loop off past its edges (a missed edge when interrupts come back).
 
+mod changes;
+
 use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m_semihosting::debug::{self, EXIT_SUCCESS};
@@ -40,11 +42,11 @@ use embassy_time::{Instant, Timer};
 use feeder_shared::scenario::parse_setting;
 use feeder_shared::{Drive, ScenarioError, ScenarioSetting, TickClock, WaveformSpec};
 
-use super::changes::RandomChanges;
 use super::time_driver::{self, CYCLES_PER_TICK};
 use super::{after_fault, edge_work, provoke_late_preload, sleep_forever};
 use crate::app::{self, OperatorRequest, OperatorView};
 use crate::{config, trace};
+use changes::RandomChanges;
 
 /// How often the operator looks at the cycle count.
 const POLL_MS: u64 = 5;
