@@ -1,26 +1,6 @@
 //! Default parameters of the feeder, in one place. Units are in the names.
 
-#[cfg(feature = "board-g474")]
-use feeder_shared::PwmCalibration;
 use feeder_shared::{DacCalibration, Drive, Limits, WaveformSpec};
-
-#[cfg(feature = "board-g474")]
-/// Which driver input the firmware commands.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
-pub enum OutputStage {
-    /// Analog command from DAC1 channel 1 (PA4): zero code ± amplitude code.
-    Dac,
-    /// PWM magnitude on TIM1 CH1 (PA8) and direction on TIM1 CH2 (PA9), for H-bridge drivers.
-    PwmDir,
-}
-
-#[cfg(feature = "board-g474")]
-/// The driver input in use: the DAC unless the `output-pwm` cargo feature is enabled.
-pub const OUTPUT_STAGE: OutputStage = if cfg!(feature = "output-pwm") {
-    OutputStage::PwmDir
-} else {
-    OutputStage::Dac
-};
 
 /// Waveform at power-up: 50 Hz, d = 0.586, stroke x_max = 2.5 mm peak to peak, which Eq. 5 turns
 /// into a_max ≈ 150 m/s² (the paper's operating point).
@@ -66,12 +46,12 @@ pub const DAC: DacCalibration = DacCalibration::DEFAULT;
 // No level the machine's limits allow leaves the DAC's linear range.
 const _: () = assert!(LIMITS.max_accel_mps2 <= DAC.linear_limit_mps2());
 
-#[cfg(feature = "board-g474")]
-/// Calibration of the PWM driver input (see [`PwmCalibration::DEFAULT`]).
-pub const PWM: PwmCalibration = PwmCalibration::DEFAULT;
+/// Calibration of the PWM driver input (see `PwmCalibration::DEFAULT`).
+#[cfg(feature = "output-pwm")]
+pub const PWM: feeder_shared::PwmCalibration = feeder_shared::PwmCalibration::DEFAULT;
 
-#[cfg(feature = "board-g474")]
 /// PWM carrier frequency; it is also the tick clock of the segments in PWM mode.
+#[cfg(feature = "output-pwm")]
 pub const PWM_FREQUENCY_HZ: u32 = 20_000;
 
 /// Independent watchdog timeout: what the plate affords.
@@ -94,7 +74,7 @@ pub const WATCHDOG_TIMEOUT_US: u32 = 1_000;
 /// How often the monitor checks progress and feeds the watchdog. On the board a quarter of the
 /// timeout: the monitor shares the control executor, so a check may wait for the control loop's
 /// work at an edge (at most about 94 µs), and one feed withheld for a replayed segment (see
-/// `board::OutputWatchdog`) still leaves a feed in time, even with the LSI at its fastest
+/// `board`'s `OutputWatchdog`) still leaves a feed in time, even with the LSI at its fastest
 /// (34 kHz, 0.94 ms).
 #[cfg(feature = "board-g474")]
 pub const MONITOR_PERIOD_US: u64 = WATCHDOG_TIMEOUT_US as u64 / 4;

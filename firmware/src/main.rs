@@ -21,8 +21,8 @@ async fn main(spawner: embassy_executor::Spawner) {
     let board = board::init();
     app::enable_cycle_counter();
     defmt::info!(
-        "feeder firmware up: output {}, stopped",
-        config::OUTPUT_STAGE
+        "feeder firmware up: output {=str}, stopped",
+        board::OUTPUT_STAGE
     );
     let _ = app::start(spawner.make_send(), board);
 }

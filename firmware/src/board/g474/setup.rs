@@ -1,0 +1,111 @@
+//! Bring-up: clocks, pins, the output stage, the watchdog, the interrupt priorities and the
+//! control executor.
+
+use embassy_executor::InterruptExecutor;
+use embassy_stm32::exti::{self, ExtiInput};
+use embassy_stm32::gpio::{self, Level, Pull, Speed};
+use embassy_stm32::interrupt::typelevel::{self, Handler};
+use embassy_stm32::interrupt::{self, InterruptExt, Priority};
+use embassy_stm32::{bind_interrupts, pac, rcc, Config};
+
+#[cfg(feature = "console")]
+use super::console::Console;
+use super::watchdog::OutputWatchdog;
+use super::Board;
+use super::Stage;
+use crate::fault::RegisterWrite;
+
+/// Core clock ([`clocks`]).
+pub const CORE_HZ: f64 = 170e6;
+
+/// Pin number of the driver enable on GPIOA (PA10).
+pub const DRIVER_ENABLE_PIN: usize = 10;
+
+/// GPIOA_BSRR: a 1 in bit 16 + n drives PAn low (RM0440, GPIO, "GPIO port bit set/reset register").
+const GPIOA_BSRR: u32 = 0x4800_0018;
+
+/// The first store of the safe state: the driver enable (PA10) low.
+pub const DRIVER_DISABLE: RegisterWrite = RegisterWrite {
+    address: GPIOA_BSRR,
+    value: 1 << (16 + DRIVER_ENABLE_PIN),
+};
+
+// The raw value above means what its comment says, as the PAC decodes it.
+const _: () = assert!(pac::gpio::regs::Bsrr(1 << (16 + DRIVER_ENABLE_PIN)).br(DRIVER_ENABLE_PIN));
+
+static CONTROL_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
+
+bind_interrupts!(struct Irqs {
+    EXTI15_10 => exti::InterruptHandler<typelevel::EXTI15_10>;
+    UART4 => ControlExecutor;
+});
+
+/// UART4 is unused on this board; its vector runs the control executor.
+struct ControlExecutor;
+
+impl Handler<typelevel::UART4> for ControlExecutor {
+    unsafe fn on_interrupt() {
+        // SAFETY: the executor was started on this interrupt in `init`.
+        unsafe { CONTROL_EXECUTOR.on_interrupt() }
+    }
+}
+
+/// Brings the board up with the output at zero and the driver disabled.
+pub fn init() -> Board {
+    let after_watchdog_reset = pac::RCC.csr().read().iwdgrstf();
+    pac::RCC.csr().modify(|w| w.set_rmvf(true));
+
+    let p = embassy_stm32::init(clocks());
+    let driver_enable = gpio::Output::new(p.PA10, Level::Low, Speed::Low);
+    let led = gpio::Output::new(p.PA5, Level::Low, Speed::Low);
+    let button = ExtiInput::new(p.PC13, p.EXTI13, Pull::Down, Irqs);
+    let output = Stage::new(p.DAC1, p.PA4, p.TIM2, p.TIM1, p.PA8, p.PA9, p.TIM3);
+    freeze_on_halt();
+    let watchdog = OutputWatchdog::start(p.IWDG, p.PB5);
+
+    // The control executor runs below the edges and above the thread-mode tasks.
+    interrupt::UART4.set_priority(Priority::P1);
+    let control_spawner = CONTROL_EXECUTOR.start(interrupt::UART4);
+
+    Board {
+        output,
+        driver_enable,
+        led,
+        button,
+        watchdog,
+        after_watchdog_reset,
+        control_spawner,
+        #[cfg(feature = "console")]
+        console: Console::new(p.LPUART1, p.PA2, p.PA3, p.FLASH),
+    }
+}
+
+/// 170 MHz from HSI16: /4 × 85 /2, range 1 boost.
+fn clocks() -> Config {
+    let mut config = Config::default();
+    config.rcc.pll = Some(rcc::Pll {
+        source: rcc::PllSource::HSI,
+        prediv: rcc::PllPreDiv::DIV4,
+        mul: rcc::PllMul::MUL85,
+        divp: None,
+        divq: None,
+        divr: Some(rcc::PllRDiv::DIV2),
+    });
+    config.rcc.sys = rcc::Sysclk::PLL1_R;
+    config.rcc.boost = true;
+    config
+}
+
+/// On a debugger halt the segment timers and the edge counter stop (DBGMCU_APB1FZR1, APB2FZR):
+/// TIM1's outputs then go inactive, as if MOE were cleared (RM0440, TIM1/TIM8/TIM20, "Debug
+/// mode"), while TIM2 stops with the DAC holding its code. The independent watchdog keeps running
+/// (DBG_IWDG_STOP cleared, whatever a debugger set before): a halt longer than its timeout resets
+/// the board, which leaves PA4 at high impedance and the driver enable low.
+fn freeze_on_halt() {
+    pac::DBGMCU.apb1lfzr().modify(|w| {
+        w.set_tim2(true);
+        w.set_tim3(true);
+        w.set_iwdg(false);
+    });
+    pac::DBGMCU.apb2fzr().modify(|w| w.set_tim1(true));
+}
