@@ -12,6 +12,7 @@ use core::task::Poll;
 use cortex_m::peripheral::NVIC;
 use embassy_sync::waitqueue::AtomicWaker;
 
+use super::setup::TASK_PRIORITY;
 use super::{register_read, register_write, set_priority, Irq};
 
 const BASE: usize = 0x4000_4000;
@@ -70,7 +71,7 @@ impl Uart {
             CTRL_TX_ENABLE | CTRL_RX_ENABLE | CTRL_TX_INTERRUPT | CTRL_RX_INTERRUPT,
         );
         for irq in [Irq::Uart0Rx, Irq::Uart0Tx] {
-            set_priority(irq, super::TASK_PRIORITY);
+            set_priority(irq, TASK_PRIORITY);
             // SAFETY: both handlers only clear their flag and wake a waker.
             unsafe { NVIC::unmask(irq) };
         }

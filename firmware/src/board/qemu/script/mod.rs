@@ -1,4 +1,4 @@
-//! The scripted operator of an emulated run (without the `qemu-console` feature), configured on
+//! The scripted operator of an emulated run (without the `console` feature), configured on
 //! QEMU's command line, the first argument being the program's name
 //! (`-semihosting-config enable=on,target=native,arg=feeder-firmware,arg=cycles=1000`):
 //!
@@ -42,8 +42,9 @@ use embassy_time::{Instant, Timer};
 use feeder_shared::scenario::parse_setting;
 use feeder_shared::{Drive, ScenarioError, ScenarioSetting, TickClock, WaveformSpec};
 
+use super::edge_work::{edge_work, provoke_late_preload};
+use super::exit::{after_fault, sleep_forever};
 use super::time_driver::{self, CYCLES_PER_TICK};
-use super::{after_fault, edge_work, provoke_late_preload, sleep_forever};
 use crate::app::{self, OperatorRequest, OperatorView};
 use crate::{config, trace};
 use changes::RandomChanges;

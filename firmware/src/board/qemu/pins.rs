@@ -1,0 +1,92 @@
+//! The driver enable in its register, and the parts the machine lacks: the LED, the button and
+//! the watchdog.
+
+use core::convert::Infallible;
+
+use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
+use embedded_hal_async::digital::Wait;
+
+use super::{register_write, DRIVER_ENABLE};
+use crate::app;
+
+/// The driver enable, in [`DRIVER_ENABLE`].
+pub struct EnableRegister;
+
+impl ErrorType for EnableRegister {
+    type Error = Infallible;
+}
+
+impl OutputPin for EnableRegister {
+    fn set_low(&mut self) -> Result<(), Infallible> {
+        register_write(DRIVER_ENABLE as usize, 0);
+        Ok(())
+    }
+
+    fn set_high(&mut self) -> Result<(), Infallible> {
+        register_write(DRIVER_ENABLE as usize, 1);
+        Ok(())
+    }
+}
+
+/// The LED: no pin on this machine; its state shows in the log.
+pub struct EmulatedPin;
+
+impl ErrorType for EmulatedPin {
+    type Error = Infallible;
+}
+
+impl OutputPin for EmulatedPin {
+    fn set_low(&mut self) -> Result<(), Infallible> {
+        Ok(())
+    }
+
+    fn set_high(&mut self) -> Result<(), Infallible> {
+        Ok(())
+    }
+}
+
+/// The scenario presses no button.
+pub struct NoButton;
+
+impl ErrorType for NoButton {
+    type Error = Infallible;
+}
+
+impl InputPin for NoButton {
+    fn is_high(&mut self) -> Result<bool, Infallible> {
+        Ok(false)
+    }
+
+    fn is_low(&mut self) -> Result<bool, Infallible> {
+        Ok(true)
+    }
+}
+
+impl Wait for NoButton {
+    async fn wait_for_high(&mut self) -> Result<(), Infallible> {
+        core::future::pending().await
+    }
+
+    async fn wait_for_low(&mut self) -> Result<(), Infallible> {
+        Ok(())
+    }
+
+    async fn wait_for_rising_edge(&mut self) -> Result<(), Infallible> {
+        core::future::pending().await
+    }
+
+    async fn wait_for_falling_edge(&mut self) -> Result<(), Infallible> {
+        core::future::pending().await
+    }
+
+    async fn wait_for_any_edge(&mut self) -> Result<(), Infallible> {
+        core::future::pending().await
+    }
+}
+
+/// QEMU models no independent watchdog for this machine; the monitor's feeding is a no-op.
+pub struct NoWatchdog;
+
+impl app::Watchdog for NoWatchdog {
+    fn feed(&mut self) {}
+}

@@ -1,0 +1,73 @@
+//! Bring-up: the MPU guard below RAM, the output registers at rest, the time driver and the two
+//! interrupt executors (timers above the control loop above the other tasks).
+
+use cortex_m::peripheral::NVIC;
+use embassy_executor::{InterruptExecutor, SendSpawner};
+
+use super::output::ReportingOutput;
+use super::pins::{EmulatedPin, EnableRegister, NoButton, NoWatchdog};
+use super::{
+    register_write, set_priority, time_driver, Board, Irq, DRIVER_ENABLE, OUTPUT_CODE, OUTPUT_RUN,
+};
+use crate::config;
+
+/// Priority of the executor that runs every task but the control loop.
+pub const TASK_PRIORITY: u8 = 0x80;
+
+pub static CONTROL_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
+pub static TASK_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
+
+/// Brings the emulated board up. Returns the spawner for the application's tasks but the control
+/// loop, and the board.
+pub fn init() -> (SendSpawner, Board) {
+    guard_below_ram();
+    register_write(OUTPUT_CODE as usize, u32::from(config::DAC.zero_code));
+    register_write(OUTPUT_RUN as usize, 0);
+    register_write(DRIVER_ENABLE as usize, 0);
+    time_driver::init();
+    for irq in time_driver::IRQS {
+        set_priority(irq, 0x00);
+        // SAFETY: the time driver's handlers are ready (`time_driver::init` ran).
+        unsafe { NVIC::unmask(irq) };
+    }
+    set_priority(Irq::ControlExecutor, 0x40);
+    set_priority(Irq::TaskExecutor, TASK_PRIORITY);
+    let control_spawner = CONTROL_EXECUTOR.start(Irq::ControlExecutor);
+    let task_spawner = TASK_EXECUTOR.start(Irq::TaskExecutor);
+    let board = Board {
+        output: ReportingOutput::new(),
+        driver_enable: EnableRegister,
+        led: EmulatedPin,
+        button: NoButton,
+        watchdog: NoWatchdog,
+        // QEMU starts fresh every run.
+        after_watchdog_reset: false,
+        control_spawner,
+        #[cfg(feature = "console")]
+        console: super::uart::Uart::new(),
+    };
+    (task_spawner, board)
+}
+
+/// Makes accesses below SRAM fault, as they do on the G474, where nothing lies below RAM. This
+/// machine answers 0x1001_0000..0x2000_0000 as reserved memory that reads as zero and ignores
+/// writes, so a stack that crosses the bottom of RAM (where flip-link puts it) would run on
+/// unnoticed; a no-access MPU region over 0x1000_0000..0x2000_0000 turns that into a fault.
+fn guard_below_ram() {
+    const BASE: u32 = 0x1000_0000;
+    /// RASR: execute never, no access, 2^(27 + 1) bytes (256 MiB), enabled.
+    const NO_ACCESS_256_MIB: u32 = 1 << 28 | 27 << 1 | 1;
+    /// CTRL: the default memory map elsewhere (privileged code), MPU enabled.
+    const DEFAULT_MAP_ENABLED: u32 = 1 << 2 | 1;
+    // SAFETY: region 0 is this board's only MPU region and is set before anything runs that
+    // could touch it; everything runs privileged, so the default map covers the rest.
+    unsafe {
+        let mpu = &*cortex_m::peripheral::MPU::PTR;
+        mpu.rnr.write(0);
+        mpu.rbar.write(BASE);
+        mpu.rasr.write(NO_ACCESS_256_MIB);
+        mpu.ctrl.write(DEFAULT_MAP_ENABLED);
+    }
+    cortex_m::asm::dsb();
+    cortex_m::asm::isb();
+}
