@@ -331,6 +331,7 @@ macro_rules! encode {
     }};
 }
 
+mod float;
 #[cfg(feature = "defmt")]
 mod frame;
 mod parse;

@@ -1,4 +1,6 @@
-//! Reading an event back from a log line, without allocating.
+//! Reading an event back from a log line, without allocating. Words are split and keys matched
+//! with closures and `strip_prefix` (see [`super`] on the generic string code the firmware also
+//! uses).
 
 use core::fmt;
 
