@@ -1,5 +1,5 @@
 //! The application: control loop, button, status LED and watchdog monitor. Board-independent;
-//! the board module supplies the output stage, pins and executors.
+//! the board hands over its parts (`crate::ports`) and runs the executors.
 
 use core::cell::Cell;
 use core::sync::atomic::{AtomicBool, AtomicU32, AtomicU8, Ordering};
@@ -17,15 +17,23 @@ use feeder_shared::{
     StopCategory, Supervisor, SupervisorEvent, TickClock, TickPlan, Waveform, WaveformSpec,
 };
 
-use crate::board::{self, Board};
+use crate::board;
 use crate::config;
 use crate::output::SegmentOutput;
+use crate::ports::{Board, Operator, Parts, Watchdog};
 use crate::trace;
 
-/// A watchdog the monitor feeds while the control loop makes progress.
-pub trait Watchdog {
-    fn feed(&mut self);
-}
+type Output = <board::Hardware as Parts>::Output;
+type DriverEnable = <board::Hardware as Parts>::DriverEnable;
+type Button = <board::Hardware as Parts>::Button;
+type LedPin = <board::Hardware as Parts>::Led;
+/// The board's watchdog.
+type BoardWatchdog = <board::Hardware as Parts>::Watchdog;
+
+/// How often the monitor checks progress and feeds the watchdog.
+const MONITOR_PERIOD_US: u64 = <BoardWatchdog as Watchdog>::MONITOR_PERIOD_US;
+/// Whether the monitor runs above thread mode and watches it (see [`spawn_monitor`]).
+const WATCHES_THREAD_MODE: bool = <BoardWatchdog as Watchdog>::WATCHES_THREAD_MODE;
 
 /// What an operator (the button, a script, a command line) asks of the control loop.
 #[derive(Clone, Copy, defmt::Format)]
@@ -71,7 +79,6 @@ static CYCLE_COUNTER_RUNS: AtomicBool = AtomicBool::new(false);
 /// Counts the control loop's progress (segment starts, or parking ticks).
 static HEARTBEAT: AtomicU32 = AtomicU32::new(0);
 /// Counts thread mode's progress (see [`thread_heartbeat_task`]).
-#[cfg(feature = "board-g474")]
 static THREAD_HEARTBEAT: AtomicU32 = AtomicU32::new(0);
 /// CPU cost of the work per edge since the last report.
 static COST: EdgeCost = EdgeCost::new();
@@ -208,9 +215,12 @@ fn index_of<T: PartialEq, const N: usize>(table: &[T; N], value: T) -> u8 {
     table.iter().position(|entry| *entry == value).unwrap_or(0) as u8
 }
 
-/// Spawns the tasks: the control loop on the board's high-priority executor, the rest on
-/// `spawner`. Returns the output's tick clock, on which every plan must be made.
-pub fn start(spawner: SendSpawner, board: Board) -> TickClock {
+/// Spawns the tasks: the control loop on the board's control executor, above the others; the
+/// button, the LED, the monitor and the operator on `spawner` (the monitor where the board's
+/// watchdog needs it).
+pub fn start(spawner: SendSpawner, board: Board<board::Hardware>) {
+    enable_cycle_counter();
+    board::announce();
     let clock = board.output.clock();
     let control = ControlLoop {
         output: board.output,
@@ -222,34 +232,29 @@ pub fn start(spawner: SendSpawner, board: Board) -> TickClock {
     spawner.spawn(unwrap!(button_task(board.button)));
     spawner.spawn(unwrap!(led_task(board.led)));
     spawn_monitor(spawner, board.control_spawner, board.watchdog);
-    #[cfg(feature = "console")]
-    spawner.spawn(unwrap!(board::console_task(board.console, clock)));
-    clock
+    board.operator.spawn(spawner, clock);
 }
 
-/// On the board the monitor runs on the control executor: the watchdog's timeout
-/// ([`config::WATCHDOG_TIMEOUT_US`]) is shorter than the longest thread-mode work (a recipe write,
-/// tens of milliseconds), so thread mode beats for it instead.
-#[cfg(feature = "board-g474")]
-fn spawn_monitor(spawner: SendSpawner, control_spawner: SendSpawner, watchdog: board::Watchdog) {
-    control_spawner.spawn(unwrap!(monitor_task(watchdog)));
-    spawner.spawn(unwrap!(thread_heartbeat_task()));
-}
-
-/// Under QEMU, which models no watchdog, the monitor runs with the other tasks.
-#[cfg(not(feature = "board-g474"))]
-fn spawn_monitor(spawner: SendSpawner, _control_spawner: SendSpawner, watchdog: board::Watchdog) {
-    spawner.spawn(unwrap!(monitor_task(watchdog)));
+/// Spawns the monitor. Where the watchdog's timeout is shorter than the longest thread-mode work
+/// (a recipe write, tens of milliseconds), the monitor runs on the control executor and thread
+/// mode beats for it; otherwise it runs on `spawner` with the other tasks.
+fn spawn_monitor(spawner: SendSpawner, control_spawner: SendSpawner, watchdog: BoardWatchdog) {
+    if WATCHES_THREAD_MODE {
+        control_spawner.spawn(unwrap!(monitor_task(watchdog)));
+        spawner.spawn(unwrap!(thread_heartbeat_task()));
+    } else {
+        spawner.spawn(unwrap!(monitor_task(watchdog)));
+    }
 }
 
 #[embassy_executor::task]
-async fn control_task(control: ControlLoop<board::Output, board::DriverEnable>) {
+async fn control_task(control: ControlLoop<Output, DriverEnable>) {
     control.run().await
 }
 
 /// Turns debounced presses of the start/stop button into requests for the control loop.
 #[embassy_executor::task]
-async fn button_task(mut button: board::Button) {
+async fn button_task(mut button: Button) {
     loop {
         if Wait::wait_for_rising_edge(&mut button).await.is_err() {
             continue;
@@ -265,7 +270,7 @@ async fn button_task(mut button: board::Button) {
 
 /// Off when stopped, on while moving, blinking on a fault.
 #[embassy_executor::task]
-async fn led_task(mut led: board::Led) {
+async fn led_task(mut led: LedPin) {
     let mut lit = false;
     loop {
         lit = match LED.load(Ordering::Relaxed) {
@@ -283,27 +288,28 @@ async fn led_task(mut led: board::Led) {
     }
 }
 
-/// Feeds the watchdog every [`config::MONITOR_PERIOD_US`] while the application makes progress,
-/// and logs the CPU cost of the edges.
+/// Feeds the watchdog every monitor period while the application makes progress, and logs the
+/// CPU cost of the edges.
 ///
 /// The control loop beats at every segment start, so it may go a whole segment without one: the
 /// monitor stops feeding (and warns, once) only when it has not beaten for
-/// [`config::CONTROL_PROGRESS_WINDOW_US`]. On the board, where the monitor runs above thread mode
-/// (see [`start`]), thread mode beats for it too.
+/// [`config::CONTROL_PROGRESS_WINDOW_US`]. Where the monitor runs above thread mode (see
+/// [`spawn_monitor`]), thread mode beats for it too.
 #[embassy_executor::task]
-async fn monitor_task(mut watchdog: board::Watchdog) {
-    let mut ticker = Ticker::every(Duration::from_micros(config::MONITOR_PERIOD_US));
+async fn monitor_task(mut watchdog: BoardWatchdog) {
+    let mut ticker = Ticker::every(Duration::from_micros(MONITOR_PERIOD_US));
     let mut control = Progress::new(&HEARTBEAT, config::CONTROL_PROGRESS_WINDOW_US);
-    #[cfg(feature = "board-g474")]
-    let mut thread_mode = Progress::new(&THREAD_HEARTBEAT, config::THREAD_PROGRESS_WINDOW_US);
+    let mut thread_mode = WATCHES_THREAD_MODE
+        .then(|| Progress::new(&THREAD_HEARTBEAT, config::THREAD_PROGRESS_WINDOW_US));
     let mut periods = 0u32;
     let mut report_start = cycles();
     loop {
         ticker.next().await;
-        let alive = control.check("control loop");
-        #[cfg(feature = "board-g474")]
-        let alive = thread_mode.check("thread mode") && alive;
-        if alive {
+        let control_alive = control.check("control loop");
+        let thread_mode_alive = thread_mode
+            .as_mut()
+            .is_none_or(|progress| progress.check("thread mode"));
+        if control_alive && thread_mode_alive {
             watchdog.feed();
         }
         periods += 1;
@@ -317,8 +323,7 @@ async fn monitor_task(mut watchdog: board::Watchdog) {
 }
 
 /// Monitor periods between two reports of the CPU cost of the edges.
-const REPORT_EVERY_MONITOR_PERIODS: u32 =
-    (config::REPORT_PERIOD_US / config::MONITOR_PERIOD_US) as u32;
+const REPORT_EVERY_MONITOR_PERIODS: u32 = (config::REPORT_PERIOD_US / MONITOR_PERIOD_US) as u32;
 
 /// Beats of one part of the application, as the monitor sees them.
 struct Progress {
@@ -336,7 +341,7 @@ impl Progress {
             beats,
             last_beat: beats.load(Ordering::Relaxed),
             quiet_periods: 0,
-            window_periods: window_us.div_ceil(config::MONITOR_PERIOD_US) as u32,
+            window_periods: window_us.div_ceil(MONITOR_PERIOD_US) as u32,
         }
     }
 
@@ -353,7 +358,7 @@ impl Progress {
             warn!(
                 "{=str} made no progress for {=u64} µs: the watchdog is no longer fed",
                 part,
-                u64::from(self.quiet_periods) * config::MONITOR_PERIOD_US
+                u64::from(self.quiet_periods) * MONITOR_PERIOD_US
             );
         }
         self.quiet_periods < self.window_periods
@@ -361,7 +366,6 @@ impl Progress {
 }
 
 /// Beats for the monitor from thread mode, where the button, the LED and the console run.
-#[cfg(feature = "board-g474")]
 #[embassy_executor::task]
 async fn thread_heartbeat_task() {
     let mut ticker = Ticker::every(Duration::from_millis(config::THREAD_HEARTBEAT_MS));

@@ -54,35 +54,6 @@ pub const PWM: feeder_shared::PwmCalibration = feeder_shared::PwmCalibration::DE
 #[cfg(feature = "output-pwm")]
 pub const PWM_FREQUENCY_HZ: u32 = 20_000;
 
-/// Independent watchdog timeout: what the plate affords.
-///
-/// A processor that stops leaves the output holding a level (the DAC keeps its code, TIM2 replays
-/// the last preloaded segment). At the default operating point (50 Hz, d = 0.586, 2.5 mm stroke,
-/// a = 145.9 m/s²) the plate passes mid-stroke at 0.60 m/s while −a is commanded; held there, it
-/// reaches an end stop, 2.5 mm away (`LIMITS.max_stroke_m` = 5 mm peak to peak), after 3.0 ms
-/// (2.5 mm = 0.60 m/s · t + ½ · 145.9 m/s² · t²); from a turning point, 1.25 mm short of the stop,
-/// after 4.1 ms. Half of the 3.0 ms is the firmware's: the rest is left to the driver (its
-/// disable response, the motor current's decay), which the bring-up checklist measures. The IWDG
-/// counts LSI / 4, 125 µs a count at 32 kHz (RM0440, IWDG, prescaler 4, the shortest), but the
-/// LSI may run as slow as 29.5 kHz (DS12288, "LSI oscillator characteristics"), 135.6 µs a
-/// count: 1.5 ms allows 11 counts. `IndependentWatchdog::new` rounds a timeout down to whole
-/// counts and is exact for multiples of 500 µs, so 1.0 ms: 8 counts, at most 1.09 ms with the
-/// slowest LSI. Larger strokes leave less room, none at 5 mm: there only the end stops help.
-#[cfg(feature = "board-g474")]
-pub const WATCHDOG_TIMEOUT_US: u32 = 1_000;
-
-/// How often the monitor checks progress and feeds the watchdog. On the board a quarter of the
-/// timeout: the monitor shares the control executor, so a check may wait for the control loop's
-/// work at an edge (at most about 94 µs), and one feed withheld for a replayed segment (see
-/// `board`'s `OutputWatchdog`) still leaves a feed in time, even with the LSI at its fastest
-/// (34 kHz, 0.94 ms).
-#[cfg(feature = "board-g474")]
-pub const MONITOR_PERIOD_US: u64 = WATCHDOG_TIMEOUT_US as u64 / 4;
-
-/// How often the monitor checks progress: QEMU models no watchdog.
-#[cfg(feature = "board-qemu")]
-pub const MONITOR_PERIOD_US: u64 = 100_000;
-
 /// The longest the control loop may go without a beat before the monitor stops feeding the
 /// watchdog: twice the longest segment it waits for, an idle period at the lowest frequency
 /// (rounded up to whole monitor periods).
@@ -91,14 +62,13 @@ pub const CONTROL_PROGRESS_WINDOW_US: u64 = (2.0e6 / LIMITS.min_frequency_hz) as
 /// How often the control loop beats while parked (invalid settings): well within the window.
 pub const PARK_HEARTBEAT_MS: u64 = 10;
 
-/// How often thread mode (button, LED, console) beats for the monitor on the board.
-#[cfg(feature = "board-g474")]
+/// How often thread mode (button, LED, console) beats for the monitor, where the monitor watches
+/// it (see `ports::Watchdog::WATCHES_THREAD_MODE`).
 pub const THREAD_HEARTBEAT_MS: u64 = 50;
 
 /// The longest thread mode may go without a beat: a recipe write blocks it for a page erase and
 /// 256 double-word writes (about 22 + 21 ms, at most 48 ms, DS12288 "Flash memory
 /// characteristics"), plus a beat period, with room to spare.
-#[cfg(feature = "board-g474")]
 pub const THREAD_PROGRESS_WINDOW_US: u64 = 200_000;
 
 /// How often the monitor logs the CPU cost of the edges.

@@ -4,7 +4,8 @@
 //! enable through the registers alone, whatever state the drivers are in. Each board module
 //! defines it as `pub static SAFE_STATE_WRITES: [RegisterWrite; N]` (immutable, so it lies in
 //! flash); the HardFault entry takes its address and its size in bytes, so N is free and there
-//! is no terminator. [`make_safe`] makes the stores from Rust, the HardFault entry from assembly.
+//! is no terminator. The panic handler makes the stores from Rust, the HardFault entry from
+//! assembly.
 //!
 //! * HardFault: the entry (`HardFault`, below) uses registers only until the stores are made, so
 //!   a fault whose stack is gone still reaches them: under flip-link a stack overflow faults when
@@ -25,13 +26,7 @@ use core::sync::atomic::{AtomicBool, Ordering};
 use cortex_m::peripheral::SCB;
 
 use crate::board;
-
-/// One 32-bit store the HardFault entry makes before it touches the stack.
-#[repr(C)]
-pub struct RegisterWrite {
-    pub address: u32,
-    pub value: u32,
-}
+use crate::ports;
 
 /// Bytes of the board's table, which the HardFault entry walks from its start to its end.
 const SAFE_STATE_BYTES: usize = core::mem::size_of_val(&board::SAFE_STATE_WRITES);
@@ -49,15 +44,6 @@ const STACKING_ERRORS: u32 = 1 << 4 | 1 << 12;
 /// entered again) only hands over to the board.
 static LOGGED: AtomicBool = AtomicBool::new(false);
 
-/// Makes the board's safe-state stores, in the table's order.
-pub fn make_safe() {
-    for write in &board::SAFE_STATE_WRITES {
-        // SAFETY: the board's table holds its output registers and the values that stop them.
-        unsafe { core::ptr::write_volatile(write.address as *mut u32, write.value) }
-    }
-    cortex_m::asm::dsb();
-}
-
 /// True for the first fault to log.
 fn first_to_log() -> bool {
     !LOGGED.swap(true, Ordering::Relaxed)
@@ -66,7 +52,7 @@ fn first_to_log() -> bool {
 #[panic_handler]
 fn panic(info: &PanicInfo) -> ! {
     cortex_m::interrupt::disable();
-    make_safe();
+    ports::write_all(&board::SAFE_STATE_WRITES);
     if first_to_log() {
         // SAFETY: a read of the interrupt control and state register.
         let active = unsafe { (*SCB::PTR).icsr.read() } & VECTACTIVE;

@@ -1,16 +1,17 @@
-//! Board support: everything that touches registers. Exactly one board is selected by a cargo
-//! feature; each provides the same items (`Board`, `init`, `SAFE_STATE_WRITES`, `after_fault` and
-//! the pin types).
-
-#[cfg(all(feature = "board-g474", feature = "board-qemu"))]
-compile_error!("select one board: `--no-default-features --features board-qemu` for QEMU");
+//! Board support: everything that touches registers. Exactly one board is compiled, chosen by a
+//! cargo feature; each provides the same items:
+//!
+//! * `Hardware`, which names the types of its parts ([`Parts`](crate::ports::Parts));
+//! * `run`, which brings the board up with the output at zero and the driver disabled, hands its
+//!   parts to the application and runs the executors;
+//! * `announce`, which logs what the firmware came up on;
+//! * `SAFE_STATE_WRITES` and `after_fault`, for the fault handlers (`crate::fault`).
 
 #[cfg(feature = "board-g474")]
-mod g474;
-#[cfg(feature = "board-g474")]
-pub use g474::*;
+#[path = "g474/mod.rs"]
+mod chosen;
+#[cfg(feature = "board-qemu")]
+#[path = "qemu/mod.rs"]
+mod chosen;
 
-#[cfg(feature = "board-qemu")]
-mod qemu;
-#[cfg(feature = "board-qemu")]
-pub use qemu::*;
+pub use chosen::{after_fault, announce, run, Hardware, SAFE_STATE_WRITES};

@@ -1,7 +1,8 @@
 //! The operator's serial console on LPUART1 (ST-LINK virtual COM port, 115200 8N1), with the
 //! recipes in flash (`--features console`).
 
-use defmt::error;
+use defmt::{error, unwrap};
+use embassy_executor::SendSpawner;
 use embassy_stm32::flash::Flash;
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
 use embassy_stm32::peripherals::{FLASH, LPUART1, PA2, PA3};
@@ -10,6 +11,7 @@ use embassy_stm32::{bind_interrupts, Peri};
 use feeder_shared::TickClock;
 
 use super::recipes::FlashRecipes;
+use crate::ports;
 
 bind_interrupts!(struct Irqs {
     LPUART1 => usart::BufferedInterruptHandler<LPUART1>;
@@ -21,14 +23,14 @@ const TX_BUFFER_BYTES: usize = 336;
 const RX_BUFFER_BYTES: usize = 128;
 
 /// The console's peripherals, handed to [`console_task`].
-pub struct Console {
+pub struct Operator {
     lpuart: Peri<'static, LPUART1>,
     tx: Peri<'static, PA2>,
     rx: Peri<'static, PA3>,
     flash: Peri<'static, FLASH>,
 }
 
-impl Console {
+impl Operator {
     pub fn new(
         lpuart: Peri<'static, LPUART1>,
         tx: Peri<'static, PA2>,
@@ -44,9 +46,15 @@ impl Console {
     }
 }
 
+impl ports::Operator for Operator {
+    fn spawn(self, spawner: SendSpawner, clock: TickClock) {
+        spawner.spawn(unwrap!(console_task(self, clock)));
+    }
+}
+
 /// Serves the console in thread mode, below every interrupt.
 #[embassy_executor::task]
-pub async fn console_task(console: Console, clock: TickClock) {
+async fn console_task(console: Operator, clock: TickClock) {
     let mut tx_buffer = [0u8; TX_BUFFER_BYTES];
     let mut rx_buffer = [0u8; RX_BUFFER_BYTES];
     // Below the edges and the control executor.

@@ -10,8 +10,8 @@ use feeder_shared::{DacLevels, DriveError, Segment, TickClock};
 use super::segment_timer::{SegmentTimer, UpdateInterrupt, CR1_STOPPED, EGR_UPDATE, MIN_SEGMENT_S};
 use super::setup::DRIVER_DISABLE;
 use crate::config;
-use crate::fault::RegisterWrite;
 use crate::output::{EdgeMissed, SegmentOutput, SegmentStart};
+use crate::ports::RegisterWrite;
 
 /// DAC1_DHR12R1: channel 1's 12-bit right-aligned holding register.
 const DAC1_DHR12R1: u32 = 0x5000_0808;

@@ -8,7 +8,8 @@ use embassy_stm32::pac;
 use embassy_stm32::pac::gpio::vals::Odr;
 
 use super::setup::{CORE_HZ, DRIVER_ENABLE_PIN};
-use crate::config;
+use super::watchdog::OutputWatchdog;
+use crate::ports::Watchdog;
 
 /// What to provoke.
 #[derive(Clone, Copy)]
@@ -64,7 +65,7 @@ const fn same(a: &str, b: &str) -> bool {
 }
 
 /// Feeds with the driver enabled before the drill: 2 s into a run.
-const DUE_AFTER_FEEDS: u32 = (2_000_000 / config::MONITOR_PERIOD_US) as u32;
+const DUE_AFTER_FEEDS: u32 = (2_000_000 / <OutputWatchdog as Watchdog>::MONITOR_PERIOD_US) as u32;
 
 /// Feeds made with the driver enabled so far.
 static ENABLED_FEEDS: AtomicU32 = AtomicU32::new(0);

@@ -28,11 +28,15 @@
 //! breaks TIM1. Every feed of the watchdog also toggles PB5, for an external retriggerable
 //! monostable that keeps the driver enabled only while the feeds go on (`firmware/README.md`).
 
-#[cfg(feature = "console")]
-mod console;
 #[cfg(not(feature = "output-pwm"))]
 mod dac;
 mod drill;
+#[cfg(feature = "console")]
+#[path = "console.rs"]
+mod operator;
+#[cfg(not(feature = "console"))]
+#[path = "button_only.rs"]
+mod operator;
 #[cfg(feature = "output-pwm")]
 mod pwm;
 #[cfg(feature = "console")]
@@ -42,22 +46,12 @@ mod setup;
 mod watchdog;
 
 use defmt_rtt as _;
-use embassy_executor::SendSpawner;
+use embassy_executor::{Executor, SendSpawner};
 use embassy_stm32::exti::ExtiInput;
 use embassy_stm32::gpio;
 use embassy_stm32::mode::Async;
 
-use crate::fault::RegisterWrite;
-
-#[cfg(feature = "console")]
-pub use console::{console_task, Console};
-pub use setup::init;
-
-pub type Output = Stage;
-pub type DriverEnable = gpio::Output<'static>;
-pub type Led = gpio::Output<'static>;
-pub type Button = ExtiInput<'static, Async>;
-pub type Watchdog = watchdog::OutputWatchdog;
+use crate::ports::{self, Board, Parts, RegisterWrite};
 
 /// The output stage this image drives: the DAC, or PWM + direction with `output-pwm`.
 #[cfg(not(feature = "output-pwm"))]
@@ -65,28 +59,36 @@ type Stage = dac::DacStage;
 #[cfg(feature = "output-pwm")]
 type Stage = pwm::PwmStage;
 
-/// The output stage's name in the log.
-pub const OUTPUT_STAGE: &str = Stage::NAME;
+/// The NUCLEO-G474RE's parts.
+pub enum Hardware {}
 
-/// Everything the application needs from the board.
-pub struct Board {
-    pub output: Output,
-    pub driver_enable: DriverEnable,
-    pub led: Led,
-    pub button: Button,
-    pub watchdog: Watchdog,
-    /// The last reset was the independent watchdog's.
-    pub after_watchdog_reset: bool,
-    /// Spawner of the executor that runs the control loop above the other tasks.
-    pub control_spawner: SendSpawner,
-    /// The console's peripherals.
-    #[cfg(feature = "console")]
-    pub console: Console,
+impl Parts for Hardware {
+    type Output = Stage;
+    type DriverEnable = gpio::Output<'static>;
+    type Led = gpio::Output<'static>;
+    type Button = ExtiInput<'static, Async>;
+    type Watchdog = watchdog::OutputWatchdog;
+    type Operator = operator::Operator;
 }
 
 /// The stores that make the output safe, in order (see [`Stage::SAFE_STATE_WRITES`]).
 pub static SAFE_STATE_WRITES: [RegisterWrite; Stage::SAFE_STATE_WRITES.len()] =
     Stage::SAFE_STATE_WRITES;
+
+/// Brings the board up with the output at zero and the driver disabled, hands it to `app`, which
+/// spawns its tasks, and runs the thread-mode executor.
+pub fn run(app: fn(SendSpawner, Board<Hardware>)) -> ! {
+    let board = setup::init();
+    let mut executor = Executor::new();
+    // SAFETY: `run` never returns, so its frame, and the executor in it, lives for good.
+    let executor: &'static mut Executor = unsafe { &mut *core::ptr::addr_of_mut!(executor) };
+    executor.run(|spawner| app(spawner.make_send(), board))
+}
+
+/// Logs the image's output stage.
+pub fn announce() {
+    defmt::info!("feeder firmware up: output {=str}, stopped", Stage::NAME);
+}
 
 /// After a panic or HardFault, whose handler has made the safe state: interrupts off, so that no
 /// handler (the control loop) runs again and undoes it, the safe state once more (the segment
@@ -94,7 +96,7 @@ pub static SAFE_STATE_WRITES: [RegisterWrite; Stage::SAFE_STATE_WRITES.len()] =
 /// resets the board within its timeout, and the enable keeper drops the enable.
 pub fn after_fault() -> ! {
     cortex_m::interrupt::disable();
-    crate::fault::make_safe();
+    ports::write_all(&SAFE_STATE_WRITES);
     loop {
         cortex_m::asm::wfi();
     }

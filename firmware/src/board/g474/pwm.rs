@@ -15,8 +15,8 @@ use feeder_shared::{Direction, DriveError, PwmLevels, Segment, TickClock};
 use super::segment_timer::{SegmentTimer, UpdateInterrupt, CR1_STOPPED, MIN_SEGMENT_S};
 use super::setup::DRIVER_DISABLE;
 use crate::config;
-use crate::fault::RegisterWrite;
 use crate::output::{EdgeMissed, SegmentOutput, SegmentStart};
+use crate::ports::RegisterWrite;
 
 /// TIM1's control register 1, interrupt enable and break and dead-time registers.
 const TIM1_CR1: u32 = 0x4001_2C00;

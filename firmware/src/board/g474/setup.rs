@@ -8,12 +8,9 @@ use embassy_stm32::interrupt::typelevel::{self, Handler};
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
 use embassy_stm32::{bind_interrupts, pac, rcc, Config};
 
-#[cfg(feature = "console")]
-use super::console::Console;
 use super::watchdog::OutputWatchdog;
-use super::Board;
-use super::Stage;
-use crate::fault::RegisterWrite;
+use super::{operator, Hardware, Stage};
+use crate::ports::{Board, RegisterWrite};
 
 /// Core clock ([`clocks`]).
 pub const CORE_HZ: f64 = 170e6;
@@ -51,7 +48,7 @@ impl Handler<typelevel::UART4> for ControlExecutor {
 }
 
 /// Brings the board up with the output at zero and the driver disabled.
-pub fn init() -> Board {
+pub fn init() -> Board<Hardware> {
     let after_watchdog_reset = pac::RCC.csr().read().iwdgrstf();
     pac::RCC.csr().modify(|w| w.set_rmvf(true));
 
@@ -73,10 +70,9 @@ pub fn init() -> Board {
         led,
         button,
         watchdog,
+        operator: operator::Operator::new(p.LPUART1, p.PA2, p.PA3, p.FLASH),
         after_watchdog_reset,
         control_spawner,
-        #[cfg(feature = "console")]
-        console: Console::new(p.LPUART1, p.PA2, p.PA3, p.FLASH),
     }
 }
 

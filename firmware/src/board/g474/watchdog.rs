@@ -6,8 +6,23 @@ use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::Peri;
 
 use super::{drill, segment_timer};
-use crate::app;
-use crate::config;
+use crate::ports::Watchdog;
+
+/// Independent watchdog timeout: what the plate affords.
+///
+/// A processor that stops leaves the output holding a level (the DAC keeps its code, TIM2 replays
+/// the last preloaded segment). At the default operating point (50 Hz, d = 0.586, 2.5 mm stroke,
+/// a = 145.9 m/s²) the plate passes mid-stroke at 0.60 m/s while −a is commanded; held there, it
+/// reaches an end stop, 2.5 mm away (`LIMITS.max_stroke_m` = 5 mm peak to peak), after 3.0 ms
+/// (2.5 mm = 0.60 m/s · t + ½ · 145.9 m/s² · t²); from a turning point, 1.25 mm short of the stop,
+/// after 4.1 ms. Half of the 3.0 ms is the firmware's: the rest is left to the driver (its
+/// disable response, the motor current's decay), which the bring-up checklist measures. The IWDG
+/// counts LSI / 4, 125 µs a count at 32 kHz (RM0440, IWDG, prescaler 4, the shortest), but the
+/// LSI may run as slow as 29.5 kHz (DS12288, "LSI oscillator characteristics"), 135.6 µs a
+/// count: 1.5 ms allows 11 counts. `IndependentWatchdog::new` rounds a timeout down to whole
+/// counts and is exact for multiples of 500 µs, so 1.0 ms: 8 counts, at most 1.09 ms with the
+/// slowest LSI. Larger strokes leave less room, none at 5 mm: there only the end stops help.
+pub const WATCHDOG_TIMEOUT_US: u32 = 1_000;
 
 /// The independent watchdog, fed only while the output plays what the control loop preloaded,
 /// and the feed pulses on PB5: every feed toggles it, for an external retriggerable monostable
@@ -23,7 +38,7 @@ impl OutputWatchdog {
     /// of the start-up; every feed then reloads the configured timeout.
     pub fn start(iwdg: Peri<'static, IWDG>, feed_pulses: Peri<'static, PB5>) -> Self {
         let mut watchdog = Self {
-            iwdg: IndependentWatchdog::new(iwdg, config::WATCHDOG_TIMEOUT_US),
+            iwdg: IndependentWatchdog::new(iwdg, WATCHDOG_TIMEOUT_US),
             feed_pulses: gpio::Output::new(feed_pulses, Level::Low, Speed::Low),
         };
         watchdog.iwdg.unleash();
@@ -31,7 +46,15 @@ impl OutputWatchdog {
     }
 }
 
-impl app::Watchdog for OutputWatchdog {
+impl Watchdog for OutputWatchdog {
+    /// A quarter of the timeout: the monitor shares the control executor, so a check may wait for
+    /// the control loop's work at an edge (at most about 94 µs), and one feed withheld for a
+    /// replayed segment still leaves a feed in time, even with the LSI at its fastest (34 kHz,
+    /// 0.94 ms).
+    const MONITOR_PERIOD_US: u64 = WATCHDOG_TIMEOUT_US as u64 / 4;
+    /// A recipe write blocks thread mode for tens of milliseconds, far longer than the timeout.
+    const WATCHES_THREAD_MODE: bool = true;
+
     /// Feeds unless the output replays a segment.
     fn feed(&mut self) {
         if segment_timer::replaying() {

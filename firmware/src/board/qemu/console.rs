@@ -3,15 +3,29 @@
 
 use core::convert::Infallible;
 
+use defmt::unwrap;
 use embassy_executor::SendSpawner;
 use feeder_shared::recipe::{RECIPE_SLOTS, RECORD_LEN};
 use feeder_shared::{RecipeSlot, RecipeStore, TickClock};
 
 use super::exit::sleep_forever;
 use super::uart::Uart;
+use crate::ports;
 
-/// With the console the operator is on the serial port: there is no script to spawn.
-pub fn spawn_operator(_: SendSpawner, _: TickClock) {}
+/// The console's end of UART0.
+pub struct Operator(Uart);
+
+impl Operator {
+    pub fn new() -> Self {
+        Self(Uart::new())
+    }
+}
+
+impl ports::Operator for Operator {
+    fn spawn(self, spawner: SendSpawner, clock: TickClock) {
+        spawner.spawn(unwrap!(console_task(self.0, clock)));
+    }
+}
 
 /// Thread mode with the console: nothing to do.
 pub fn idle() -> ! {
@@ -20,7 +34,7 @@ pub fn idle() -> ! {
 
 /// The operator's console on UART0, with recipes in RAM.
 #[embassy_executor::task]
-pub async fn console_task(port: Uart, clock: TickClock) {
+async fn console_task(port: Uart, clock: TickClock) {
     crate::console::serve(port, RamRecipes::new(), clock).await
 }
 

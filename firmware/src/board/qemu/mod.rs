@@ -43,34 +43,20 @@ use defmt_semihosting as _;
 use embassy_executor::SendSpawner;
 
 use crate::config;
-use crate::fault::{self, RegisterWrite};
+use crate::ports::{self, Board, Parts, RegisterWrite};
 
 pub use exit::after_fault;
-#[cfg(feature = "console")]
-pub use operator::console_task;
-pub use operator::{idle, spawn_operator};
-pub use setup::init;
 
-pub type Output = output::ReportingOutput;
-pub type DriverEnable = pins::EnableRegister;
-pub type Led = pins::EmulatedPin;
-pub type Button = pins::NoButton;
-pub type Watchdog = pins::NoWatchdog;
+/// The emulated machine's parts.
+pub enum Hardware {}
 
-/// Everything the application needs from the board.
-pub struct Board {
-    pub output: Output,
-    pub driver_enable: DriverEnable,
-    pub led: Led,
-    pub button: Button,
-    pub watchdog: Watchdog,
-    /// QEMU starts fresh every run.
-    pub after_watchdog_reset: bool,
-    /// Spawner of the executor that runs the control loop above the other tasks.
-    pub control_spawner: SendSpawner,
-    /// UART0, for the console.
-    #[cfg(feature = "console")]
-    pub console: uart::Uart,
+impl Parts for Hardware {
+    type Output = output::ReportingOutput;
+    type DriverEnable = pins::EnableRegister;
+    type Led = pins::EmulatedPin;
+    type Button = pins::NoButton;
+    type Watchdog = pins::NoWatchdog;
+    type Operator = operator::Operator;
 }
 
 /// The DAC code on the emulated output (the G474's DAC1 output), written by the stage's model at
@@ -97,6 +83,19 @@ pub static SAFE_STATE_WRITES: [RegisterWrite; 3] = [
         value: 0,
     },
 ];
+
+/// Brings the emulated board up with the output at zero and the driver disabled, hands it to
+/// `app`, which spawns its tasks on the executors, and leaves thread mode to the operator.
+pub fn run(app: fn(SendSpawner, Board<Hardware>)) -> ! {
+    let (spawner, board) = setup::init();
+    app(spawner, board);
+    operator::idle()
+}
+
+/// Logs what the firmware came up on.
+pub fn announce() {
+    defmt::info!("feeder firmware up on QEMU mps2-an386: output reported as events, stopped");
+}
 
 /// External interrupts of mps2-an386 used here. 30 and 31 belong to GPIO pins nobody enables.
 #[derive(Clone, Copy)]
@@ -134,7 +133,7 @@ unsafe fn DefaultHandler(irqn: i16) {
         31 => unsafe { setup::TASK_EXECUTOR.on_interrupt() },
         _ => {
             cortex_m::interrupt::disable();
-            fault::make_safe();
+            ports::write_all(&SAFE_STATE_WRITES);
             defmt::error!("unexpected interrupt {=i16}", irqn);
             after_fault()
         }

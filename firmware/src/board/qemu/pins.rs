@@ -7,7 +7,7 @@ use embedded_hal::digital::{ErrorType, InputPin, OutputPin};
 use embedded_hal_async::digital::Wait;
 
 use super::{register_write, DRIVER_ENABLE};
-use crate::app;
+use crate::ports::Watchdog;
 
 /// The driver enable, in [`DRIVER_ENABLE`].
 pub struct EnableRegister;
@@ -87,6 +87,11 @@ impl Wait for NoButton {
 /// QEMU models no independent watchdog for this machine; the monitor's feeding is a no-op.
 pub struct NoWatchdog;
 
-impl app::Watchdog for NoWatchdog {
+impl Watchdog for NoWatchdog {
+    /// Progress is only logged, so rarely.
+    const MONITOR_PERIOD_US: u64 = 100_000;
+    /// Without a watchdog the monitor runs with the other tasks.
+    const WATCHES_THREAD_MODE: bool = false;
+
     fn feed(&mut self) {}
 }

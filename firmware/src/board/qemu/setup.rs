@@ -7,9 +7,11 @@ use embassy_executor::{InterruptExecutor, SendSpawner};
 use super::output::ReportingOutput;
 use super::pins::{EmulatedPin, EnableRegister, NoButton, NoWatchdog};
 use super::{
-    register_write, set_priority, time_driver, Board, Irq, DRIVER_ENABLE, OUTPUT_CODE, OUTPUT_RUN,
+    operator, register_write, set_priority, time_driver, Hardware, Irq, DRIVER_ENABLE, OUTPUT_CODE,
+    OUTPUT_RUN,
 };
 use crate::config;
+use crate::ports::Board;
 
 /// Priority of the executor that runs every task but the control loop.
 pub const TASK_PRIORITY: u8 = 0x80;
@@ -19,7 +21,7 @@ pub static TASK_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 
 /// Brings the emulated board up. Returns the spawner for the application's tasks but the control
 /// loop, and the board.
-pub fn init() -> (SendSpawner, Board) {
+pub fn init() -> (SendSpawner, Board<Hardware>) {
     guard_below_ram();
     register_write(OUTPUT_CODE as usize, u32::from(config::DAC.zero_code));
     register_write(OUTPUT_RUN as usize, 0);
@@ -40,11 +42,10 @@ pub fn init() -> (SendSpawner, Board) {
         led: EmulatedPin,
         button: NoButton,
         watchdog: NoWatchdog,
+        operator: operator::Operator::new(),
         // QEMU starts fresh every run.
         after_watchdog_reset: false,
         control_spawner,
-        #[cfg(feature = "console")]
-        console: super::uart::Uart::new(),
     };
     (task_spawner, board)
 }

@@ -46,7 +46,7 @@ use super::edge_work::{edge_work, provoke_late_preload};
 use super::exit::{after_fault, sleep_forever};
 use super::time_driver::{self, CYCLES_PER_TICK};
 use crate::app::{self, OperatorRequest, OperatorView};
-use crate::{config, trace};
+use crate::{config, ports, trace};
 use changes::RandomChanges;
 
 /// How often the operator looks at the cycle count.
@@ -176,19 +176,29 @@ fn command_line(buffer: &mut [u8]) -> &str {
     core::str::from_utf8(&buffer[..length]).unwrap_or("")
 }
 
-/// Spawns the scripted operator, which plans on the output's `clock`.
-pub fn spawn_operator(spawner: SendSpawner, clock: TickClock) {
-    spawner.spawn(unwrap!(operator_task(clock)));
+/// The script, read when its task starts.
+pub struct Operator;
+
+impl Operator {
+    pub fn new() -> Self {
+        Self
+    }
+}
+
+impl ports::Operator for Operator {
+    fn spawn(self, spawner: SendSpawner, clock: TickClock) {
+        spawner.spawn(unwrap!(operator_task(clock)));
+    }
 }
 
 /// The scripted operator during the run.
-struct Operator {
+struct Run {
     scenario: Scenario,
     /// The provoked missed edge was acknowledged and the feeder started again.
     restarted: bool,
 }
 
-impl Operator {
+impl Run {
     /// Ends the run with a failure code if the firmware faulted, unless it is the missed edge
     /// the scenario provoked: that one is acknowledged and the feeder started again, once.
     async fn watch_faults(&mut self) {
@@ -274,7 +284,7 @@ async fn operator_task(clock: TickClock) {
     let (stop_after, ramp_cycles) = (scenario.stop_after_cycles, scenario.ramp_cycles);
     let (count, start_spec) = (scenario.random_changes, first.spec);
     let mut random = RandomChanges::new(scenario.seed, clock, start_spec, ramp_cycles);
-    let mut operator = Operator {
+    let mut operator = Run {
         scenario,
         restarted: false,
     };

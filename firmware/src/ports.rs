@@ -1,0 +1,75 @@
+//! The seam between the application and a board: what the application needs from one.
+//!
+//! A board names the types of its parts in one [`Parts`] implementation and hands the parts over
+//! as a [`Board`]; the fault handlers make its safe state from its table of [`RegisterWrite`]s.
+
+use embassy_executor::SendSpawner;
+use embedded_hal::digital::{InputPin, OutputPin};
+use embedded_hal_async::digital::Wait;
+use feeder_shared::TickClock;
+
+use crate::output::SegmentOutput;
+
+/// The types of a board's parts.
+pub trait Parts {
+    /// The output stage, which times every edge in hardware.
+    type Output: SegmentOutput;
+    /// The driver enable: high enables the driver.
+    type DriverEnable: OutputPin;
+    /// The status LED: high lights it.
+    type Led: OutputPin;
+    /// The start/stop button: high while pressed.
+    type Button: InputPin + Wait;
+    type Watchdog: Watchdog;
+    /// Who operates the feeder besides the button.
+    type Operator: Operator;
+}
+
+/// Everything the application needs from the board.
+pub struct Board<P: Parts> {
+    pub output: P::Output,
+    pub driver_enable: P::DriverEnable,
+    pub led: P::Led,
+    pub button: P::Button,
+    pub watchdog: P::Watchdog,
+    pub operator: P::Operator,
+    /// The last reset was the watchdog's.
+    pub after_watchdog_reset: bool,
+    /// Spawner of the executor that runs the control loop above the other tasks.
+    pub control_spawner: SendSpawner,
+}
+
+/// A watchdog that the monitor feeds while the application makes progress.
+pub trait Watchdog {
+    /// How often the monitor checks progress and feeds the watchdog.
+    const MONITOR_PERIOD_US: u64;
+    /// The monitor runs on the control executor, above thread mode, and thread mode beats for it:
+    /// the watchdog's timeout is shorter than the longest work in thread mode.
+    const WATCHES_THREAD_MODE: bool;
+
+    fn feed(&mut self);
+}
+
+/// An operator besides the button: a serial console or a script.
+pub trait Operator {
+    /// Spawns the operator's task on `spawner`; it plans every waveform on the output's `clock`.
+    fn spawn(self, spawner: SendSpawner, clock: TickClock);
+}
+
+/// One 32-bit store of a board's safe state, made by the HardFault entry before it touches the
+/// stack (see `crate::fault`).
+#[repr(C)]
+pub struct RegisterWrite {
+    pub address: u32,
+    pub value: u32,
+}
+
+/// Makes `writes` in their order and waits until they are done.
+pub fn write_all(writes: &[RegisterWrite]) {
+    for write in writes {
+        // SAFETY: a board's safe-state table holds its output registers and the values that
+        // stop them.
+        unsafe { core::ptr::write_volatile(write.address as *mut u32, write.value) }
+    }
+    cortex_m::asm::dsb();
+}
