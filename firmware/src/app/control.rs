@@ -1,0 +1,257 @@
+//! The control loop: runs the shared scheduler into the board's output stage, one preload per
+//! edge, and applies the supervisor's decisions.
+
+use core::cell::Cell;
+use core::sync::atomic::Ordering;
+
+use defmt::{error, info, warn};
+use embassy_time::Timer;
+use embedded_hal::digital::OutputPin;
+use feeder_shared::{
+    Fault, Led, MotionRequest, Phase, RunState, Scheduler, Segment, SegmentKind, StopCategory,
+    Supervisor, SupervisorEvent, TickPlan,
+};
+
+use super::monitor::cycles;
+use super::{
+    encode_state, index_of, plan, OperatorRequest, ReadyPlan, COST, CYCLE, HEARTBEAT, LED,
+    LED_BLINK, LED_OFF, LED_ON, NEXT_PLAN, PHASE, PHASES, REQUESTS, STATE,
+};
+use crate::config;
+use crate::output::SegmentOutput;
+use crate::trace;
+
+/// Runs the scheduler into the output stage and applies the supervisor's decisions.
+pub struct ControlLoop<O, E> {
+    output: O,
+    driver_enable: E,
+    supervisor: Supervisor,
+    last_phase: Phase,
+}
+
+impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
+    pub fn new(output: O, driver_enable: E, after_watchdog_reset: bool) -> Self {
+        Self {
+            output,
+            driver_enable,
+            supervisor: Supervisor::new(after_watchdog_reset),
+            last_phase: Phase::Stopped,
+        }
+    }
+
+    pub async fn run(mut self) -> ! {
+        self.publish();
+        match self.plan() {
+            Some(plan) => self.run_plan(plan).await,
+            None => self.park().await,
+        }
+    }
+
+    /// The configured waveform planned on the output's clock, or `None` if it is refused.
+    fn plan(&mut self) -> Option<TickPlan> {
+        let plan = match plan(self.output.clock(), &config::WAVEFORM, config::RAMP_CYCLES) {
+            Ok(ready) => ready.plan,
+            Err(err) => {
+                error!("waveform refused: {}", err);
+                return None;
+            }
+        };
+        if let Err(err) = self.output.set_peak_accel(plan.waveform.accel_mps2) {
+            error!("output calibration refused: {}", err);
+            return None;
+        }
+        trace::plan(0, &config::WAVEFORM, plan.clock_hz, config::RAMP_CYCLES);
+        Some(plan)
+    }
+
+    /// Invalid settings: stay at zero with the driver disabled; only a reset helps. Beats for the
+    /// monitor well within its window, so that the watchdog stays fed.
+    async fn park(mut self) -> ! {
+        self.handle(SupervisorEvent::Fault(Fault::InvalidSettings), None);
+        loop {
+            HEARTBEAT.fetch_add(1, Ordering::Relaxed);
+            Timer::after_millis(config::PARK_HEARTBEAT_MS).await;
+        }
+    }
+
+    async fn run_plan(mut self, plan: TickPlan) -> ! {
+        let mut scheduler = Scheduler::new(plan, config::RAMP_CYCLES);
+        let mut queued = self.resync(&mut scheduler);
+        loop {
+            let edge = self.output.wait_edge().await;
+            let work_start = cycles();
+            if edge.is_err() {
+                queued = self.fail(Fault::EdgeMissed, queued, &mut scheduler);
+                continue;
+            }
+            self.begin(&queued, &mut scheduler);
+            queued = scheduler.next_segment();
+            if let Err(fault) = self.prepare(&queued) {
+                queued = self.fail(fault, queued, &mut scheduler);
+                continue;
+            }
+            COST.record(cycles().wrapping_sub(work_start));
+        }
+    }
+
+    /// Preloads `segment`, switching the output levels first when it starts a new plan.
+    fn prepare(&mut self, segment: &Segment) -> Result<(), Fault> {
+        if segment.plan_applied {
+            if let Err(err) = self.output.set_peak_accel(segment.peak_accel_mps2) {
+                error!("output calibration refused: {}", err);
+                return Err(Fault::InvalidSettings);
+            }
+        }
+        self.output.preload(segment).map_err(|_| Fault::EdgeMissed)
+    }
+
+    /// Restarts the output with the scheduler's next segment and preloads the one after it.
+    /// Returns the preloaded segment.
+    fn resync(&mut self, scheduler: &mut Scheduler) -> Segment {
+        let playing = scheduler.next_segment();
+        self.output.restart(&playing);
+        self.begin(&playing, scheduler);
+        let queued = scheduler.next_segment();
+        if self.prepare(&queued).is_err() {
+            // Nothing can be timed: stop here and let the watchdog reset the board.
+            self.output.halt();
+            error!("output cannot be restarted; waiting for the watchdog");
+        }
+        queued
+    }
+
+    /// Fault stop in the fault's category (see [`Fault::stop_category`]), with the fault
+    /// latched. Immediate: zero output and driver off now, then idle output from a fresh start.
+    /// Controlled: `queued`, the segment that could not be prepared, is preloaded at zero (the
+    /// stage outputs zero while its levels are refused), so the segment playing ends as planned
+    /// and the plate comes to rest at the next cycle boundary, where the scheduler idles.
+    /// Returns the segment now preloaded.
+    fn fail(&mut self, fault: Fault, queued: Segment, scheduler: &mut Scheduler) -> Segment {
+        if fault.stop_category() == StopCategory::Immediate {
+            self.output.halt();
+            self.set_driver(false);
+        }
+        error!("fault: {} (stop: {})", fault, fault.stop_category());
+        if self.handle(SupervisorEvent::Fault(fault), Some(scheduler)) == MotionRequest::QuickStop {
+            if self.output.preload(&queued).is_ok() {
+                return queued;
+            }
+            // Not even a zero segment could be preloaded: nothing is left to finish the cycle.
+            self.handle(SupervisorEvent::Fault(Fault::EdgeMissed), Some(scheduler));
+        }
+        self.output.halt();
+        self.set_driver(false);
+        self.resync(scheduler)
+    }
+
+    /// Work at the start of every segment: supervision and pending requests.
+    fn begin(&mut self, playing: &Segment, scheduler: &mut Scheduler) {
+        HEARTBEAT.fetch_add(1, Ordering::Relaxed);
+        trace::segment(playing, self.output.started(playing));
+        if playing.starts_cycle() {
+            CYCLE.store(playing.cycle as u32, Ordering::Relaxed);
+        }
+        if playing.phase != self.last_phase {
+            info!("cycle {=u64}: {}", playing.cycle, playing.phase);
+            self.last_phase = playing.phase;
+            PHASE.store(index_of(&PHASES, playing.phase), Ordering::Relaxed);
+        }
+        if playing.kind == SegmentKind::Idle {
+            self.handle(SupervisorEvent::OutputIdle, Some(scheduler));
+        }
+        while let Ok(request) = REQUESTS.try_receive() {
+            let event = match request {
+                OperatorRequest::Toggle => SupervisorEvent::ButtonPressed,
+                #[cfg(any(feature = "board-qemu", feature = "console"))]
+                OperatorRequest::Start => SupervisorEvent::StartRequested,
+                #[cfg(any(feature = "board-qemu", feature = "console"))]
+                OperatorRequest::Stop => SupervisorEvent::StopRequested,
+                #[cfg(any(feature = "board-qemu", feature = "console"))]
+                OperatorRequest::Reset => SupervisorEvent::ResetRequested,
+            };
+            self.handle(event, Some(scheduler));
+        }
+        if let Some(ready) = NEXT_PLAN.lock(Cell::take) {
+            self.adopt(&ready, scheduler);
+        }
+    }
+
+    /// Queues a ready plan for the next cycle boundary: O(1), no arithmetic.
+    fn adopt(&mut self, ready: &ReadyPlan, scheduler: &mut Scheduler) {
+        match scheduler.set_plan(ready.plan) {
+            Ok(()) => {
+                scheduler.set_ramp_cycles(ready.ramp_cycles);
+                trace::plan(
+                    scheduler.next_tick(),
+                    &ready.spec,
+                    ready.plan.clock_hz,
+                    ready.ramp_cycles,
+                );
+            }
+            Err(err) => warn!("new plan refused: {}", err),
+        }
+    }
+
+    /// Feeds `event` to the supervisor, carries out its decision and returns it.
+    fn handle(
+        &mut self,
+        event: SupervisorEvent,
+        scheduler: Option<&mut Scheduler>,
+    ) -> MotionRequest {
+        let before = self.supervisor.state();
+        let request = self.supervisor.handle(event);
+        if let Some(scheduler) = scheduler {
+            let traced = match request {
+                MotionRequest::Keep => None,
+                MotionRequest::Start => {
+                    scheduler.start();
+                    Some(trace::Request::Start)
+                }
+                MotionRequest::Stop => {
+                    scheduler.stop();
+                    Some(trace::Request::Stop)
+                }
+                MotionRequest::Halt => {
+                    scheduler.halt();
+                    Some(trace::Request::Halt)
+                }
+                MotionRequest::QuickStop => {
+                    scheduler.quick_stop();
+                    Some(trace::Request::QuickStop)
+                }
+            };
+            if let Some(traced) = traced {
+                trace::request(scheduler.next_tick(), traced);
+            }
+        }
+        self.set_driver(self.supervisor.driver_enabled());
+        let after = self.supervisor.state();
+        if after != before {
+            info!("{} -> {}", before, after);
+            self.publish();
+        }
+        request
+    }
+
+    fn set_driver(&mut self, enabled: bool) {
+        // Board pins are infallible; the fault path also drops the enable through the registers.
+        let _ = if enabled {
+            self.driver_enable.set_high()
+        } else {
+            self.driver_enable.set_low()
+        };
+    }
+
+    fn publish(&self) {
+        let led = match self.supervisor.led() {
+            Led::Off => LED_OFF,
+            Led::On => LED_ON,
+            Led::Blink => LED_BLINK,
+        };
+        LED.store(led, Ordering::Relaxed);
+        STATE.store(encode_state(self.supervisor.state()), Ordering::Relaxed);
+        if let RunState::Faulted(fault) = self.supervisor.state() {
+            warn!("fault latched: {}", fault);
+        }
+    }
+}
