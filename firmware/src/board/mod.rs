@@ -7,6 +7,9 @@
 //! * `announce`, which logs what the firmware came up on;
 //! * `SAFE_STATE_WRITES` and `after_fault`, for the fault handlers (`crate::fault`).
 
+#[cfg(all(feature = "board-g474", feature = "board-qemu"))]
+compile_error!("select one board: `--no-default-features --features board-qemu` for QEMU");
+
 #[cfg(feature = "board-g474")]
 #[path = "g474/mod.rs"]
 mod chosen;
