@@ -3,15 +3,20 @@
 //! Received bytes go through the shared [`LineAssembler`] and [`Controller`]; the reply is written
 //! back followed by `\r\n`. The controller validates and plans every change here, below the
 //! control loop; the control loop only takes the newest ready plan at its next edge and runs it
-//! from the next cycle boundary, and start, stop and reset are queued for it. The console runs below the control loop: waiting for
-//! bytes, for room in the request queue or for the transmitter only ever delays the console.
+//! from the next cycle boundary, and start, stop and reset are queued for it. The console runs
+//! below the control loop: waiting for bytes, for room in the request queue or for the
+//! transmitter only ever delays the console.
 
 use defmt::{error, info, warn};
 use embedded_io_async::{Read, Write};
-use feeder_shared::{Action, Controller, LineAssembler, Machine, RecipeStore, Settings, TickClock};
+use feeder_shared::{
+    Action, Controller, LineAssembler, Machine, RecipeStore, Settings, Snapshot, SupervisorEvent,
+    TickClock,
+};
 
-use crate::app::{self, OperatorRequest, ReadyPlan};
 use crate::config;
+use crate::mailbox::{ReadyPlan, NEXT_PLAN, REQUESTS};
+use crate::status;
 
 /// Bytes taken from the port per read.
 const READ_CHUNK_BYTES: usize = 32;
@@ -57,20 +62,22 @@ pub async fn serve<P: Read + Write, S: RecipeStore>(mut port: P, mut recipes: S,
             let Some(line) = assembler.push(byte) else {
                 continue;
             };
-            let outcome = controller.handle(line, &app::snapshot(), &mut recipes);
+            let outcome = controller.handle(line, &snapshot(), &mut recipes);
             match outcome.action {
                 Action::None => {}
-                Action::Start => app::submit(OperatorRequest::Start).await,
-                Action::Stop => app::submit(OperatorRequest::Stop).await,
-                Action::Reset => app::submit(OperatorRequest::Reset).await,
+                Action::Start => REQUESTS.send(SupervisorEvent::StartRequested).await,
+                Action::Stop => REQUESTS.send(SupervisorEvent::StopRequested).await,
+                Action::Reset => REQUESTS.send(SupervisorEvent::ResetRequested).await,
                 Action::Configure {
                     spec,
                     plan,
                     ramp_cycles,
-                } => app::offer(ReadyPlan {
-                    spec,
-                    plan,
-                    ramp_cycles,
+                } => NEXT_PLAN.lock(|next| {
+                    next.set(Some(ReadyPlan {
+                        spec,
+                        plan,
+                        ramp_cycles,
+                    }))
                 }),
             }
             let sent = port.write_all(outcome.reply.as_str().as_bytes()).await;
@@ -78,5 +85,16 @@ pub async fn serve<P: Read + Write, S: RecipeStore>(mut port: P, mut recipes: S,
                 warn!("console: transmit error, reply lost");
             }
         }
+    }
+}
+
+/// The feeder as the control loop last published it.
+fn snapshot() -> Snapshot {
+    let status = status::get();
+    Snapshot {
+        state: status.state,
+        phase: status.phase,
+        uptime_ms: embassy_time::Instant::now().as_millis(),
+        cycles: status.cycle,
     }
 }

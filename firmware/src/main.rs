@@ -13,8 +13,10 @@ mod config;
 #[cfg(feature = "console")]
 mod console;
 mod fault;
+mod mailbox;
 mod output;
 mod ports;
+mod status;
 mod trace;
 
 #[cortex_m_rt::entry]

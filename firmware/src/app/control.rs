@@ -8,17 +8,15 @@ use defmt::{error, info, warn};
 use embassy_time::Timer;
 use embedded_hal::digital::OutputPin;
 use feeder_shared::{
-    Fault, Led, MotionRequest, Phase, RunState, Scheduler, Segment, SegmentKind, StopCategory,
+    Fault, MotionRequest, Phase, RunState, Scheduler, Segment, SegmentKind, StopCategory,
     Supervisor, SupervisorEvent, TickPlan,
 };
 
-use super::monitor::cycles;
-use super::{
-    encode_state, index_of, plan, OperatorRequest, ReadyPlan, COST, CYCLE, HEARTBEAT, LED,
-    LED_BLINK, LED_OFF, LED_ON, NEXT_PLAN, PHASE, PHASES, REQUESTS, STATE,
-};
+use super::monitor::{cycles, COST, HEARTBEAT};
 use crate::config;
+use crate::mailbox::{ReadyPlan, NEXT_PLAN, REQUESTS};
 use crate::output::SegmentOutput;
+use crate::status::{self, Status};
 use crate::trace;
 
 /// Runs the scheduler into the output stage and applies the supervisor's decisions.
@@ -26,7 +24,12 @@ pub struct ControlLoop<O, E> {
     output: O,
     driver_enable: E,
     supervisor: Supervisor,
-    last_phase: Phase,
+    /// Phase of the segment playing.
+    phase: Phase,
+    /// The cycle (or idle period) begun last.
+    cycle: u64,
+    /// The status as last published.
+    published: Status,
 }
 
 impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
@@ -35,11 +38,14 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             output,
             driver_enable,
             supervisor: Supervisor::new(after_watchdog_reset),
-            last_phase: Phase::Stopped,
+            phase: Phase::Stopped,
+            cycle: 0,
+            published: Status::POWER_UP,
         }
     }
 
     pub async fn run(mut self) -> ! {
+        self.report_latched_fault();
         self.publish();
         match self.plan() {
             Some(plan) => self.run_plan(plan).await,
@@ -49,7 +55,8 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
 
     /// The configured waveform planned on the output's clock, or `None` if it is refused.
     fn plan(&mut self) -> Option<TickPlan> {
-        let plan = match plan(self.output.clock(), &config::WAVEFORM, config::RAMP_CYCLES) {
+        let plan = match ReadyPlan::new(self.output.clock(), &config::WAVEFORM, config::RAMP_CYCLES)
+        {
             Ok(ready) => ready.plan,
             Err(err) => {
                 error!("waveform refused: {}", err);
@@ -68,16 +75,19 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     /// monitor well within its window, so that the watchdog stays fed.
     async fn park(mut self) -> ! {
         self.handle(SupervisorEvent::Fault(Fault::InvalidSettings), None);
+        self.publish();
         loop {
             HEARTBEAT.fetch_add(1, Ordering::Relaxed);
             Timer::after_millis(config::PARK_HEARTBEAT_MS).await;
         }
     }
 
+    /// One preload per edge; the status is published after it, while the segment plays.
     async fn run_plan(mut self, plan: TickPlan) -> ! {
         let mut scheduler = Scheduler::new(plan, config::RAMP_CYCLES);
         let mut queued = self.resync(&mut scheduler);
         loop {
+            self.publish();
             let edge = self.output.wait_edge().await;
             let work_start = cycles();
             if edge.is_err() {
@@ -149,27 +159,17 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         HEARTBEAT.fetch_add(1, Ordering::Relaxed);
         trace::segment(playing, self.output.started(playing));
         if playing.starts_cycle() {
-            CYCLE.store(playing.cycle as u32, Ordering::Relaxed);
+            self.cycle = playing.cycle;
         }
-        if playing.phase != self.last_phase {
+        if playing.phase != self.phase {
             info!("cycle {=u64}: {}", playing.cycle, playing.phase);
-            self.last_phase = playing.phase;
-            PHASE.store(index_of(&PHASES, playing.phase), Ordering::Relaxed);
+            self.phase = playing.phase;
         }
         if playing.kind == SegmentKind::Idle {
             self.handle(SupervisorEvent::OutputIdle, Some(scheduler));
         }
         while let Ok(request) = REQUESTS.try_receive() {
-            let event = match request {
-                OperatorRequest::Toggle => SupervisorEvent::ButtonPressed,
-                #[cfg(any(feature = "board-qemu", feature = "console"))]
-                OperatorRequest::Start => SupervisorEvent::StartRequested,
-                #[cfg(any(feature = "board-qemu", feature = "console"))]
-                OperatorRequest::Stop => SupervisorEvent::StopRequested,
-                #[cfg(any(feature = "board-qemu", feature = "console"))]
-                OperatorRequest::Reset => SupervisorEvent::ResetRequested,
-            };
-            self.handle(event, Some(scheduler));
+            self.handle(request, Some(scheduler));
         }
         if let Some(ready) = NEXT_PLAN.lock(Cell::take) {
             self.adopt(&ready, scheduler);
@@ -228,7 +228,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         let after = self.supervisor.state();
         if after != before {
             info!("{} -> {}", before, after);
-            self.publish();
+            self.report_latched_fault();
         }
         request
     }
@@ -242,16 +242,24 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         };
     }
 
-    fn publish(&self) {
-        let led = match self.supervisor.led() {
-            Led::Off => LED_OFF,
-            Led::On => LED_ON,
-            Led::Blink => LED_BLINK,
-        };
-        LED.store(led, Ordering::Relaxed);
-        STATE.store(encode_state(self.supervisor.state()), Ordering::Relaxed);
+    fn report_latched_fault(&self) {
         if let RunState::Faulted(fault) = self.supervisor.state() {
             warn!("fault latched: {}", fault);
+        }
+    }
+
+    /// Publishes the status, if it changed, for the tasks below the control loop, which run only
+    /// once it waits.
+    fn publish(&mut self) {
+        let status = Status {
+            state: self.supervisor.state(),
+            led: self.supervisor.led(),
+            phase: self.phase,
+            cycle: self.cycle,
+        };
+        if status != self.published {
+            status::publish(status);
+            self.published = status;
         }
     }
 }

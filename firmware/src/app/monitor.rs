@@ -1,13 +1,12 @@
 //! The watchdog monitor: feeds the board's watchdog while the application makes progress, and
 //! measures the CPU cost of the work per edge with the DWT cycle counter.
 
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
 use defmt::{info, unwrap, warn};
 use embassy_executor::SendSpawner;
 use embassy_time::{Duration, Ticker};
 
-use super::{COST, CYCLE_COUNTER_RUNS, HEARTBEAT, THREAD_HEARTBEAT};
 use crate::board;
 use crate::config;
 use crate::ports::{Parts, Watchdog};
@@ -20,9 +19,22 @@ const MONITOR_PERIOD_US: u64 = <BoardWatchdog as Watchdog>::MONITOR_PERIOD_US;
 /// Whether the monitor runs above thread mode and watches it (see [`spawn`]).
 const WATCHES_THREAD_MODE: bool = <BoardWatchdog as Watchdog>::WATCHES_THREAD_MODE;
 
-/// Spawns the monitor. Where the watchdog's timeout is shorter than the longest thread-mode work
-/// (a recipe write, tens of milliseconds), the monitor runs on the control executor and thread
-/// mode beats for it; otherwise it runs on `spawner` with the other tasks.
+/// Counts the control loop's progress (segment starts, or parking ticks).
+pub static HEARTBEAT: AtomicU32 = AtomicU32::new(0);
+/// Counts thread mode's progress (see [`thread_heartbeat_task`]).
+static THREAD_HEARTBEAT: AtomicU32 = AtomicU32::new(0);
+/// CPU cost of the work per edge since the last report.
+pub static COST: EdgeCost = EdgeCost::new();
+/// Set when the DWT cycle counter runs, so that edge costs are measured.
+static CYCLE_COUNTER_RUNS: AtomicBool = AtomicBool::new(false);
+
+/// Monitor periods between two reports of the CPU cost of the edges.
+const REPORT_EVERY_MONITOR_PERIODS: u32 = (config::REPORT_PERIOD_US / MONITOR_PERIOD_US) as u32;
+
+/// Spawns the monitor. Where the watchdog's timeout ([`config::WATCHDOG_TIMEOUT_US`] on the board)
+/// is shorter than the longest thread-mode work (a recipe write, tens of milliseconds), the monitor
+/// runs on the control executor and thread mode beats for it; otherwise it runs on `spawner` with
+/// the other tasks.
 pub fn spawn(spawner: SendSpawner, control_spawner: SendSpawner, watchdog: BoardWatchdog) {
     if WATCHES_THREAD_MODE {
         control_spawner.spawn(unwrap!(monitor_task(watchdog)));
@@ -65,9 +77,6 @@ async fn monitor_task(mut watchdog: BoardWatchdog) {
         }
     }
 }
-
-/// Monitor periods between two reports of the CPU cost of the edges.
-const REPORT_EVERY_MONITOR_PERIODS: u32 = (config::REPORT_PERIOD_US / MONITOR_PERIOD_US) as u32;
 
 /// Beats of one part of the application, as the monitor sees them.
 struct Progress {
@@ -150,7 +159,7 @@ pub struct EdgeCost {
 }
 
 impl EdgeCost {
-    pub const fn new() -> Self {
+    const fn new() -> Self {
         Self {
             edges: AtomicU32::new(0),
             cycles: AtomicU32::new(0),

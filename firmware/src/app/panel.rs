@@ -1,15 +1,15 @@
 //! The front panel: the start/stop button and the status LED.
 
-use core::sync::atomic::Ordering;
-
 use embassy_time::Timer;
 use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_hal_async::digital::Wait;
+use feeder_shared::{Led, SupervisorEvent};
 
-use super::{request, OperatorRequest, LED, LED_BLINK, LED_ON};
 use crate::board;
 use crate::config;
+use crate::mailbox::REQUESTS;
 use crate::ports::Parts;
+use crate::status;
 
 type Button = <board::Hardware as Parts>::Button;
 type LedPin = <board::Hardware as Parts>::Led;
@@ -23,7 +23,8 @@ pub async fn button_task(mut button: Button) {
         }
         Timer::after_millis(config::DEBOUNCE_MS).await;
         if InputPin::is_high(&mut button) == Ok(true) {
-            request(OperatorRequest::Toggle);
+            // A press while the queue is full is dropped.
+            let _ = REQUESTS.try_send(SupervisorEvent::ButtonPressed);
             while Wait::wait_for_low(&mut button).await.is_err() {}
             Timer::after_millis(config::DEBOUNCE_MS).await;
         }
@@ -35,10 +36,10 @@ pub async fn button_task(mut button: Button) {
 pub async fn led_task(mut led: LedPin) {
     let mut lit = false;
     loop {
-        lit = match LED.load(Ordering::Relaxed) {
-            LED_ON => true,
-            LED_BLINK => !lit,
-            _ => false,
+        lit = match status::get().led {
+            Led::On => true,
+            Led::Blink => !lit,
+            Led::Off => false,
         };
         // Board pins are infallible; a failed write only leaves the LED as it was.
         let _ = if lit {

@@ -7,10 +7,11 @@
 
 use defmt::info;
 use embassy_time::Timer;
-use feeder_shared::{Drive, TickClock, WaveformSpec};
+use feeder_shared::{Drive, SupervisorEvent, TickClock, WaveformSpec};
 
-use crate::app::{self, OperatorRequest};
+use super::{cycle, offer, request};
 use crate::config;
+use crate::mailbox::ReadyPlan;
 
 /// Drawn values reach this fraction past each end of the machine's range.
 const PAST_RANGE: f64 = 0.1;
@@ -86,13 +87,13 @@ impl RandomChanges {
             }
             _ => {
                 info!("scenario: random stop and start");
-                app::request(OperatorRequest::Stop);
+                request(SupervisorEvent::StopRequested);
                 let cycles = self.random.below(u32::from(self.ramp_cycles) + 1);
-                let from = app::cycles_begun();
-                while app::cycles_begun().wrapping_sub(from) < cycles {
+                let from = cycle();
+                while cycle().wrapping_sub(from) < cycles {
                     Timer::after_millis(1).await;
                 }
-                app::request(OperatorRequest::Start);
+                request(SupervisorEvent::StartRequested);
             }
         }
     }
@@ -114,9 +115,9 @@ impl RandomChanges {
                 spec.drive = Drive::Stroke { stroke_m };
             }
         }
-        match app::plan(self.clock, &spec, self.ramp_cycles) {
+        match ReadyPlan::new(self.clock, &spec, self.ramp_cycles) {
             Ok(ready) => {
-                app::offer(ready);
+                offer(ready);
                 self.spec = spec;
             }
             Err(error) => info!("scenario: change refused: {}", error),

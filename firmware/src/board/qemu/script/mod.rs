@@ -40,12 +40,15 @@ use defmt::{info, unwrap};
 use embassy_executor::SendSpawner;
 use embassy_time::{Instant, Timer};
 use feeder_shared::scenario::parse_setting;
-use feeder_shared::{Drive, ScenarioError, ScenarioSetting, TickClock, WaveformSpec};
+use feeder_shared::{
+    Drive, RunState, ScenarioError, ScenarioSetting, SupervisorEvent, TickClock, WaveformSpec,
+};
 
 use super::edge_work::{edge_work, provoke_late_preload};
 use super::exit::{after_fault, sleep_forever};
 use super::time_driver::{self, CYCLES_PER_TICK};
-use crate::app::{self, OperatorRequest, OperatorView};
+use crate::mailbox::{ReadyPlan, NEXT_PLAN, REQUESTS};
+use crate::status;
 use crate::{config, ports, trace};
 use changes::RandomChanges;
 
@@ -66,7 +69,7 @@ static MASK_CYCLES: AtomicU32 = AtomicU32::new(0);
 /// once its cycle has begun, makes the fault the scenario asks for while they run the output.
 pub fn idle() -> ! {
     loop {
-        let begun = app::cycles_begun();
+        let begun = cycle();
         let panic_at = PANIC_AT.load(Ordering::Relaxed);
         if begun >= panic_at {
             panic!("scenario: panic requested at cycle {}", panic_at);
@@ -191,6 +194,27 @@ impl ports::Operator for Operator {
     }
 }
 
+/// The cycle (or idle period) begun last, as the control loop last published it (wrapping at
+/// 32 bits, as the script's cycles are counted).
+fn cycle() -> u32 {
+    status::get().cycle as u32
+}
+
+/// Whether a fault is latched, as the control loop last published it.
+fn faulted() -> bool {
+    matches!(status::get().state, RunState::Faulted(_))
+}
+
+/// Queues `event` for the control loop; a full queue drops it.
+fn request(event: SupervisorEvent) {
+    let _ = REQUESTS.try_send(event);
+}
+
+/// Hands `ready` to the control loop, replacing any plan it has not taken yet.
+fn offer(ready: ReadyPlan) {
+    NEXT_PLAN.lock(|next| next.set(Some(ready)));
+}
+
 /// The scripted operator during the run.
 struct Run {
     scenario: Scenario,
@@ -202,30 +226,30 @@ impl Run {
     /// Ends the run with a failure code if the firmware faulted, unless it is the missed edge
     /// the scenario provoked: that one is acknowledged and the feeder started again, once.
     async fn watch_faults(&mut self) {
-        if app::state() != OperatorView::Faulted {
+        if !faulted() {
             return;
         }
         let provoked = self
             .scenario
             .late_preload_cycle
-            .is_some_and(|cycle| app::cycles_begun() >= cycle);
+            .is_some_and(|late_cycle| cycle() >= late_cycle);
         if !provoked || self.restarted {
             defmt::error!("scenario: the firmware faulted");
             after_fault();
         }
         info!("scenario: the provoked missed edge halted the output; reset and start");
-        app::request(OperatorRequest::Reset);
-        app::request(OperatorRequest::Start);
+        request(SupervisorEvent::ResetRequested);
+        request(SupervisorEvent::StartRequested);
         self.restarted = true;
-        while app::state() == OperatorView::Faulted {
+        while faulted() {
             Timer::after_millis(POLL_MS).await;
         }
     }
 
-    async fn until_cycle(&mut self, cycle: u32) {
+    async fn until_cycle(&mut self, until: u32) {
         loop {
             self.watch_faults().await;
-            if app::cycles_begun() >= cycle {
+            if cycle() >= until {
                 return;
             }
             Timer::after_millis(POLL_MS).await;
@@ -243,7 +267,7 @@ async fn operator_task(clock: TickClock) {
             after_fault();
         }
     };
-    let plan = |duty| match app::plan(
+    let plan = |duty| match ReadyPlan::new(
         clock,
         &WaveformSpec {
             duty,
@@ -288,13 +312,13 @@ async fn operator_task(clock: TickClock) {
         scenario,
         restarted: false,
     };
-    app::offer(first);
-    app::request(OperatorRequest::Start);
+    offer(first);
+    request(SupervisorEvent::StartRequested);
     if count == 0 {
         operator.until_cycle(half).await;
-        app::offer(second);
+        offer(second);
     }
-    let first_cycle = app::cycles_begun();
+    let first_cycle = cycle();
     for index in 0..count {
         operator
             .until_cycle(RandomChanges::cycle_of(
@@ -307,11 +331,11 @@ async fn operator_task(clock: TickClock) {
         random.change().await;
     }
     operator.until_cycle(stop_after).await;
-    app::request(OperatorRequest::Stop);
+    request(SupervisorEvent::StopRequested);
     let deadline = stop_after + u32::from(ramp_cycles) + STOP_GRACE_CYCLES;
-    while app::state() != OperatorView::Stopped || app::cycles_begun() <= stop_after {
+    while status::get().state != RunState::Stopped || cycle() <= stop_after {
         operator.watch_faults().await;
-        if app::cycles_begun() > deadline {
+        if cycle() > deadline {
             defmt::error!(
                 "scenario: the output did not stop by cycle {=u32}",
                 deadline

@@ -1,0 +1,55 @@
+//! The control loop's mailbox: what operators (the button, a script, the console) hand it, taken
+//! at its next edge. Planning is done by the sender, in its own task, so that the control loop
+//! only swaps a plan in.
+
+use core::cell::Cell;
+
+use defmt::info;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use embassy_sync::channel::Channel;
+use feeder_shared::{Error, SupervisorEvent, TickClock, TickPlan, Waveform, WaveformSpec};
+
+use crate::config;
+
+/// Operator requests, taken in order at the control loop's next edge: the supervisor's operator
+/// events (`ButtonPressed`, `StartRequested`, `StopRequested`, `ResetRequested`).
+pub static REQUESTS: Channel<CriticalSectionRawMutex, SupervisorEvent, 4> = Channel::new();
+
+/// The newest plan the control loop has not taken yet. A newer one replaces it, so changes that
+/// arrive faster than edges coalesce: the last accepted one runs from the next cycle boundary.
+pub static NEXT_PLAN: Mutex<CriticalSectionRawMutex, Cell<Option<ReadyPlan>>> =
+    Mutex::new(Cell::new(None));
+
+/// A validated waveform planned on the output's clock, with its ramp length: all the arithmetic
+/// of a change, done by the task that made it.
+#[derive(Clone, Copy)]
+pub struct ReadyPlan {
+    pub spec: WaveformSpec,
+    pub plan: TickPlan,
+    pub ramp_cycles: u16,
+}
+
+impl ReadyPlan {
+    /// Validates `spec` against the machine's limits and plans it on the output's `clock`.
+    pub fn new(clock: TickClock, spec: &WaveformSpec, ramp_cycles: u16) -> Result<Self, Error> {
+        let waveform = Waveform::new(*spec, &config::LIMITS)?;
+        let plan = TickPlan::new(&waveform, clock)?;
+        info!(
+            "plan: {=f64} Hz ({=u32} ticks of {=u32} Hz), d = {=f64}, a_max = {=f64} m/s², \
+             x_max = {=f64} m, drift bound {=f64} m",
+            plan.realized_frequency_hz(),
+            plan.period_ticks,
+            plan.clock_hz,
+            waveform.duty,
+            waveform.accel_mps2,
+            waveform.stroke_m,
+            plan.drift_bound_m
+        );
+        Ok(Self {
+            spec: *spec,
+            plan,
+            ramp_cycles,
+        })
+    }
+}

@@ -1,0 +1,44 @@
+//! What the control loop last published about the feeder, for the tasks below it: the LED, the
+//! console and the scripted operator.
+
+use core::cell::Cell;
+
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use feeder_shared::{Led, Phase, RunState};
+
+/// The feeder as the control loop sees it.
+#[derive(Clone, Copy, PartialEq)]
+pub struct Status {
+    /// The supervisor's state, with the latched fault's cause.
+    pub state: RunState,
+    /// What the status LED shows.
+    pub led: Led,
+    /// Phase of the cycle being output.
+    pub phase: Phase,
+    /// The cycle (or idle period) begun last, counted from power-up.
+    pub cycle: u64,
+}
+
+impl Status {
+    /// Before the control loop has published anything: stopped, the LED off.
+    pub const POWER_UP: Self = Self {
+        state: RunState::Stopped,
+        led: Led::Off,
+        phase: Phase::Stopped,
+        cycle: 0,
+    };
+}
+
+static STATUS: Mutex<CriticalSectionRawMutex, Cell<Status>> =
+    Mutex::new(Cell::new(Status::POWER_UP));
+
+/// Replaces the published status; the control loop's alone.
+pub fn publish(status: Status) {
+    STATUS.lock(|published| published.set(status));
+}
+
+/// The status as last published.
+pub fn get() -> Status {
+    STATUS.lock(Cell::get)
+}
