@@ -15,7 +15,7 @@ use crate::trace;
 const INSTRUCTION_S: f64 = 16e-9;
 
 /// The shortest segment this board's output stage takes: the worst work per edge, at QEMU's
-/// speed, times the margin (about 516 µs).
+/// speed, times the margin (about 518 µs).
 const MIN_SEGMENT_S: f64 =
     config::EDGE_WORK_MARGIN * config::EDGE_WORK_INSTRUCTIONS * INSTRUCTION_S;
 
