@@ -15,8 +15,12 @@ use std::io::{self, BufRead, IsTerminal, Write};
 use std::process::ExitCode;
 use std::time::Duration;
 
-use clap::{ArgGroup, Parser};
+use clap::error::ErrorKind;
+use clap::{ArgGroup, CommandFactory, Parser};
 use console::{Console, Target};
+
+/// Baud rate of the serial port when `--baud` is not given (the firmware's LPUART1 setting).
+const DEFAULT_BAUD: u32 = 115_200;
 
 /// Longest reply timeout accepted: an hour.
 const MAX_TIMEOUT_MS: u32 = 3_600_000;
@@ -33,10 +37,10 @@ struct Options {
     /// Serial port, e.g. /dev/ttyACM0 (the NUCLEO's ST-LINK virtual COM port).
     #[arg(long, value_name = "PATH")]
     port: Option<String>,
-    /// Baud rate of the serial port.
-    #[arg(long, value_name = "N", default_value_t = 115_200, requires = "port",
+    /// Baud rate of the serial port [default: 115200].
+    #[arg(long, value_name = "N", requires = "port", conflicts_with = "tcp",
           value_parser = clap::value_parser!(u32).range(1..))]
-    baud: u32,
+    baud: Option<u32>,
     /// TCP serial, e.g. QEMU's `-serial tcp:127.0.0.1:4444,server=on,wait=off`.
     #[arg(long, value_name = "HOST:PORT")]
     tcp: Option<String>,
@@ -60,7 +64,7 @@ impl Options {
         match (&self.port, &self.tcp) {
             (Some(path), _) => Target::Serial {
                 path,
-                baud: self.baud,
+                baud: self.baud.unwrap_or(DEFAULT_BAUD),
             },
             (None, Some(address)) => Target::Tcp(address),
             (None, None) => unreachable!("clap requires one of --port and --tcp"),
@@ -91,8 +95,23 @@ fn interactive(console: &mut Console) -> io::Result<()> {
     }
 }
 
-fn main() -> ExitCode {
+/// The options, refused with clap's usage and exit code 2 where a word that should start the
+/// command is an option clap does not know: console commands never start with `-`.
+fn options() -> Options {
     let options = Options::parse();
+    if let Some(word) = options.command.first().filter(|word| word.starts_with('-')) {
+        Options::command()
+            .error(
+                ErrorKind::UnknownArgument,
+                format!("unexpected argument '{word}': a command starts with a word like `status`"),
+            )
+            .exit();
+    }
+    options
+}
+
+fn main() -> ExitCode {
+    let options = options();
     let timeout = Duration::from_millis(options.timeout_ms.into());
     let target = options.target();
     let mut console = match Console::open(&target, timeout) {
