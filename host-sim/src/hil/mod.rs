@@ -28,7 +28,7 @@ pub use check::Checker;
 pub use edge::{Edge, EdgeSource, EdgeTimes};
 pub use feeder_shared::event::{Event, SegmentEvent, EVENT_MARKER};
 pub use part::{simulate, CyclePoint, HaltPoint, PartReport, STEADY_WINDOW_CYCLES};
-pub use report::{slack_bucket, CheckReport, EdgeWork, QEMU_NS_PER_INSTRUCTION};
+pub use report::{slack_bucket, CheckReport, EdgeWork};
 pub use stream::{
     excerpt, parse_line, read_line, read_stream, HilError, LogLine, ParseError, Stream,
     MAX_LINE_BYTES, SHOWN_LINE_CHARS,

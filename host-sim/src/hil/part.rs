@@ -35,9 +35,13 @@ pub struct PartReport {
     pub plate_drift_m: f64,
     /// Seconds of firmware time simulated.
     pub duration_s: f64,
-    /// Every cycle (and idle period) of the run.
+    /// Every cycle (and idle period) of the run: a series for the CSV and the chart, not the
+    /// summary.
+    #[serde(skip)]
     pub cycles: Vec<CyclePoint>,
-    /// The plate at each halt: where the output went to zero (actual edges only).
+    /// The plate at each halt: where the output went to zero (actual edges only); the report
+    /// lists them once, beside the part.
+    #[serde(skip)]
     pub halts: Vec<HaltPoint>,
 }
 

@@ -7,10 +7,6 @@ use serde::Serialize;
 
 use feeder_shared::event::{self, SegmentEvent};
 
-/// QEMU's virtual time per instruction under `-icount shift=4`, as `cargo xtask` and the QEMU
-/// tests run it.
-pub const QEMU_NS_PER_INSTRUCTION: f64 = 16.0;
-
 /// Work per edge over a run: from each edge (when the output switched) to the preload of the
 /// next segment, wake-up included, in cycles of a `clock_hz` clock.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]

@@ -6,9 +6,9 @@ use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
 use clap::Args;
+use feeder_emulator::{ICOUNT_SHIFT, NS_PER_INSTRUCTION};
 use host_sim::hil::{
     self, CheckReport, Checker, EdgeTimes, EdgeWork, Event, HaltPoint, PartReport,
-    QEMU_NS_PER_INSTRUCTION,
 };
 use host_sim::SimError;
 use serde::Serialize;
@@ -33,7 +33,7 @@ pub struct HilArgs {
 }
 
 #[derive(Serialize)]
-struct HilReport {
+struct HilReport<'a> {
     passed: bool,
     edges: u64,
     matched: u64,
@@ -60,9 +60,9 @@ struct HilReport {
     firmware_errors: Vec<String>,
     clock_hz: u32,
     /// The part on the edges' actual times.
-    actual: PartSummary,
+    actual: &'a PartReport,
     /// The part on the scheduler's planned ticks.
-    planned: PartSummary,
+    planned: &'a PartReport,
 }
 
 #[derive(Serialize)]
@@ -83,7 +83,7 @@ struct WorkSummary {
     edges: u64,
     max_ns: f64,
     mean_ns: f64,
-    /// At [`QEMU_NS_PER_INSTRUCTION`].
+    /// At [`NS_PER_INSTRUCTION`] ns each.
     max_instructions: f64,
     mean_instructions: f64,
 }
@@ -94,35 +94,8 @@ impl From<&EdgeWork> for WorkSummary {
             edges: work.edges,
             max_ns: work.max_ns(),
             mean_ns: work.mean_ns(),
-            max_instructions: work.max_ns() / QEMU_NS_PER_INSTRUCTION,
-            mean_instructions: work.mean_ns() / QEMU_NS_PER_INSTRUCTION,
-        }
-    }
-}
-
-#[derive(Serialize)]
-struct PartSummary {
-    feed_rate_mps: f64,
-    feed_rate_relative_mps: f64,
-    steady_cycles: usize,
-    stick_fraction: f64,
-    part_travel_m: f64,
-    plate_excursion_m: f64,
-    plate_drift_m: f64,
-    duration_s: f64,
-}
-
-impl From<&PartReport> for PartSummary {
-    fn from(part: &PartReport) -> Self {
-        PartSummary {
-            feed_rate_mps: part.feed_rate_mps,
-            feed_rate_relative_mps: part.feed_rate_relative_mps,
-            steady_cycles: part.steady_cycles,
-            stick_fraction: part.stick_fraction,
-            part_travel_m: part.part_travel_m,
-            plate_excursion_m: part.plate_excursion_m,
-            plate_drift_m: part.plate_drift_m,
-            duration_s: part.duration_s,
+            max_instructions: work.max_ns() / f64::from(NS_PER_INSTRUCTION),
+            mean_instructions: work.mean_ns() / f64::from(NS_PER_INSTRUCTION),
         }
     }
 }
@@ -202,8 +175,8 @@ pub fn run(args: &HilArgs) -> Result<(), SimError> {
         problems: check.problems.clone(),
         firmware_errors: stream.errors.clone(),
         clock_hz,
-        actual: PartSummary::from(&actual),
-        planned: PartSummary::from(&planned),
+        actual: &actual,
+        planned: &planned,
     };
     emit(
         &args.output,
@@ -264,7 +237,7 @@ fn print_report(report: &HilReport, check: &CheckReport) {
     if let Some(work) = &report.edge_work {
         say!(
             "  edge work       max {:.2} µs, mean {:.2} µs from an edge to the next preload over {} edges \
-             (max {:.0}, mean {:.0} instructions at {QEMU_NS_PER_INSTRUCTION} ns, QEMU -icount shift=4)",
+             (max {:.0}, mean {:.0} instructions at {NS_PER_INSTRUCTION} ns, QEMU -icount shift={ICOUNT_SHIFT})",
             work.max_ns / 1e3,
             work.mean_ns / 1e3,
             work.edges,
