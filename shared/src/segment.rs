@@ -21,6 +21,16 @@ pub enum SegmentKind {
 }
 
 impl SegmentKind {
+    /// Every kind, in the order of [`Self`]'s variants.
+    pub const ALL: [SegmentKind; 5] = [
+        SegmentKind::Accelerate,
+        SegmentKind::Plateau,
+        SegmentKind::Reverse,
+        SegmentKind::Return,
+        SegmentKind::Idle,
+    ];
+
+    /// The kind's name in the event stream and in refusals.
     pub const fn name(self) -> &'static str {
         match self {
             SegmentKind::Accelerate => "accelerate",

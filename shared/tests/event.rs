@@ -221,13 +221,7 @@ fn tick() -> impl Strategy<Value = u64> {
 }
 
 fn kind() -> impl Strategy<Value = SegmentKind> {
-    prop::sample::select(vec![
-        SegmentKind::Accelerate,
-        SegmentKind::Plateau,
-        SegmentKind::Reverse,
-        SegmentKind::Return,
-        SegmentKind::Idle,
-    ])
+    prop::sample::select(SegmentKind::ALL.to_vec())
 }
 
 /// A segment event whose slack `slack_ticks` draws.

@@ -51,15 +51,6 @@ impl fmt::Display for EventError<'_> {
     }
 }
 
-/// The segment kinds a `kind=` names.
-const SEGMENT_KINDS: [SegmentKind; 5] = [
-    SegmentKind::Accelerate,
-    SegmentKind::Plateau,
-    SegmentKind::Reverse,
-    SegmentKind::Return,
-    SegmentKind::Idle,
-];
-
 /// Reads one log line: `Ok(None)` for a line without the marker. The event starts after the
 /// first marker; words other than its keys' `key=value` are ignored, and of a key given twice
 /// the last value counts.
@@ -139,7 +130,7 @@ fn segment<'a>(
     slack_ticks: fn(&'a str) -> Result<i64, EventError<'a>>,
 ) -> Result<SegmentEvent, EventError<'a>> {
     let kind = fields.text("kind")?;
-    let kind = SEGMENT_KINDS
+    let kind = SegmentKind::ALL
         .into_iter()
         .find(|known| known.name() == kind)
         .ok_or(EventError::UnknownKind(kind))?;
