@@ -27,6 +27,14 @@ pub enum SimError {
         source: String,
         firmware_error: Option<String>,
     },
+    /// A plant file that is not valid TOML or holds an unknown key (the parser's message names it).
+    PlantFile { source: String, reason: String },
+    /// A plant file's value outside its physical range.
+    PlantValue {
+        key: &'static str,
+        value: f64,
+        allowed: &'static str,
+    },
     /// A firmware-in-the-loop run did not match the shared plan (details in the report).
     CheckFailed { problems: usize },
 }
@@ -66,6 +74,18 @@ impl fmt::Display for SimError {
             } => write!(
                 f,
                 "{source} holds no segments; the firmware reported: {line}"
+            ),
+            SimError::PlantFile { source, reason } => {
+                write!(f, "cannot load the plant from {source}: {reason}")
+            }
+            SimError::PlantValue {
+                key,
+                value,
+                allowed,
+            } => write!(
+                f,
+                "plant key `{key}` must be {allowed}, got {}",
+                Significant(*value)
             ),
             SimError::CheckFailed { problems } => write!(
                 f,

@@ -12,6 +12,7 @@ pub mod error;
 pub mod figures;
 pub mod hil;
 pub mod plant;
+pub mod plate;
 pub mod reference;
 pub mod scenario;
 pub mod segments;

@@ -1,0 +1,160 @@
+//! Exact solution of the plate's linear ODE with constant input, `z' = A·z`, where the state
+//! carries a constant 1 as its last component so that every input is a column of `A`.
+//!
+//! `z(t) = e^{A·t}·z(0)`, with the matrix exponential by scaling and squaring: `A·t/2^s` has
+//! norm ≤ ½ (the norm taken over the state columns, which govern convergence; the input column
+//! is carried along, `[B b; 0 0]ⁿ = [Bⁿ Bⁿ⁻¹b; 0 0]`), its Taylor series is summed to 18 terms
+//! (remainder below ½¹⁸/18! ≈ 6·10⁻²², under the unit roundoff) and squared `s` times.
+//! Root finding on linear functionals `c·z(t)` is bracketed (Illinois) to adjacent floats.
+
+/// State: plate position, velocity, drive force, part velocity, part position, `∫x dt`, 1.
+pub const N: usize = 7;
+pub const X: usize = 0;
+pub const V: usize = 1;
+pub const F: usize = 2;
+pub const U: usize = 3;
+pub const P: usize = 4;
+pub const Q: usize = 5;
+pub const ONE: usize = 6;
+
+pub type State = [f64; N];
+pub type Matrix = [[f64; N]; N];
+
+const TAYLOR_TERMS: usize = 18;
+
+pub fn zero() -> Matrix {
+    [[0.0; N]; N]
+}
+
+fn identity() -> Matrix {
+    let mut m = zero();
+    for (i, row) in m.iter_mut().enumerate() {
+        row[i] = 1.0;
+    }
+    m
+}
+
+fn multiply(a: &Matrix, b: &Matrix) -> Matrix {
+    let mut c = zero();
+    for i in 0..N {
+        for k in 0..N {
+            let a_ik = a[i][k];
+            if a_ik != 0.0 {
+                for j in 0..N {
+                    c[i][j] += a_ik * b[k][j];
+                }
+            }
+        }
+    }
+    c
+}
+
+pub fn apply(m: &Matrix, z: &State) -> State {
+    let mut out = [0.0; N];
+    for (o, row) in out.iter_mut().zip(m) {
+        *o = dot(row, z);
+    }
+    out
+}
+
+pub fn dot(c: &[f64; N], z: &State) -> f64 {
+    c.iter().zip(z).map(|(a, b)| a * b).sum()
+}
+
+/// `c·A`, the functional whose value is the time derivative of `c·z`.
+pub fn derivative(c: &[f64; N], a: &Matrix) -> [f64; N] {
+    let mut out = [0.0; N];
+    for (k, row) in a.iter().enumerate() {
+        for j in 0..N {
+            out[j] += c[k] * row[j];
+        }
+    }
+    out
+}
+
+/// `e^{A·t}`.
+pub fn exp(a: &Matrix, t: f64) -> Matrix {
+    let norm = a
+        .iter()
+        .map(|row| row[..ONE].iter().map(|x| x.abs()).sum::<f64>())
+        .fold(0.0, f64::max)
+        * t.abs();
+    let squarings = if norm > 0.5 {
+        (norm / 0.5).log2().ceil() as i32
+    } else {
+        0
+    };
+    let scale = t * 2f64.powi(-squarings);
+    let mut x = zero();
+    for (xr, ar) in x.iter_mut().zip(a) {
+        for (xe, ae) in xr.iter_mut().zip(ar) {
+            *xe = ae * scale;
+        }
+    }
+    // Horner: I + X(I + X/2(I + X/3(…))).
+    let mut e = identity();
+    for n in (1..=TAYLOR_TERMS).rev() {
+        let mut term = multiply(&x, &e);
+        for (i, row) in term.iter_mut().enumerate() {
+            for value in row.iter_mut() {
+                *value /= n as f64;
+            }
+            row[i] += 1.0;
+        }
+        e = term;
+    }
+    for _ in 0..squarings {
+        e = multiply(&e, &e);
+    }
+    e
+}
+
+/// A point of `(lo, hi]` next to a sign change of `f`, given `f(lo) > 0 ≥ f(hi)` (or the
+/// reverse): the Illinois variant of regula falsi, falling back to bisection when the bracket
+/// does not at least halve, stopped when `lo` and `hi` are adjacent floats. Returns the end of
+/// the final bracket with the sign of `f(hi)`.
+pub fn root(f: impl Fn(f64) -> f64, mut lo: f64, mut f_lo: f64, mut hi: f64, mut f_hi: f64) -> f64 {
+    let mut side = 0_i8;
+    for _ in 0..200 {
+        let width = hi - lo;
+        let mid = 0.5 * (lo + hi);
+        if mid <= lo || mid >= hi || f_hi == 0.0 {
+            break;
+        }
+        let secant = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+        let t = if secant > lo && secant < hi {
+            secant
+        } else {
+            mid
+        };
+        let f_t = f(t);
+        if (f_t > 0.0) == (f_lo > 0.0) {
+            lo = t;
+            f_lo = f_t;
+            if side == -1 {
+                f_hi *= 0.5;
+            }
+            side = -1;
+        } else {
+            hi = t;
+            f_hi = f_t;
+            if side == 1 {
+                f_lo *= 0.5;
+            }
+            side = 1;
+        }
+        if hi - lo > 0.5 * width {
+            let mid = 0.5 * (lo + hi);
+            let f_mid = f(mid);
+            if (f_mid > 0.0) == (f_lo > 0.0) {
+                lo = mid;
+                f_lo = f_mid;
+            } else {
+                hi = mid;
+                f_hi = f_mid;
+            }
+            side = 0;
+        }
+    }
+    hi
+}

@@ -1,0 +1,17 @@
+//! A real plate in the simulator: a linear-motor slide with drive offset, unequal gains, a
+//! current loop, a force limit, slide friction, a centring spring and end stops, carrying the
+//! same part under the same Coulomb contact as [`crate::plant`].
+//!
+//! [`params`] reads the plate from a TOML plant file; [`motion`] solves the plate and part
+//! exactly between events ([`linear`]: matrix exponential and bracketed root finding); [`run`]
+//! drives them over the commanded segments; [`reference`] is a fixed-step integrator for
+//! validation only. When [`PlateParams::is_ideal`] holds, callers keep the exact
+//! piecewise-linear simulator of [`crate::sim`].
+
+pub mod linear;
+pub mod motion;
+pub mod params;
+pub mod run;
+
+pub use params::PlateParams;
+pub use run::{run, EndStop, PlateRun, PlateRunOptions};

@@ -1,0 +1,335 @@
+//! The plate's motion and the part riding on it between events, in closed form.
+//!
+//! Within a regime (fixed slide and part contact states, fixed driver target `F*`) the state
+//! `z = (x, v, F, u, p, q, 1)` obeys a linear ODE with constant input, solved exactly by
+//! [`linear::exp`]:
+//!
+//! * drive: `F' = 2π·f_c·(F* − F)` (without a current loop `F = F*` from the segment's start);
+//! * plate: `M·v' = F − k·x − (c + b)·v − F_c·sign(v)`, `x' = v`; a stuck slide has `x' = v' = 0`;
+//! * part: sliding with `w = u − v` of sign `σ`, `u' = −σ·μg + φ`; stuck, `u' = v'`; `p' = u`;
+//! * `q' = x`, for the plate's mean position.
+//!
+//! Events are zeros of linear functionals `g(t) = c·z(t)`, each positive while its regime holds.
+//! They are sampled every `h = 1/(8ρ)` (`ρ` the fastest rate: `2π·f_c`, `√(k/M)`, `(c + b)/M`),
+//! and every interval is checked for a sign change of `g` and for an interior minimum of `g`
+//! (a sign change of `g′ = c·A·z`) that dips to zero. A root can be missed only if `g` had two
+//! extrema within one interval; its modes (decays at rates ≤ ρ, oscillations of half-period
+//! `π/ω ≥ 8π·h`, and polynomials of degree ≤ 2 in the quantities the events test) exclude that.
+
+use crate::plant::Contact;
+
+use super::linear::{self, Matrix, State, F, ONE, P, Q, U, V, X};
+use super::params::PlateParams;
+
+/// The slide's state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Slide {
+    /// No Coulomb friction: the slide never sticks.
+    Free,
+    /// Moving with velocity of this sign (±1).
+    Moving(f64),
+    Stuck,
+}
+
+/// The part's contact with the plate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Part {
+    /// Sliding with `w = u − v` of this sign (±1).
+    Sliding(f64),
+    Stuck,
+}
+
+/// What ends a stretch of a regime.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Event {
+    SlideStops,
+    SlideBreaksAway,
+    PartMeetsPlate,
+    PartBreaksAway,
+    EndStop,
+}
+
+/// The plate and part model with the parameters folded in.
+#[derive(Debug, Clone, Copy)]
+pub struct Model {
+    pub params: PlateParams,
+    pub contact: Contact,
+    /// `2π·f_c`, if the current loop lags.
+    pub lag_per_s: Option<f64>,
+    /// Fastest rate of the plate's dynamics (0 for the ideal plate).
+    pub fastest_per_s: f64,
+}
+
+impl Model {
+    pub fn new(params: PlateParams, contact: Contact) -> Self {
+        let lag_per_s = params
+            .current_bandwidth_hz
+            .map(|f_c| 2.0 * std::f64::consts::PI * f_c);
+        let damping_per_s =
+            (params.spring_damping_nspm + params.viscous_friction_nspm) / params.mass_kg;
+        let natural_per_s = (params.spring_npm / params.mass_kg).sqrt();
+        let fastest_per_s = lag_per_s
+            .unwrap_or(0.0)
+            .max(damping_per_s)
+            .max(natural_per_s);
+        Model {
+            params,
+            contact,
+            lag_per_s,
+            fastest_per_s,
+        }
+    }
+
+    /// `A` of the regime.
+    pub fn matrix(&self, slide: Slide, part: Part, target_n: f64) -> Matrix {
+        let p = &self.params;
+        let mut a = linear::zero();
+        let coulomb_sign = match slide {
+            Slide::Moving(s) => Some(s),
+            Slide::Free => Some(0.0),
+            Slide::Stuck => None,
+        };
+        if let Some(s) = coulomb_sign {
+            let m = p.mass_kg;
+            a[X][V] = 1.0;
+            a[V][X] = -p.spring_npm / m;
+            a[V][V] = -(p.spring_damping_nspm + p.viscous_friction_nspm) / m;
+            a[V][F] = 1.0 / m;
+            a[V][ONE] = -p.coulomb_friction_n * s / m;
+        }
+        if let Some(lag) = self.lag_per_s {
+            a[F][F] = -lag;
+            a[F][ONE] = lag * target_n;
+        }
+        match part {
+            Part::Sliding(sigma) => {
+                a[U][ONE] =
+                    -sigma * self.contact.kinetic_accel_mps2() + self.contact.force_accel_mps2();
+            }
+            Part::Stuck => a[U] = a[V],
+        }
+        a[P][U] = 1.0;
+        a[Q][X] = 1.0;
+        a
+    }
+
+    /// The event functionals of a regime, each positive while it holds.
+    fn events(&self, slide: Slide, part: Part, a: &Matrix) -> Vec<(Event, [f64; linear::N])> {
+        let mut out = Vec::with_capacity(6);
+        let mut c = [0.0; linear::N];
+        match slide {
+            Slide::Free => {}
+            Slide::Moving(s) => {
+                c[V] = s;
+                out.push((Event::SlideStops, c));
+            }
+            Slide::Stuck => {
+                // F_c ∓ (F − k·x) ≥ 0.
+                for sign in [1.0, -1.0] {
+                    let mut c = [0.0; linear::N];
+                    c[ONE] = self.params.coulomb_friction_n;
+                    c[F] = -sign;
+                    c[X] = sign * self.params.spring_npm;
+                    out.push((Event::SlideBreaksAway, c));
+                }
+            }
+        }
+        match part {
+            Part::Sliding(sigma) => {
+                let mut c = [0.0; linear::N];
+                c[U] = sigma;
+                c[V] = -sigma;
+                out.push((Event::PartMeetsPlate, c));
+            }
+            Part::Stuck => {
+                // μ_s·g ∓ (a_plate − φ) ≥ 0, with a_plate = A[V]·z.
+                let hold = self.contact.static_accel_mps2();
+                let phi = self.contact.force_accel_mps2();
+                for sign in [1.0, -1.0] {
+                    let mut c = a[V].map(|x| -sign * x);
+                    c[ONE] += hold + sign * phi;
+                    out.push((Event::PartBreaksAway, c));
+                }
+            }
+        }
+        if let Some(x_lim) = self.params.end_stop_m {
+            for sign in [1.0, -1.0] {
+                let mut c = [0.0; linear::N];
+                c[ONE] = x_lim;
+                c[X] = -sign;
+                out.push((Event::EndStop, c));
+            }
+        }
+        out
+    }
+
+    /// The consistent contact states at an instant: a stuck slide breaks away when
+    /// `|F − k·x| > F_c`; a part at the plate's velocity sticks when `|a_plate − φ| ≤ μ_s·g`, and
+    /// otherwise slides behind (`a_plate − φ > 0`) or ahead of it.
+    pub fn settle(&self, z: &mut State, slide: &mut Slide, part: &mut Part, target_n: f64) {
+        if *slide == Slide::Stuck {
+            let net = z[F] - self.params.spring_npm * z[X];
+            if net.abs() > self.params.coulomb_friction_n {
+                *slide = Slide::Moving(net.signum());
+            }
+        }
+        let at_plate = match *part {
+            Part::Stuck => true,
+            Part::Sliding(_) => z[U] == z[V],
+        };
+        if at_plate {
+            let a = self.matrix(*slide, Part::Stuck, target_n);
+            let need = linear::dot(&a[V], z) - self.contact.force_accel_mps2();
+            *part = if need.abs() <= self.contact.static_accel_mps2() {
+                z[U] = z[V];
+                Part::Stuck
+            } else {
+                Part::Sliding(-need.signum())
+            };
+        }
+    }
+
+    /// Applies `event` at the state `z` reached exactly at it.
+    pub fn apply(&self, event: Event, z: &mut State, slide: &mut Slide, part: &mut Part) {
+        match event {
+            Event::SlideStops => {
+                z[V] = 0.0;
+                let net = z[F] - self.params.spring_npm * z[X];
+                *slide = if net.abs() <= self.params.coulomb_friction_n {
+                    Slide::Stuck
+                } else {
+                    Slide::Moving(net.signum())
+                };
+                if *part == Part::Stuck {
+                    z[U] = 0.0;
+                }
+            }
+            Event::SlideBreaksAway => {
+                let net = z[F] - self.params.spring_npm * z[X];
+                *slide = Slide::Moving(net.signum());
+            }
+            Event::PartMeetsPlate => z[U] = z[V],
+            Event::PartBreaksAway => {
+                let a = self.matrix(*slide, Part::Stuck, 0.0);
+                // a[V] does not depend on the target force.
+                let need = linear::dot(&a[V], z) - self.contact.force_accel_mps2();
+                *part = Part::Sliding(-need.signum());
+            }
+            Event::EndStop => {}
+        }
+    }
+
+    /// The first event of the regime within `duration_s` of the state `z0`, with its time, and
+    /// the plate's turning points (`v = 0`) before it, passed to `turn` with their position.
+    pub fn next_event(
+        &self,
+        a: &Matrix,
+        z0: &State,
+        slide: Slide,
+        part: Part,
+        duration_s: f64,
+        mut turn: impl FnMut(f64),
+    ) -> Option<(Event, f64)> {
+        let events = self.events(slide, part, a);
+        let slopes: Vec<[f64; linear::N]> = events
+            .iter()
+            .map(|(_, c)| linear::derivative(c, a))
+            .collect();
+        let step_s = if self.fastest_per_s > 0.0 {
+            duration_s.min(0.125 / self.fastest_per_s)
+        } else {
+            duration_s
+        };
+        let intervals = (duration_s / step_s).ceil().max(1.0) as usize;
+        let step_s = duration_s / intervals as f64;
+        let stepper = linear::exp(a, step_s);
+        let exact = |t: f64| linear::apply(&linear::exp(a, t), z0);
+        let mut lo_z = *z0;
+        for i in 0..intervals {
+            let lo = i as f64 * step_s;
+            let hi = if i + 1 == intervals {
+                duration_s
+            } else {
+                (i + 1) as f64 * step_s
+            };
+            let hi_z = if i + 1 == intervals {
+                exact(hi)
+            } else {
+                linear::apply(&stepper, &lo_z)
+            };
+            let mut first: Option<(Event, f64)> = None;
+            for ((event, c), slope) in events.iter().zip(&slopes) {
+                let g = |t: f64| linear::dot(c, &exact(t));
+                let dg = |t: f64| linear::dot(slope, &exact(t));
+                let found = crossing(
+                    &g,
+                    &dg,
+                    lo,
+                    linear::dot(c, &lo_z),
+                    linear::dot(slope, &lo_z),
+                    hi,
+                    linear::dot(c, &hi_z),
+                    linear::dot(slope, &hi_z),
+                );
+                if let Some(t) = found {
+                    if first.is_none_or(|(_, best)| t < best) {
+                        first = Some((*event, t));
+                    }
+                }
+            }
+            let until = first.map_or(hi, |(_, t)| t);
+            if (lo_z[V] > 0.0) != (hi_z[V] > 0.0) && lo_z[V] != 0.0 {
+                let v = |t: f64| exact(t)[V];
+                let t = linear::root(v, lo, lo_z[V], hi, hi_z[V]);
+                if t <= until {
+                    turn(exact(t)[X]);
+                }
+            }
+            if first.is_some() {
+                return first;
+            }
+            lo_z = hi_z;
+        }
+        None
+    }
+}
+
+/// The first time in `[lo, hi]` at which `g` (value and slope given at both ends) reaches zero
+/// from above, if any.
+#[allow(clippy::too_many_arguments)]
+fn crossing(
+    g: &impl Fn(f64) -> f64,
+    dg: &impl Fn(f64) -> f64,
+    lo: f64,
+    g_lo: f64,
+    dg_lo: f64,
+    hi: f64,
+    g_hi: f64,
+    dg_hi: f64,
+) -> Option<f64> {
+    if g_lo < 0.0 || (g_lo == 0.0 && dg_lo < 0.0) {
+        return Some(lo);
+    }
+    // An interior extremum: a maximum when leaving zero, a minimum that may dip to zero.
+    let extremum = if (dg_lo > 0.0) != (dg_hi > 0.0) && dg_lo != 0.0 {
+        let t = linear::root(dg, lo, dg_lo, hi, dg_hi);
+        Some((t, g(t)))
+    } else {
+        None
+    };
+    if g_hi <= 0.0 {
+        if g_lo > 0.0 {
+            return Some(linear::root(g, lo, g_lo, hi, g_hi));
+        }
+        return match extremum {
+            Some((t, g_t)) if g_t > 0.0 => Some(linear::root(g, t, g_t, hi, g_hi)),
+            _ => Some(lo),
+        };
+    }
+    match extremum {
+        Some((t, g_t)) if dg_lo < 0.0 && g_t <= 0.0 && g_lo > 0.0 => {
+            Some(linear::root(g, lo, g_lo, t, g_t))
+        }
+        _ => None,
+    }
+}
