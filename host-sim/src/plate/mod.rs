@@ -11,6 +11,7 @@
 pub mod linear;
 pub mod motion;
 pub mod params;
+pub mod reference;
 pub mod run;
 
 pub use params::PlateParams;

@@ -163,9 +163,8 @@ impl Model {
         out
     }
 
-    /// The consistent contact states at an instant: a stuck slide breaks away when
-    /// `|F − k·x| > F_c`; a part at the plate's velocity sticks when `|a_plate − φ| ≤ μ_s·g`, and
-    /// otherwise slides behind (`a_plate − φ > 0`) or ahead of it.
+    /// The consistent contact states at the start of a regime: a stuck slide breaks away when
+    /// `|F − k·x| > F_c`, a stuck part when `|a_plate − φ| > μ_s·g` (see [`Model::release`]).
     pub fn settle(&self, z: &mut State, slide: &mut Slide, part: &mut Part, target_n: f64) {
         if *slide == Slide::Stuck {
             let net = z[F] - self.params.spring_npm * z[X];
@@ -173,24 +172,33 @@ impl Model {
                 *slide = Slide::Moving(net.signum());
             }
         }
-        let at_plate = match *part {
-            Part::Stuck => true,
-            Part::Sliding(_) => z[U] == z[V],
-        };
-        if at_plate {
-            let a = self.matrix(*slide, Part::Stuck, target_n);
-            let need = linear::dot(&a[V], z) - self.contact.force_accel_mps2();
-            *part = if need.abs() <= self.contact.static_accel_mps2() {
-                z[U] = z[V];
-                Part::Stuck
-            } else {
-                Part::Sliding(-need.signum())
-            };
+        if *part == Part::Stuck {
+            *part = self.release(z, *slide, target_n);
+        }
+    }
+
+    /// The contact of a part at the plate's velocity: stuck if `|a_plate − φ| ≤ μ_s·g`, else
+    /// sliding behind the plate (`a_plate − φ > 0`) or ahead of it.
+    fn release(&self, z: &mut State, slide: Slide, target_n: f64) -> Part {
+        let a = self.matrix(slide, Part::Stuck, target_n);
+        let need = linear::dot(&a[V], z) - self.contact.force_accel_mps2();
+        if need.abs() <= self.contact.static_accel_mps2() {
+            z[U] = z[V];
+            Part::Stuck
+        } else {
+            Part::Sliding(-need.signum())
         }
     }
 
     /// Applies `event` at the state `z` reached exactly at it.
-    pub fn apply(&self, event: Event, z: &mut State, slide: &mut Slide, part: &mut Part) {
+    pub fn apply(
+        &self,
+        event: Event,
+        z: &mut State,
+        slide: &mut Slide,
+        part: &mut Part,
+        target_n: f64,
+    ) {
         match event {
             Event::SlideStops => {
                 z[V] = 0.0;
@@ -208,10 +216,12 @@ impl Model {
                 let net = z[F] - self.params.spring_npm * z[X];
                 *slide = Slide::Moving(net.signum());
             }
-            Event::PartMeetsPlate => z[U] = z[V],
+            Event::PartMeetsPlate => {
+                z[U] = z[V];
+                *part = self.release(z, *slide, target_n);
+            }
             Event::PartBreaksAway => {
-                let a = self.matrix(*slide, Part::Stuck, 0.0);
-                // a[V] does not depend on the target force.
+                let a = self.matrix(*slide, Part::Stuck, target_n);
                 let need = linear::dot(&a[V], z) - self.contact.force_accel_mps2();
                 *part = Part::Sliding(-need.signum());
             }

@@ -125,7 +125,7 @@ where
                 }
                 Some((event, t)) => {
                     offset_s += t;
-                    model.apply(event, &mut z, &mut slide, &mut part);
+                    model.apply(event, &mut z, &mut slide, &mut part, target_n);
                 }
             }
         }
