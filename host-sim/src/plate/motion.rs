@@ -305,7 +305,9 @@ impl Model {
 }
 
 /// The first time in `[lo, hi]` at which `g` (value and slope given at both ends) reaches zero
-/// from above, if any.
+/// from above, if any. A regime entered on its own boundary (`g(lo) = 0`, as a slide that has
+/// just stopped or a part that has just met the plate) ends at once only if `g` is negative at
+/// `hi` without a positive maximum in between: a slope of rounding size at `lo` is no event.
 #[allow(clippy::too_many_arguments)]
 fn crossing(
     g: &impl Fn(f64) -> f64,
@@ -317,7 +319,7 @@ fn crossing(
     g_hi: f64,
     dg_hi: f64,
 ) -> Option<f64> {
-    if g_lo < 0.0 || (g_lo == 0.0 && dg_lo < 0.0) {
+    if g_lo < 0.0 {
         return Some(lo);
     }
     // An interior extremum: a maximum when leaving zero, a minimum that may dip to zero.
@@ -327,19 +329,20 @@ fn crossing(
     } else {
         None
     };
-    if g_hi <= 0.0 {
-        if g_lo > 0.0 {
+    if g_lo > 0.0 {
+        if g_hi <= 0.0 {
             return Some(linear::root(g, lo, g_lo, hi, g_hi));
         }
         return match extremum {
-            Some((t, g_t)) if g_t > 0.0 => Some(linear::root(g, t, g_t, hi, g_hi)),
-            _ => Some(lo),
+            Some((t, g_t)) if dg_lo < 0.0 && g_t <= 0.0 => Some(linear::root(g, lo, g_lo, t, g_t)),
+            _ => None,
         };
     }
+    if g_hi >= 0.0 {
+        return None;
+    }
     match extremum {
-        Some((t, g_t)) if dg_lo < 0.0 && g_t <= 0.0 && g_lo > 0.0 => {
-            Some(linear::root(g, lo, g_lo, t, g_t))
-        }
-        _ => None,
+        Some((t, g_t)) if g_t > 0.0 => Some(linear::root(g, t, g_t, hi, g_hi)),
+        _ => Some(lo),
     }
 }
