@@ -37,6 +37,21 @@ pub enum SimError {
     },
     /// A firmware-in-the-loop run did not match the shared plan (details in the report).
     CheckFailed { problems: usize },
+    /// A sensors table that is not valid TOML or holds an unknown key (the parser's message names it).
+    SensorFile { source: String, reason: String },
+    /// A sensor's configuration value outside its range.
+    SensorValue {
+        sensor: &'static str,
+        key: &'static str,
+        value: f64,
+        allowed: &'static str,
+    },
+    /// A sensor sampled at a time it cannot use, or fed a motion value that is not finite.
+    SensorInput {
+        sensor: &'static str,
+        t_s: f64,
+        reason: &'static str,
+    },
 }
 
 impl fmt::Display for SimError {
@@ -90,6 +105,28 @@ impl fmt::Display for SimError {
             SimError::CheckFailed { problems } => write!(
                 f,
                 "the firmware-in-the-loop check failed with {problems} problem(s), listed above"
+            ),
+            SimError::SensorFile { source, reason } => {
+                write!(f, "cannot load the sensors from {source}: {reason}")
+            }
+            SimError::SensorValue {
+                sensor,
+                key,
+                value,
+                allowed,
+            } => write!(
+                f,
+                "sensor `{sensor}` key `{key}` must be {allowed}, got {}",
+                Significant(*value)
+            ),
+            SimError::SensorInput {
+                sensor,
+                t_s,
+                reason,
+            } => write!(
+                f,
+                "sensor `{sensor}` at t = {} s: {reason}",
+                Significant(*t_s)
             ),
         }
     }

@@ -16,6 +16,7 @@ pub mod plate;
 pub mod reference;
 pub mod scenario;
 pub mod segments;
+pub mod sensors;
 pub mod sim;
 
 pub use error::SimError;
