@@ -72,13 +72,31 @@ pub fn derivative(c: &[f64; N], a: &Matrix) -> [f64; N] {
     out
 }
 
-/// `e^{A·t}`.
-pub fn exp(a: &Matrix, t: f64) -> Matrix {
-    let norm = a
-        .iter()
+/// The norm that governs the series: the largest row sum over the state columns.
+pub fn norm(a: &Matrix) -> f64 {
+    a.iter()
         .map(|row| row[..ONE].iter().map(|x| x.abs()).sum::<f64>())
         .fold(0.0, f64::max)
-        * t.abs();
+}
+
+/// `e^{A·t}·z` for `‖A‖·|t| ≤ 1` by Horner's scheme on the vector,
+/// `z + tA(z + tA/2(z + …))`, 22 terms (remainder below 1/22! ≈ 9·10⁻²²): a seventh of the work
+/// of [`exp`].
+pub fn exp_apply_short(a: &Matrix, t: f64, z: &State) -> State {
+    let mut e = *z;
+    for n in (1..=22).rev() {
+        let scale = t / n as f64;
+        let step = apply(a, &e);
+        for ((e_i, s_i), z_i) in e.iter_mut().zip(step).zip(z) {
+            *e_i = z_i + scale * s_i;
+        }
+    }
+    e
+}
+
+/// `e^{A·t}`.
+pub fn exp(a: &Matrix, t: f64) -> Matrix {
+    let norm = norm(a) * t.abs();
     let squarings = if norm > 0.5 {
         (norm / 0.5).log2().ceil() as i32
     } else {

@@ -10,11 +10,13 @@
 //! * `q' = x`, for the plate's mean position.
 //!
 //! Events are zeros of linear functionals `g(t) = c·z(t)`, each positive while its regime holds.
-//! They are sampled every `h = 1/(8ρ)` (`ρ` the fastest rate: `2π·f_c`, `√(k/M)`, `(c + b)/M`),
-//! and every interval is checked for a sign change of `g` and for an interior minimum of `g`
-//! (a sign change of `g′ = c·A·z`) that dips to zero. A root can be missed only if `g` had two
-//! extrema within one interval; its modes (decays at rates ≤ ρ, oscillations of half-period
-//! `π/ω ≥ 8π·h`, and polynomials of degree ≤ 2 in the quantities the events test) exclude that.
+//! They are sampled every `h ≤ min(1/(8ρ), 1/‖A‖)` (`ρ` the fastest rate: `2π·f_c`, `√(k/M)`,
+//! `(c + b)/M`), and every interval is checked for a sign change of `g` and for an interior
+//! minimum of `g` (a sign change of `g′ = c·A·z`) that dips to zero. A root can be missed only if
+//! `g` had two extrema within one interval; its modes (decays at rates ≤ ρ, oscillations of
+//! half-period `π/ω ≥ 8π·h`, and polynomials of degree ≤ 2 in the quantities the events test)
+//! exclude that. Inside an interval `z(t) = e^{A·(t − t_i)}·z(t_i)` with `‖A‖·(t − t_i) ≤ 1`, summed
+//! on the vector ([`linear::exp_apply_short`]); roots are bracketed and refined to adjacent floats.
 
 use crate::plant::Contact;
 
@@ -245,32 +247,32 @@ impl Model {
             .iter()
             .map(|(_, c)| linear::derivative(c, a))
             .collect();
-        let step_s = if self.fastest_per_s > 0.0 {
-            duration_s.min(0.125 / self.fastest_per_s)
-        } else {
-            duration_s
-        };
+        let mut step_s = duration_s;
+        if self.fastest_per_s > 0.0 {
+            step_s = step_s.min(0.125 / self.fastest_per_s);
+        }
+        let norm = linear::norm(a);
+        if norm > 0.0 {
+            step_s = step_s.min(1.0 / norm);
+        }
         let intervals = (duration_s / step_s).ceil().max(1.0) as usize;
         let step_s = duration_s / intervals as f64;
-        let stepper = linear::exp(a, step_s);
-        let exact = |t: f64| linear::apply(&linear::exp(a, t), z0);
+        let stepper = (intervals > 1).then(|| linear::exp(a, step_s));
         let mut lo_z = *z0;
         for i in 0..intervals {
             let lo = i as f64 * step_s;
-            let hi = if i + 1 == intervals {
-                duration_s
-            } else {
-                (i + 1) as f64 * step_s
-            };
-            let hi_z = if i + 1 == intervals {
-                exact(hi)
-            } else {
-                linear::apply(&stepper, &lo_z)
+            // Within the interval, from its start: `‖A‖·(t − lo) ≤ 1`.
+            let inside = |t: f64| linear::exp_apply_short(a, t - lo, &lo_z);
+            let (hi, hi_z) = match &stepper {
+                Some(stepper) if i + 1 < intervals => {
+                    ((i + 1) as f64 * step_s, linear::apply(stepper, &lo_z))
+                }
+                _ => (duration_s, inside(duration_s)),
             };
             let mut first: Option<(Event, f64)> = None;
             for ((event, c), slope) in events.iter().zip(&slopes) {
-                let g = |t: f64| linear::dot(c, &exact(t));
-                let dg = |t: f64| linear::dot(slope, &exact(t));
+                let g = |t: f64| linear::dot(c, &inside(t));
+                let dg = |t: f64| linear::dot(slope, &inside(t));
                 let found = crossing(
                     &g,
                     &dg,
@@ -289,10 +291,10 @@ impl Model {
             }
             let until = first.map_or(hi, |(_, t)| t);
             if (lo_z[V] > 0.0) != (hi_z[V] > 0.0) && lo_z[V] != 0.0 {
-                let v = |t: f64| exact(t)[V];
+                let v = |t: f64| inside(t)[V];
                 let t = linear::root(v, lo, lo_z[V], hi, hi_z[V]);
                 if t <= until {
-                    turn(exact(t)[X]);
+                    turn(inside(t)[X]);
                 }
             }
             if first.is_some() {
@@ -322,26 +324,30 @@ fn crossing(
     if g_lo < 0.0 {
         return Some(lo);
     }
-    // An interior extremum: a maximum when leaving zero, a minimum that may dip to zero.
-    let extremum = if (dg_lo > 0.0) != (dg_hi > 0.0) && dg_lo != 0.0 {
-        let t = linear::root(dg, lo, dg_lo, hi, dg_hi);
-        Some((t, g(t)))
-    } else {
-        None
+    // An interior extremum, found only where it matters: a maximum when leaving zero, a
+    // minimum that may dip to zero.
+    let extremum = || {
+        ((dg_lo > 0.0) != (dg_hi > 0.0) && dg_lo != 0.0).then(|| {
+            let t = linear::root(dg, lo, dg_lo, hi, dg_hi);
+            (t, g(t))
+        })
     };
     if g_lo > 0.0 {
         if g_hi <= 0.0 {
             return Some(linear::root(g, lo, g_lo, hi, g_hi));
         }
-        return match extremum {
-            Some((t, g_t)) if dg_lo < 0.0 && g_t <= 0.0 => Some(linear::root(g, lo, g_lo, t, g_t)),
+        if dg_lo >= 0.0 {
+            return None;
+        }
+        return match extremum() {
+            Some((t, g_t)) if g_t <= 0.0 => Some(linear::root(g, lo, g_lo, t, g_t)),
             _ => None,
         };
     }
     if g_hi >= 0.0 {
         return None;
     }
-    match extremum {
+    match extremum() {
         Some((t, g_t)) if g_t > 0.0 => Some(linear::root(g, t, g_t, hi, g_hi)),
         _ => Some(lo),
     }

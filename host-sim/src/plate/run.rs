@@ -103,7 +103,11 @@ where
                 peak_m = peak_m.max(x.abs());
             });
             let step_s = next.map_or(rest_s, |(_, t)| t);
-            z = linear::apply(&linear::exp(&a, step_s), &z);
+            z = if linear::norm(&a) * step_s <= 1.0 {
+                linear::exp_apply_short(&a, step_s, &z)
+            } else {
+                linear::apply(&linear::exp(&a, step_s), &z)
+            };
             if part == Part::Stuck {
                 z[U] = z[V];
             }
