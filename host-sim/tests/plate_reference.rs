@@ -1,10 +1,12 @@
 //! The exact real-plate solver against the fixed-step RK4 reference, refined until it stops
 //! changing.
 
+use std::path::Path;
+
 use feeder_shared::{Drive, Limits, Waveform, WaveformSpec};
 use host_sim::plant::{Contact, PlateSegment};
 use host_sim::plate::reference::run_fixed_step;
-use host_sim::plate::{self, PlateParams, PlateRunOptions};
+use host_sim::plate::{self, PlateParams, PlateRun, PlateRunOptions};
 use host_sim::segments::exact_cycle;
 
 fn cycles(duty: f64) -> impl Iterator<Item = PlateSegment> + Clone {
@@ -34,49 +36,102 @@ const OPTIONS: PlateRunOptions = PlateRunOptions {
     average_cycles: 2,
 };
 
-#[test]
-fn exact_solver_agrees_with_the_refined_reference() {
-    let params = lagging_sprung_plate();
-    for (duty, mu, mu_static) in [(0.586, 0.3, 0.3), (0.7, 0.3, 0.45)] {
-        let contact = Contact::new(mu, mu_static, 9.81, 1e-4, 0.0).unwrap();
-        let exact = plate::run(&params, &contact, cycles(duty), &OPTIONS).unwrap();
-        let mut steps_per_cycle = 500.0;
-        let mut previous: Option<f64> = None;
-        let reference = loop {
-            let dt_s = 0.02 / steps_per_cycle;
-            let run = run_fixed_step(&params, &contact, cycles(duty), &OPTIONS, dt_s).unwrap();
-            let feed = run.feed_rate_mps;
-            println!(
-                "d = {duty}: T/dt = {steps_per_cycle}: reference {feed:.15e}, exact {:.15e}, \
-                 difference {:.2e} relative",
-                exact.feed_rate_mps,
-                (feed - exact.feed_rate_mps).abs() / exact.feed_rate_mps.abs()
-            );
-            if previous.is_some_and(|p| (p - feed).abs() <= 1e-11 * feed.abs())
-                || steps_per_cycle >= 64_000.0
-            {
-                break run;
-            }
-            previous = Some(feed);
-            steps_per_cycle *= 2.0;
-        };
-        let error =
-            (reference.feed_rate_mps - exact.feed_rate_mps).abs() / exact.feed_rate_mps.abs();
-        assert!(error < 1e-9, "feed rate relative error {error:e}");
-        let position_error = (reference.mean_position_m - exact.mean_position_m).abs();
-        assert!(
-            position_error < 1e-9 * exact.peak_excursion_m,
-            "{reference:?} {exact:?}"
+/// The reference halved from `T/500` until two runs agree to `1e-11` (at most `T/32000`), printed
+/// beside the exact run.
+fn refined(
+    params: &PlateParams,
+    contact: &Contact,
+    duty: f64,
+    options: &PlateRunOptions,
+    exact: &PlateRun,
+) -> PlateRun {
+    let mut steps_per_cycle = 500.0;
+    let mut previous: Option<PlateRun> = None;
+    loop {
+        let dt_s = 0.02 / steps_per_cycle;
+        let run = run_fixed_step(params, contact, cycles(duty), options, dt_s).unwrap();
+        println!(
+            "d = {duty}: T/dt = {steps_per_cycle}: reference {:.15e}, exact {:.15e} m/s, \
+             difference {:.2e} relative; end stop {:?} / {:?}",
+            run.feed_rate_mps,
+            exact.feed_rate_mps,
+            (run.feed_rate_mps - exact.feed_rate_mps).abs() / exact.feed_rate_mps.abs(),
+            run.end_stop.map(|hit| hit.time_s),
+            exact.end_stop.map(|hit| hit.time_s),
         );
+        let settled = previous.is_some_and(|p| {
+            (p.feed_rate_mps - run.feed_rate_mps).abs() <= 1e-11 * run.feed_rate_mps.abs()
+        });
+        if settled || steps_per_cycle >= 32_000.0 {
+            return run;
+        }
+        previous = Some(run);
+        steps_per_cycle *= 2.0;
+    }
+}
+
+fn assert_agree(params: &PlateParams, duty: f64, mu: f64, mu_static: f64) {
+    let contact = Contact::new(mu, mu_static, 9.81, 1e-4, 0.0).unwrap();
+    let exact = plate::run(params, &contact, cycles(duty), &OPTIONS).unwrap();
+    let reference = refined(params, &contact, duty, &OPTIONS, &exact);
+    let error = (reference.feed_rate_mps - exact.feed_rate_mps).abs() / exact.feed_rate_mps.abs();
+    assert!(error < 1e-9, "feed rate relative error {error:e}");
+    let position_error = (reference.mean_position_m - exact.mean_position_m).abs();
+    assert!(
+        position_error < 1e-9 * exact.peak_excursion_m,
+        "{reference:?} {exact:?}"
+    );
+}
+
+#[test]
+fn exact_solver_agrees_with_the_refined_reference_with_lag_and_spring() {
+    for (duty, mu, mu_static) in [(0.586, 0.3, 0.3), (0.7, 0.3, 0.45)] {
+        assert_agree(&lagging_sprung_plate(), duty, mu, mu_static);
     }
 }
 
 #[test]
-fn the_reference_refuses_what_it_does_not_model() {
-    let contact = Contact::kinetic(0.3, 1e-4).unwrap();
+fn exact_solver_agrees_with_the_refined_reference_with_slide_friction() {
     let params = PlateParams {
-        coulomb_friction_n: 1.0,
-        ..PlateParams::default()
+        coulomb_friction_n: 4.0,
+        ..lagging_sprung_plate()
     };
-    assert!(run_fixed_step(&params, &contact, cycles(0.6), &OPTIONS, 1e-5).is_err());
+    for (duty, mu, mu_static) in [(0.586, 0.3, 0.3), (0.7, 0.3, 0.45)] {
+        assert_agree(&params, duty, mu, mu_static);
+    }
+}
+
+#[test]
+fn the_realistic_plant_hits_its_end_stop_when_the_reference_does() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("plants/realistic.toml");
+    let params = PlateParams::from_path(&path).unwrap();
+    let contact = Contact::kinetic(0.3, 1e-4).unwrap();
+    let options = PlateRunOptions {
+        cycles: 100,
+        average_cycles: 1,
+    };
+    let exact = plate::run(&params, &contact, cycles(0.586), &options).unwrap();
+    let reference = refined(&params, &contact, 0.586, &options, &exact);
+    let (hit, reference_hit) = (exact.end_stop.unwrap(), reference.end_stop.unwrap());
+    assert!(
+        (hit.time_s - reference_hit.time_s).abs() <= 1e-12,
+        "{hit:?} {reference_hit:?}"
+    );
+    assert_eq!(hit.position_m, reference_hit.position_m);
+    assert!((hit.velocity_mps - reference_hit.velocity_mps).abs() <= 1e-9 * hit.velocity_mps.abs());
+}
+
+#[test]
+fn the_reference_refuses_a_step_that_is_not_positive() {
+    let contact = Contact::kinetic(0.3, 1e-4).unwrap();
+    for dt_s in [0.0, -1e-5, f64::NAN] {
+        assert!(run_fixed_step(
+            &PlateParams::default(),
+            &contact,
+            cycles(0.6),
+            &OPTIONS,
+            dt_s
+        )
+        .is_err());
+    }
 }
