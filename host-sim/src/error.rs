@@ -35,6 +35,9 @@ pub enum SimError {
         value: f64,
         allowed: &'static str,
     },
+    /// The plate or the part changed contact state without end at one instant (stick–slip
+    /// chatter the event model cannot resolve).
+    Chatter { time_s: f64 },
     /// A firmware-in-the-loop run did not match the shared plan (details in the report).
     CheckFailed { problems: usize },
     /// A sensors table that is not valid TOML or holds an unknown key (the parser's message names it).
@@ -101,6 +104,11 @@ impl fmt::Display for SimError {
                 f,
                 "plant key `{key}` must be {allowed}, got {}",
                 Significant(*value)
+            ),
+            SimError::Chatter { time_s } => write!(
+                f,
+                "the plate or part changed contact state without end at t = {} s",
+                Significant(*time_s)
             ),
             SimError::CheckFailed { problems } => write!(
                 f,

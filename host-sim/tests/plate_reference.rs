@@ -135,3 +135,25 @@ fn the_reference_refuses_a_step_that_is_not_positive() {
         .is_err());
     }
 }
+
+#[test]
+fn a_stream_that_ends_closes_its_last_cycle_in_both() {
+    let contact = Contact::kinetic(0.3, 1e-4).unwrap();
+    let params = lagging_sprung_plate();
+    let options = PlateRunOptions {
+        cycles: 10,
+        average_cycles: 1,
+    };
+    let exact = plate::run(&params, &contact, cycles(0.6).take(12), &options).unwrap();
+    let reference = run_fixed_step(
+        &params,
+        &contact,
+        cycles(0.6).take(12),
+        &options,
+        0.02 / 8000.0,
+    )
+    .unwrap();
+    assert_eq!((exact.cycles, reference.cycles), (3, 3));
+    let error = (exact.feed_rate_mps - reference.feed_rate_mps).abs() / exact.feed_rate_mps;
+    assert!(error < 1e-9, "{exact:?} {reference:?}");
+}

@@ -118,7 +118,7 @@ fn hit(before: f64, after: f64) -> bool {
     after < 0.0 || (after <= 0.0 && before > 0.0)
 }
 
-/// At most this many events within one step before the run is refused as chattering.
+/// At most this many events within one step before the run is refused as chatter.
 const MAX_EVENTS_PER_STEP: usize = 1000;
 
 /// Runs `segments` like [`super::run`] with RK4 steps of at most `dt_s`.
@@ -252,8 +252,8 @@ where
                 }
                 events += 1;
                 if events == MAX_EVENTS_PER_STEP {
-                    return Err(SimError::BadRange {
-                        what: "the reference's plate or part changed state too often in one step",
+                    return Err(SimError::Chatter {
+                        time_s: time_s + step as f64 * h + (h - rest),
                     });
                 }
             }
@@ -263,6 +263,13 @@ where
             peak_m = peak_m.max(s[0].abs());
         }
         time_s += segment.duration_s;
+    }
+    if end_stop.is_none() && !marks.is_empty() && cycles < options.cycles {
+        cycles += 1;
+        marks.push_back((time_s, s[4], s[5]));
+        if marks.len() as u64 > options.average_cycles + 1 {
+            marks.pop_front();
+        }
     }
     let (feed_rate_mps, mean_position_m) = match (marks.front(), marks.back()) {
         (Some(a), Some(b)) if marks.len() >= 2 => {

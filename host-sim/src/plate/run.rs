@@ -40,7 +40,7 @@ pub struct PlateRun {
     pub end_stop: Option<EndStop>,
 }
 
-/// At most this many events within one segment before the run is refused as chattering.
+/// At most this many events within one segment before the run is refused as chatter.
 const MAX_EVENTS_PER_SEGMENT: usize = 10_000;
 
 /// Runs `segments` (the first must start a cycle) from the plate at rest at `x = 0` with the
@@ -133,8 +133,8 @@ where
                 }
             }
         }
-        return Err(SimError::BadRange {
-            what: "the plate or part changed contact state too often within one segment",
+        return Err(SimError::Chatter {
+            time_s: time_s + offset_s,
         });
     }
     if end_stop.is_none() && started && cycles < options.cycles {
