@@ -8,6 +8,7 @@ use host_sim::plant::{Contact, PlateSegment};
 use host_sim::plate::reference::run_fixed_step;
 use host_sim::plate::{self, PlateParams, PlateRun, PlateRunOptions};
 use host_sim::segments::exact_cycle;
+use proptest::prelude::*;
 
 fn cycles(duty: f64) -> impl Iterator<Item = PlateSegment> + Clone {
     let spec = WaveformSpec::from_frequency(50.0, duty, Drive::Accel { accel_mps2: 146.0 });
@@ -156,4 +157,68 @@ fn a_stream_that_ends_closes_its_last_cycle_in_both() {
     assert_eq!((exact.cycles, reference.cycles), (3, 3));
     let error = (exact.feed_rate_mps - reference.feed_rate_mps).abs() / exact.feed_rate_mps;
     assert!(error < 1e-9, "{exact:?} {reference:?}");
+}
+
+/// Any plate with every non-ideality, end stops included.
+fn any_plate() -> impl Strategy<Value = PlateParams> {
+    (
+        (
+            0.5..3.0_f64,
+            -0.01..0.01_f64,
+            0.95..1.05_f64,
+            0.95..1.05_f64,
+        ),
+        (
+            prop::option::of(300.0..5000.0_f64),
+            prop::option::of(150.0..600.0_f64),
+        ),
+        (0.0..5.0_f64, 0.0..20.0_f64, 0.0..5e4_f64, 0.0..50.0_f64),
+        prop::option::of(0.002..0.02_f64),
+    )
+        .prop_map(
+            |((mass_kg, offset, plus, minus), (bandwidth, limit), slide, stop)| PlateParams {
+                mass_kg,
+                zero_offset_fraction: offset,
+                gain_positive: plus,
+                gain_negative: minus,
+                current_bandwidth_hz: bandwidth,
+                force_limit_n: limit,
+                coulomb_friction_n: slide.0,
+                viscous_friction_nspm: slide.1,
+                spring_npm: slide.2,
+                spring_damping_nspm: slide.3,
+                end_stop_m: stop,
+                ..PlateParams::default()
+            },
+        )
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+
+    /// At `T/8000` the reference is within 1e-7 of the velocity scale `a·T/4`; its peak, sampled
+    /// at its steps, is at most the exact peak (up to its own error) and close below it.
+    #[test]
+    fn any_plate_agrees_with_the_reference(
+        params in any_plate(),
+        duty in 0.52..0.95_f64,
+        mu in 0.05..1.0_f64,
+        extra in 0.0..0.3_f64,
+    ) {
+        let contact = Contact::new(mu, mu + extra, 9.81, 1e-4, 0.0).unwrap();
+        let options = PlateRunOptions { cycles: 3, average_cycles: 1 };
+        let exact = plate::run(&params, &contact, cycles(duty), &options).unwrap();
+        let reference =
+            run_fixed_step(&params, &contact, cycles(duty), &options, 0.02 / 8000.0).unwrap();
+        let scale_mps = 146.0 * 0.02 / 4.0;
+        prop_assert!(
+            (exact.feed_rate_mps - reference.feed_rate_mps).abs() <= 1e-7 * scale_mps,
+            "{:?}\n{:?}", exact, reference
+        );
+        prop_assert_eq!(exact.cycles, reference.cycles);
+        prop_assert_eq!(exact.end_stop.is_some(), reference.end_stop.is_some());
+        let (peak, reference_peak) = (exact.peak_excursion_m, reference.peak_excursion_m);
+        prop_assert!(reference_peak <= peak * (1.0 + 1e-8) + 1e-15, "{} {}", peak, reference_peak);
+        prop_assert!(peak - reference_peak <= 1e-4 * peak, "{} {}", peak, reference_peak);
+    }
 }

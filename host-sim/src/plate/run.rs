@@ -98,7 +98,7 @@ where
         for _ in 0..MAX_EVENTS_PER_SEGMENT {
             model.settle(&mut z, &mut slide, &mut part, target_n);
             let a = model.matrix(slide, part, target_n);
-            let rest_s = segment.duration_s - offset_s;
+            let rest_s = (segment.duration_s - offset_s).max(0.0);
             let next = model.next_event(&a, &z, slide, part, rest_s, |x| {
                 peak_m = peak_m.max(x.abs());
             });
