@@ -128,3 +128,23 @@ fn a_spring_alone_gives_the_closed_form_oscillation() {
         run.mean_position_m
     );
 }
+
+#[test]
+fn bad_segments_and_windows_are_refused() {
+    let contact = Contact::kinetic(0.3, 1e-4).unwrap();
+    let params = PlateParams::default();
+    for (duration_s, accel_mps2) in [(f64::NAN, 1.0), (-1e-3, 1.0), (1e-3, f64::INFINITY)] {
+        let segment = PlateSegment {
+            duration_s,
+            accel_mps2,
+            starts_cycle: true,
+        };
+        let result = plate::run(&params, &contact, std::iter::repeat(segment), &options(3));
+        assert!(result.is_err(), "{duration_s} {accel_mps2}");
+    }
+    let window = PlateRunOptions {
+        cycles: 2,
+        average_cycles: 3,
+    };
+    assert!(plate::run(&params, &contact, constant(1.0), &window).is_err());
+}

@@ -43,9 +43,9 @@ pub struct PlateRun {
 /// At most this many events within one segment before the run is refused as chatter.
 const MAX_EVENTS_PER_SEGMENT: usize = 10_000;
 
-/// Runs `segments` (the first must start a cycle) from the plate at rest at `x = 0` with the
-/// drive's force at 0 and the part at rest on it, for `options.cycles` cycles or until an end
-/// stop is hit.
+/// Runs `segments` (the first must start a cycle) from the plate at rest at `x = 0` and the part
+/// at rest on it, for `options.cycles` cycles or until an end stop is hit. With a current loop
+/// the drive's force starts at 0; without one it is at its target from the first instant.
 pub fn run<I>(
     params: &PlateParams,
     contact: &Contact,
@@ -89,6 +89,14 @@ where
                 break;
             }
             started = true;
+        }
+        let valid = segment.duration_s >= 0.0
+            && segment.duration_s.is_finite()
+            && segment.accel_mps2.is_finite();
+        if !valid {
+            return Err(SimError::BadRange {
+                what: "every segment needs a finite duration ≥ 0 and a finite acceleration",
+            });
         }
         let target_n = params.target_force_n(segment.accel_mps2);
         if model.lag_per_s.is_none() {
