@@ -101,7 +101,8 @@ impl Accelerometer {
         check_time(SENSOR, t_s, self.previous.map(|(t, _)| t))?;
         let input_mps2 = check_motion(SENSOR, t_s, plate.accel_mps2(t_s))?;
         if let Some((previous_t_s, held_mps2)) = self.previous {
-            let decay = (-(t_s - previous_t_s) / self.config.time_constant_s()).exp();
+            // libm's exp, not the platform's: the same readings on every platform.
+            let decay = libm::exp(-(t_s - previous_t_s) / self.config.time_constant_s());
             self.filtered_mps2 = held_mps2 + (self.filtered_mps2 - held_mps2) * decay;
         }
         self.previous = Some((t_s, input_mps2));

@@ -63,6 +63,11 @@ impl AdcConfig {
 }
 
 /// Zero-mean Gaussian noise of a given standard deviation from a seeded ChaCha8 stream.
+///
+/// ChaCha8 and the ziggurat's table steps are integer and IEEE arithmetic, the same everywhere.
+/// Its rare wedge and tail steps call exp and ln through num-traits, which the workspace builds
+/// with `std` (the platform's maths library): a platform whose exp or ln rounds differently from
+/// the one that pinned the stream in `tests/sensors.rs` could differ there, in the last bit.
 #[derive(Debug, Clone)]
 pub(crate) struct Noise {
     rng: ChaCha8Rng,
