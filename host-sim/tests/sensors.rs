@@ -5,7 +5,7 @@ use std::f64::consts::TAU;
 
 use host_sim::sensors::{
     Accelerometer, AccelerometerConfig, AdcConfig, Encoder, EncoderConfig, LightBarrier,
-    LightBarrierConfig, Lvdt, LvdtConfig, PlateMotion, SensorsConfig,
+    LightBarrierConfig, Lvdt, LvdtConfig, PlateMotion, SampledPart, SensorsConfig,
 };
 use host_sim::SimError;
 
@@ -79,6 +79,14 @@ fn encoder_counts_a_linear_motion_exactly() {
     }
     // The count enters 5 when −40 + 3·tick ≥ 20: tick 20 (count 5) after tick 19 (count 4).
     assert_eq!(index_ticks, [20]);
+    let refused = encoder.sample(&plate, 63.0);
+    assert!(matches!(
+        refused,
+        Err(SimError::SensorInput {
+            sensor: "encoder",
+            ..
+        })
+    ));
 }
 
 #[test]
@@ -112,24 +120,6 @@ fn encoder_counts_a_sinusoid_with_floor_semantics() {
     // 10 periods: the count comes into 0 at every half period but the last (t = 0.2 s is not
     // sampled), from above and from below; the first tick starts there and makes no edge.
     assert_eq!(index_edges, 19);
-}
-
-#[test]
-fn encoder_refuses_time_going_back() {
-    let mut encoder = Encoder::new(EncoderConfig {
-        resolution_m: 1e-6,
-        index_m: None,
-    })
-    .unwrap();
-    let plate = linear(0.0, 1.0);
-    encoder.sample(&plate, 1.0).unwrap();
-    assert!(matches!(
-        encoder.sample(&plate, 1.0),
-        Err(SimError::SensorInput {
-            sensor: "encoder",
-            ..
-        })
-    ));
 }
 
 fn lvdt(noise_m: f64, seed: u64) -> Lvdt {
@@ -314,6 +304,25 @@ fn light_barrier_sees_a_part_coming_back() {
 }
 
 #[test]
+fn light_barrier_reads_a_sampled_part_exactly() {
+    // Forward at 0.2 m/s to 0.02 m at t = 0.1 s, back at 0.1 m/s to 0.01 m, forward again.
+    let times_s = vec![0.0, 0.1, 0.2, 0.3];
+    let part = SampledPart::new(times_s.clone(), vec![0.0, 0.02, 0.01, 0.03]).unwrap();
+    let edges = barrier(0.015, 0.0).edges(&part, part.times_s()).unwrap();
+    let expected = [(0.075, true), (0.15, false), (0.225, true)];
+    assert_eq!(edges.len(), expected.len());
+    for (edge, (t_s, rising)) in edges.iter().zip(expected) {
+        assert_eq!(edge.rising, rising);
+        assert!((edge.t_s - t_s).abs() <= 1e-15, "{edge:?}");
+    }
+    assert!(SampledPart::new(times_s, vec![0.0; 3]).is_err());
+    assert!(matches!(
+        SampledPart::new(vec![0.0, 0.0], vec![0.0, 1.0]),
+        Err(SimError::SensorInput { .. })
+    ));
+}
+
+#[test]
 fn light_barrier_refuses_a_part_position_that_is_not_finite() {
     let part = |t_s: f64| if t_s > 0.5 { f64::NAN } else { t_s };
     assert!(matches!(
@@ -361,33 +370,32 @@ fn refusal(text: &str) -> String {
 
 #[test]
 fn bad_sensor_configs_are_refused_with_the_key_named() {
+    let adc = |bits: u32, min_v: f64| {
+        format!("adc = {{ bits = {bits}, min_v = {min_v:?}, max_v = 5.0 }}")
+    };
+    let lvdt = "[lvdt]\ngain_v_per_m";
+    let accel = "[accelerometer]\nsensitivity_v_per_mps2 = 0.03\nbandwidth_hz";
     for (text, key) in [
-        ("[encoder]\nresolution_m = 0.0", "resolution_m"),
-        ("[encoder]\nresolution_m = -1e-6", "resolution_m"),
-        ("[encoder]\nresolution_m = 1e-6\nindex_m = inf", "index_m"),
+        ("[encoder]\nresolution_m = 0.0".to_owned(), "resolution_m"),
+        ("[encoder]\nresolution_m = -1e-6".to_owned(), "resolution_m"),
         (
-            "[lvdt]\ngain_v_per_m = 1.0\nnoise_m = -1.0\nadc = { bits = 12, min_v = 0.0, max_v = 5.0 }",
+            "[encoder]\nresolution_m = 1e-6\nindex_m = inf".to_owned(),
+            "index_m",
+        ),
+        (
+            format!("{lvdt} = 1.0\nnoise_m = -1.0\n{}", adc(12, 0.0)),
             "noise_m",
         ),
+        (format!("{lvdt} = 0.0\n{}", adc(12, 0.0)), "gain_v_per_m"),
+        (format!("{lvdt} = 1.0\n{}", adc(33, 0.0)), "adc.bits"),
+        (format!("{accel} = nan\n{}", adc(12, 0.0)), "bandwidth_hz"),
+        (format!("{accel} = 1e3\n{}", adc(12, 5.0)), "adc.max_v"),
         (
-            "[lvdt]\ngain_v_per_m = 0.0\nadc = { bits = 12, min_v = 0.0, max_v = 5.0 }",
-            "gain_v_per_m",
+            "[light_barrier]\nposition_m = 0.1\nmin_gap_s = -1.0".to_owned(),
+            "min_gap_s",
         ),
-        (
-            "[lvdt]\ngain_v_per_m = 1.0\nadc = { bits = 33, min_v = 0.0, max_v = 5.0 }",
-            "adc.bits",
-        ),
-        (
-            "[accelerometer]\nbandwidth_hz = nan\nsensitivity_v_per_mps2 = 0.03\nadc = { bits = 12, min_v = -5.0, max_v = 5.0 }",
-            "bandwidth_hz",
-        ),
-        (
-            "[accelerometer]\nbandwidth_hz = 1e3\nsensitivity_v_per_mps2 = 0.03\nadc = { bits = 12, min_v = 5.0, max_v = 5.0 }",
-            "adc.max_v",
-        ),
-        ("[light_barrier]\nposition_m = 0.1\nmin_gap_s = -1.0", "min_gap_s"),
     ] {
-        let message = refusal(text);
+        let message = refusal(&text);
         assert!(message.contains(&format!("`{key}`")), "{text}: {message}");
     }
     // Unknown and missing keys are named by the parser.

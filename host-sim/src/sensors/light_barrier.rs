@@ -4,7 +4,8 @@
 //! The part's position is scanned at the given sample times; where the state differs between two
 //! samples, the edge time is found by bisection to adjacent floats (the first float at which the
 //! new state holds). Two crossings between the same two samples cancel and go unseen: the sample
-//! times must resolve the part's motion.
+//! times must resolve the part's motion. A part known only at samples is a [`SampledPart`],
+//! linear between them; scanned at its own sample times, its edges are exact.
 
 use serde::Deserialize;
 
@@ -139,5 +140,53 @@ impl LightBarrier {
             }
         }
         edges
+    }
+}
+
+/// A part trajectory known at sample times, linear between them and held beyond the ends.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SampledPart {
+    times_s: Vec<f64>,
+    positions_m: Vec<f64>,
+}
+
+impl SampledPart {
+    /// At least one sample, as many positions as times, all finite, times increasing.
+    pub fn new(times_s: Vec<f64>, positions_m: Vec<f64>) -> Result<Self, SimError> {
+        if times_s.is_empty() || times_s.len() != positions_m.len() {
+            return Err(SimError::BadRange {
+                what: "a sampled part needs at least one sample and as many positions as times",
+            });
+        }
+        let mut previous = None;
+        for (&t_s, &x_m) in times_s.iter().zip(&positions_m) {
+            check_time(SENSOR, t_s, previous)?;
+            check_motion(SENSOR, t_s, x_m)?;
+            previous = Some(t_s);
+        }
+        Ok(SampledPart {
+            times_s,
+            positions_m,
+        })
+    }
+
+    /// The sample times, to scan the part at with [`LightBarrier::edges`].
+    pub fn times_s(&self) -> &[f64] {
+        &self.times_s
+    }
+}
+
+impl PartMotion for SampledPart {
+    fn position_m(&self, t_s: f64) -> f64 {
+        let after = self.times_s.partition_point(|&sample_s| sample_s <= t_s);
+        if after == 0 {
+            return self.positions_m[0];
+        }
+        if after == self.times_s.len() {
+            return self.positions_m[after - 1];
+        }
+        let (t0_s, t1_s) = (self.times_s[after - 1], self.times_s[after]);
+        let (x0_m, x1_m) = (self.positions_m[after - 1], self.positions_m[after]);
+        x0_m + (x1_m - x0_m) * ((t_s - t0_s) / (t1_s - t0_s))
     }
 }

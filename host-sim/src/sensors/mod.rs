@@ -1,7 +1,8 @@
 //! Sensors of the simulated plate, read as the firmware would read them.
 //!
 //! Each sensor samples a motion source at the times it is asked for: the plate through
-//! [`PlateMotion`], a part through [`PartMotion`] (any `Fn(f64) -> f64` of time in s is one).
+//! [`PlateMotion`], a part through [`PartMotion`] (any `Fn(f64) -> f64` of time in s is one, and
+//! so is a [`SampledPart`]).
 //! [`encoder`] counts plate position exactly; [`lvdt`] is the analog position alternative;
 //! [`accelerometer`] is the plate's acceleration through a first-order low-pass; [`light_barrier`]
 //! finds when a part passes a point of the track. Noise is seeded (ChaCha8 with a normal
@@ -20,7 +21,7 @@ use crate::error::SimError;
 
 pub use accelerometer::{Accelerometer, AccelerometerConfig, AccelerometerReading};
 pub use encoder::{Encoder, EncoderConfig, EncoderReading};
-pub use light_barrier::{BarrierEdge, LightBarrier, LightBarrierConfig};
+pub use light_barrier::{BarrierEdge, LightBarrier, LightBarrierConfig, SampledPart};
 pub use lvdt::{Lvdt, LvdtConfig, LvdtReading};
 pub use signal::AdcConfig;
 
