@@ -172,6 +172,10 @@ fn lvdt_without_noise_is_within_half_a_code() {
         let error_m = sensor.sample(&plate, t_s).unwrap().position_m - plate.position_m(t_s);
         assert!(error_m.abs() <= 0.5 * lsb_m * (1.0 + 1e-9), "{error_m}");
     }
+    // Past the ADC's ±10 V (±10 mm less the 0.5 V offset) the code saturates.
+    let code_at = |sensor: &mut Lvdt, x_m, t_s| sensor.sample(&linear(x_m, 0.0), t_s).unwrap().code;
+    assert_eq!(code_at(&mut sensor, -0.0106, 1.0), 0);
+    assert_eq!(code_at(&mut sensor, 0.0096, 2.0), (1 << 24) - 1);
 }
 
 fn accelerometer(bandwidth_hz: f64) -> Accelerometer {
