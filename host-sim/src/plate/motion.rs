@@ -231,58 +231,66 @@ impl Model {
         }
     }
 
+    /// The sampling step of a regime: `min(1/(8ρ), 1/‖A‖)` (`‖A‖ ≥ 1`, so it is finite).
+    fn sampling_step_s(&self, a: &Matrix) -> f64 {
+        let step_s = 1.0 / linear::norm(a);
+        if self.fastest_per_s > 0.0 {
+            step_s.min(0.125 / self.fastest_per_s)
+        } else {
+            step_s
+        }
+    }
+
     /// The first event of the regime within `duration_s` of the state `z0`, with its time, and
-    /// the plate's turning points (`v = 0`) before it, passed to `turn` with their position.
+    /// the state then (at `duration_s` if no event comes first); the plate's turning points
+    /// (`v = 0`) before it are passed to `turn` with their position.
+    #[allow(clippy::too_many_arguments)]
     pub fn next_event(
         &self,
+        steppers: &mut Steppers,
         a: &Matrix,
         z0: &State,
         slide: Slide,
         part: Part,
         duration_s: f64,
         mut turn: impl FnMut(f64),
-    ) -> Option<(Event, f64)> {
+    ) -> (Option<(Event, f64)>, State) {
         let events = self.events(slide, part, a);
         let slopes: Vec<[f64; linear::N]> = events
             .iter()
             .map(|(_, c)| linear::derivative(c, a))
             .collect();
-        let mut step_s = duration_s;
-        if self.fastest_per_s > 0.0 {
-            step_s = step_s.min(0.125 / self.fastest_per_s);
-        }
-        let norm = linear::norm(a);
-        if norm > 0.0 {
-            step_s = step_s.min(1.0 / norm);
-        }
-        let intervals = (duration_s / step_s).ceil().max(1.0) as usize;
-        let step_s = duration_s / intervals as f64;
-        let stepper = (intervals > 1).then(|| linear::exp(a, step_s));
+        let values = |z: &State| -> Vec<(f64, f64)> {
+            events
+                .iter()
+                .zip(&slopes)
+                .map(|((_, c), slope)| (linear::dot(c, z), linear::dot(slope, z)))
+                .collect()
+        };
+        let (step_s, stepper) = steppers.get(self, a);
         let mut lo_z = *z0;
-        for i in 0..intervals {
+        let mut lo_values = values(z0);
+        let mut i = 0_u64;
+        loop {
             let lo = i as f64 * step_s;
             // Within the interval, from its start: `‖A‖·(t − lo) ≤ 1`.
             let inside = |t: f64| linear::exp_apply_short(a, t - lo, &lo_z);
-            let (hi, hi_z) = match &stepper {
-                Some(stepper) if i + 1 < intervals => {
-                    ((i + 1) as f64 * step_s, linear::apply(stepper, &lo_z))
-                }
-                _ => (duration_s, inside(duration_s)),
+            let last = (i + 1) as f64 * step_s >= duration_s;
+            let (hi, hi_z) = if last {
+                (duration_s, inside(duration_s))
+            } else {
+                ((i + 1) as f64 * step_s, linear::apply(stepper, &lo_z))
             };
+            let hi_values = values(&hi_z);
             let mut first: Option<(Event, f64)> = None;
-            for ((event, c), slope) in events.iter().zip(&slopes) {
+            for (((event, c), slope), (&(g_lo, dg_lo), &(g_hi, dg_hi))) in events
+                .iter()
+                .zip(&slopes)
+                .zip(lo_values.iter().zip(&hi_values))
+            {
                 let g = |t: f64| linear::dot(c, &inside(t));
                 let dg = |t: f64| linear::dot(slope, &inside(t));
-                let found = crossing(
-                    &g,
-                    &dg,
-                    lo,
-                    linear::dot(c, &lo_z),
-                    linear::dot(slope, &lo_z),
-                    hi,
-                    linear::dot(c, &hi_z),
-                    linear::dot(slope, &hi_z),
-                );
+                let found = crossing(&g, &dg, lo, g_lo, dg_lo, hi, g_hi, dg_hi);
                 if let Some(t) = found {
                     if first.is_none_or(|(_, best)| t < best) {
                         first = Some((*event, t));
@@ -297,12 +305,43 @@ impl Model {
                     turn(inside(t)[X]);
                 }
             }
-            if first.is_some() {
-                return first;
+            if let Some((_, t)) = first {
+                return (first, inside(t));
+            }
+            if last {
+                return (None, hi_z);
             }
             lo_z = hi_z;
+            lo_values = hi_values;
+            i += 1;
         }
-        None
+    }
+}
+
+/// `e^{A·h}` and `h` of the regimes met so far, `h` the regime's sampling step: regimes recur
+/// every cycle, so each exponential is computed once.
+#[derive(Debug, Default)]
+pub struct Steppers {
+    entries: Vec<(Matrix, f64, Matrix)>,
+}
+
+impl Steppers {
+    const CAPACITY: usize = 32;
+
+    fn get(&mut self, model: &Model, a: &Matrix) -> (f64, &Matrix) {
+        let index = match self.entries.iter().position(|(key, _, _)| key == a) {
+            Some(index) => index,
+            None => {
+                if self.entries.len() == Self::CAPACITY {
+                    self.entries.clear();
+                }
+                let step_s = model.sampling_step_s(a);
+                self.entries.push((*a, step_s, linear::exp(a, step_s)));
+                self.entries.len() - 1
+            }
+        };
+        let (_, step_s, stepper) = &self.entries[index];
+        (*step_s, stepper)
     }
 }
 

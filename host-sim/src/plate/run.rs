@@ -3,8 +3,8 @@
 use crate::error::SimError;
 use crate::plant::{Contact, PlateSegment};
 
-use super::linear::{self, State, F, P, Q, U, V, X};
-use super::motion::{Event, Model, Part, Slide};
+use super::linear::{State, F, P, Q, U, V, X};
+use super::motion::{Event, Model, Part, Slide, Steppers};
 use super::params::PlateParams;
 
 /// How long to run.
@@ -62,6 +62,7 @@ where
         });
     }
     let model = Model::new(*params, *contact);
+    let mut steppers = Steppers::default();
     let mut z: State = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
     let mut slide = if params.coulomb_friction_n > 0.0 {
         Slide::Stuck
@@ -107,15 +108,10 @@ where
             model.settle(&mut z, &mut slide, &mut part, target_n);
             let a = model.matrix(slide, part, target_n);
             let rest_s = (segment.duration_s - offset_s).max(0.0);
-            let next = model.next_event(&a, &z, slide, part, rest_s, |x| {
+            let (next, end_z) = model.next_event(&mut steppers, &a, &z, slide, part, rest_s, |x| {
                 peak_m = peak_m.max(x.abs());
             });
-            let step_s = next.map_or(rest_s, |(_, t)| t);
-            z = if linear::norm(&a) * step_s <= 1.0 {
-                linear::exp_apply_short(&a, step_s, &z)
-            } else {
-                linear::apply(&linear::exp(&a, step_s), &z)
-            };
+            z = end_z;
             if part == Part::Stuck {
                 z[U] = z[V];
             }
