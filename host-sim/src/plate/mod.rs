@@ -3,8 +3,8 @@
 //! same part under the same Coulomb contact as [`crate::plant`].
 //!
 //! [`params`] reads the plate from a TOML plant file; [`motion`] solves the plate and part
-//! exactly between events ([`linear`]: matrix exponential and bracketed root finding); [`run`]
-//! drives them over the commanded segments; [`reference`] is a fixed-step integrator for
+//! exactly between events ([`linear`]: matrix exponential and bracketed root finding); [`run()`]
+//! drives them over the commanded segments; [`mod@reference`] is a fixed-step integrator for
 //! validation only. When [`PlateParams::is_ideal`] holds, callers keep the exact
 //! piecewise-linear simulator of [`crate::sim`].
 

@@ -1,8 +1,8 @@
 //! The plate's motion and the part riding on it between events, in closed form.
 //!
 //! Within a regime (fixed slide and part contact states, fixed driver target `F*`) the state
-//! `z = (x, v, F, u, p, q, 1)` obeys a linear ODE with constant input, solved exactly by
-//! [`linear::exp`]:
+//! `z = (x, v, F, u, p, q, 1)` obeys a linear ODE with constant input, `z' = A·z`, solved exactly
+//! by the matrix exponential `z(t) = e^{A·t}·z(0)` ([`linear`]):
 //!
 //! * drive: `F' = 2π·f_c·(F* − F)` (without a current loop `F = F*` from the segment's start);
 //! * plate: `M·v' = F − k·x − (c + b)·v − F_c·sign(v)`, `x' = v`; a stuck slide has `x' = v' = 0`;
@@ -15,8 +15,10 @@
 //! minimum of `g` (a sign change of `g′ = c·A·z`) that dips to zero. A root can be missed only if
 //! `g` had two extrema within one interval; its modes (decays at rates ≤ ρ, oscillations of
 //! half-period `π/ω ≥ 8π·h`, and polynomials of degree ≤ 2 in the quantities the events test)
-//! exclude that. Inside an interval `z(t) = e^{A·(t − t_i)}·z(t_i)` with `‖A‖·(t − t_i) ≤ 1`, summed
-//! on the vector ([`linear::exp_apply_short`]); roots are bracketed and refined to adjacent floats.
+//! exclude that. Sample points follow from `z(t_{i+1}) = e^{A·h}·z(t_i)` ([`Steppers`] keeps
+//! `e^{A·h}` of every regime met); inside an interval `z(t) = e^{A·(t − t_i)}·z(t_i)` with
+//! `‖A‖·(t − t_i) ≤ 1` is summed on the vector ([`linear::exp_apply_short`]), roots are bracketed
+//! and refined to adjacent floats, and the regime's end state is taken at the root.
 
 use crate::plant::Contact;
 
@@ -166,7 +168,7 @@ impl Model {
     }
 
     /// The consistent contact states at the start of a regime: a stuck slide breaks away when
-    /// `|F − k·x| > F_c`, a stuck part when `|a_plate − φ| > μ_s·g` (see [`Model::release`]).
+    /// `|F − k·x| > F_c`, a stuck part when `|a_plate − φ| > μ_s·g` (see `release`).
     pub fn settle(&self, z: &mut State, slide: &mut Slide, part: &mut Part, target_n: f64) {
         if *slide == Slide::Stuck {
             let net = z[F] - self.params.spring_npm * z[X];

@@ -121,7 +121,7 @@ fn hit(before: f64, after: f64) -> bool {
 /// At most this many events within one step before the run is refused as chatter.
 const MAX_EVENTS_PER_STEP: usize = 1000;
 
-/// Runs `segments` like [`super::run`] with RK4 steps of at most `dt_s`.
+/// Runs `segments` like [`super::run()`] with RK4 steps of at most `dt_s`.
 pub fn run_fixed_step<I>(
     params: &PlateParams,
     contact: &Contact,
