@@ -100,3 +100,27 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn every_single_non_ideality_makes_the_plate_non_ideal() {
+    for text in [
+        "zero_offset_fraction = 0.001",
+        "gain_positive = 1.01",
+        "gain_negative = 0.99",
+        "current_bandwidth_hz = 1000.0",
+        "force_limit_n = 300.0",
+        "coulomb_friction_n = 1.0",
+        "viscous_friction_nspm = 1.0",
+        "spring_npm = 1.0",
+        "spring_damping_nspm = 1.0",
+        "end_stop_m = 0.005",
+    ] {
+        assert!(
+            !PlateParams::from_toml_str(text).unwrap().is_ideal(),
+            "{text}"
+        );
+    }
+    // Mass and full scale do not change what an ideal plate does.
+    let scaled = PlateParams::from_toml_str("mass_kg = 3.0\nfull_scale_accel_mps2 = 50.0").unwrap();
+    assert!(scaled.is_ideal());
+}
