@@ -67,7 +67,7 @@ const FRACTION: &str = "between -1 and 1";
 impl PlateParams {
     /// Parses and validates a plant file's text.
     pub fn from_toml_str(text: &str) -> Result<Self, SimError> {
-        Self::parse(text, "plant file")
+        Self::parse(text, "TOML text")
     }
 
     /// Reads, parses and validates the plant file at `path`.
