@@ -4,8 +4,9 @@ use feeder_shared::model::{self, Regime};
 use feeder_shared::{Limits, TickClock, TickPlan, Waveform, WaveformSpec};
 
 use crate::error::SimError;
-use crate::plant::Contact;
-use crate::segments::scheduler_segments;
+use crate::plant::{Contact, PlateSegment};
+use crate::plate::{self, PlateParams, PlateRun, PlateRunOptions};
+use crate::segments::{exact_cycle, scheduler_segments};
 use crate::sim::{run_segments, run_table, Criteria, CycleTable, RunOptions, RunResult};
 
 /// Where the segment edges come from.
@@ -87,6 +88,25 @@ impl OperatingPoint {
             Timing::Exact => run_table(&CycleTable::exact(&self.waveform, &self.contact), options),
             Timing::Ticks(plan) => run_segments(scheduler_segments(plan), &self.contact, options),
         }
+    }
+
+    /// The commanded segments from the start, endless: the exact cycle over and over, or the
+    /// scheduler's tick plan.
+    pub fn segments(&self) -> Box<dyn Iterator<Item = PlateSegment>> {
+        match self.timing {
+            Timing::Exact => Box::new(exact_cycle(&self.waveform).into_iter().cycle()),
+            Timing::Ticks(plan) => Box::new(scheduler_segments(plan)),
+        }
+    }
+
+    /// Open loop on a real plate: the command exactly as planned, with no correction, drives
+    /// `plate` (a part at rest on the plate at rest at the centre).
+    pub fn run_plate(
+        &self,
+        plate: &PlateParams,
+        options: &PlateRunOptions,
+    ) -> Result<PlateRun, SimError> {
+        plate::run(plate, &self.contact, self.segments(), options)
     }
 
     /// Runs to steady state with [`Self::default_criteria`].

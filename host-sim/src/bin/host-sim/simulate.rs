@@ -1,11 +1,12 @@
 //! `host-sim simulate`: one operating point to steady state (or for `--cycles N`), beside the
 //! analytic models.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::Args;
 use feeder_shared::model::Regime;
+use host_sim::plate::{EndStop, PlateParams, PlateRun, PlateRunOptions};
 use host_sim::{OperatingPoint, RunOptions, SimError, Timing};
 use serde::Serialize;
 
@@ -17,6 +18,10 @@ use crate::trace::plot_trace;
 const PLOT_CYCLES: u64 = 3;
 /// Most cycles of `--cycles`: about a second of simulation, a few more with `--csv`.
 const MAX_CYCLES: u64 = 10_000_000;
+/// Cycles a real plate runs without `--cycles` (it has no steady-state detection).
+const PLATE_CYCLES: u64 = 100;
+/// The last cycles over which a real plate's feed rate and mean position are averaged.
+const PLATE_AVERAGE_CYCLES: u64 = 10;
 
 /// The flags of `host-sim simulate`.
 #[derive(Args)]
@@ -35,8 +40,42 @@ pub struct SimulateArgs {
         allow_hyphen_values = true
     )]
     cycles: Option<u64>,
+    /// The plate as a TOML plant file (host-sim/plants/); without it, the ideal plate. A plate
+    /// with any non-ideality runs --cycles (default 100) or until it hits an end stop.
+    #[arg(long, value_name = "FILE")]
+    plant: Option<PathBuf>,
+    /// The command exactly as planned, with no correction (the only mode of a plant so far).
+    #[arg(long)]
+    open_loop: bool,
     #[command(flatten)]
     output: OutputArgs,
+}
+
+/// What `--plant` adds: the plate's own motion under the open-loop command.
+#[derive(Serialize)]
+struct PlantReport {
+    plant: PathBuf,
+    open_loop: bool,
+    /// Mean plate position over the last averaged cycles.
+    plate_mean_position_m: f64,
+    /// Largest distance of the plate from the centre over the run.
+    plate_peak_excursion_m: f64,
+    /// When the plate hit an end stop; null if it never did.
+    end_stop_after_s: Option<f64>,
+    end_stop: Option<EndStop>,
+}
+
+impl PlantReport {
+    fn new(path: &Path, run: &PlateRun) -> Self {
+        PlantReport {
+            plant: path.to_path_buf(),
+            open_loop: true,
+            plate_mean_position_m: run.mean_position_m,
+            plate_peak_excursion_m: run.peak_excursion_m,
+            end_stop_after_s: run.end_stop.map(|stop| stop.time_s),
+            end_stop: run.end_stop,
+        }
+    }
 }
 
 #[derive(Serialize)]
@@ -45,7 +84,8 @@ struct SimulateReport {
     model_feed_rate_mps: Option<f64>,
     quasi_static_feed_rate_mps: f64,
     regime: &'static str,
-    stick_fraction: f64,
+    /// Null on a real plate, whose solver does not count it.
+    stick_fraction: Option<f64>,
     model_stick_fraction: f64,
     cycles: u64,
     converged: bool,
@@ -60,8 +100,11 @@ struct SimulateReport {
     mass_kg: f64,
     force_n: f64,
     clock_hz: Option<u32>,
-    plate_excursion_m: f64,
+    /// The ideal plate's peak-to-peak travel; null on a real plate (see its own fields).
+    plate_excursion_m: Option<f64>,
     cycles_per_s: f64,
+    #[serde(flatten)]
+    plant: Option<PlantReport>,
 }
 
 /// Runs `host-sim simulate`.
@@ -72,6 +115,22 @@ pub fn run(args: &SimulateArgs) -> Result<(), SimError> {
         args.contact.contact()?,
         args.timing.clock_hz(),
     )?;
+    let plate = match &args.plant {
+        Some(path) => Some((path.as_path(), PlateParams::from_path(path)?)),
+        None => None,
+    };
+    match plate {
+        Some((path, params)) if !params.is_ideal() => run_real_plate(args, &point, path, &params),
+        ideal => run_ideal_plate(args, &point, ideal),
+    }
+}
+
+/// Today's exact piecewise-linear simulator; with an ideal `--plant`, also the plate's motion.
+fn run_ideal_plate(
+    args: &SimulateArgs,
+    point: &OperatingPoint,
+    plant: Option<(&Path, PlateParams)>,
+) -> Result<(), SimError> {
     let options = RunOptions {
         fixed_cycles: args.cycles,
         record_cycles: args.output.csv.is_some(),
@@ -80,13 +139,20 @@ pub fn run(args: &SimulateArgs) -> Result<(), SimError> {
     let started = Instant::now();
     let run = point.run(&options);
     let elapsed_s = started.elapsed().as_secs_f64().max(1e-9);
+    let plant = match plant {
+        Some((path, params)) => {
+            let plate_run = point.run_plate(&params, &plate_options(run.cycles))?;
+            Some(PlantReport::new(path, &plate_run))
+        }
+        None => None,
+    };
     let prediction = point.model();
     let report = SimulateReport {
         feed_rate_mps: run.feed_rate_mps,
         model_feed_rate_mps: prediction.feed_rate_mps,
         quasi_static_feed_rate_mps: prediction.quasi_static_feed_rate_mps,
         regime: regime_name(prediction.regime),
-        stick_fraction: run.stick_fraction,
+        stick_fraction: Some(run.stick_fraction),
         model_stick_fraction: prediction.stick_fraction,
         cycles: run.cycles,
         converged: run.converged,
@@ -100,12 +166,10 @@ pub fn run(args: &SimulateArgs) -> Result<(), SimError> {
         gravity_mps2: point.contact.gravity_mps2,
         mass_kg: point.contact.mass_kg,
         force_n: point.contact.force_n,
-        clock_hz: match point.timing {
-            Timing::Exact => None,
-            Timing::Ticks(plan) => Some(plan.clock_hz),
-        },
-        plate_excursion_m: run.plate_excursion_m,
+        clock_hz: clock_hz(point),
+        plate_excursion_m: Some(run.plate_excursion_m),
         cycles_per_s: run.cycles as f64 / elapsed_s,
+        plant,
     };
     // Continues from the final state for a few cycles with the event trace on.
     let plot = |path: &Path| {
@@ -131,8 +195,92 @@ pub fn run(args: &SimulateArgs) -> Result<(), SimError> {
         )
     };
     emit(&args.output, &run.cycle_stats, plot, &report, || {
-        print_simulation(&report, &point, &args.output)
+        print_simulation(&report, point, &args.output)
     })
+}
+
+/// A plate with non-idealities under the open-loop command, for `--cycles` or until an end stop.
+fn run_real_plate(
+    args: &SimulateArgs,
+    point: &OperatingPoint,
+    path: &Path,
+    params: &PlateParams,
+) -> Result<(), SimError> {
+    if args.output.csv.is_some() || args.output.plot.is_some() {
+        return Err(SimError::BadRange {
+            what: "--csv and --plot show the ideal plate's cycles: leave them out with a plant \
+                   that is not ideal",
+        });
+    }
+    let started = Instant::now();
+    let run = point.run_plate(params, &plate_options(args.cycles.unwrap_or(PLATE_CYCLES)))?;
+    let elapsed_s = started.elapsed().as_secs_f64().max(1e-9);
+    let prediction = point.model();
+    let report = SimulateReport {
+        feed_rate_mps: run.feed_rate_mps,
+        model_feed_rate_mps: prediction.feed_rate_mps,
+        quasi_static_feed_rate_mps: prediction.quasi_static_feed_rate_mps,
+        regime: regime_name(prediction.regime),
+        stick_fraction: None,
+        model_stick_fraction: prediction.stick_fraction,
+        cycles: run.cycles,
+        converged: false,
+        freq_hz: point.waveform.frequency_hz(),
+        duty: point.waveform.duty,
+        accel_mps2: point.waveform.accel_mps2,
+        stroke_m: point.waveform.stroke_m,
+        duty_sat_nqs: prediction.duty_sat_nqs,
+        mu: point.contact.mu,
+        mu_static: point.contact.mu_static,
+        gravity_mps2: point.contact.gravity_mps2,
+        mass_kg: point.contact.mass_kg,
+        force_n: point.contact.force_n,
+        clock_hz: clock_hz(point),
+        plate_excursion_m: None,
+        cycles_per_s: run.cycles as f64 / elapsed_s,
+        plant: Some(PlantReport::new(path, &run)),
+    };
+    let rows: [(); 0] = [];
+    emit(
+        &args.output,
+        &rows,
+        |_| Ok(()),
+        &report,
+        || print_simulation(&report, point, &args.output),
+    )
+}
+
+/// `cycles` cycles, averaged over the last [`PLATE_AVERAGE_CYCLES`] (all if fewer).
+fn plate_options(cycles: u64) -> PlateRunOptions {
+    PlateRunOptions {
+        cycles,
+        average_cycles: cycles.min(PLATE_AVERAGE_CYCLES),
+    }
+}
+
+fn clock_hz(point: &OperatingPoint) -> Option<u32> {
+    match point.timing {
+        Timing::Exact => None,
+        Timing::Ticks(plan) => Some(plan.clock_hz),
+    }
+}
+
+fn print_plant(plant: &PlantReport) {
+    say!("plant             {} (open loop)", plant.plant.display());
+    say!(
+        "plate position    mean {:.6} mm over the last cycles, peak {:.6} mm from the centre",
+        plant.plate_mean_position_m * 1e3,
+        plant.plate_peak_excursion_m * 1e3
+    );
+    match plant.end_stop {
+        Some(stop) => say!(
+            "end stop          HIT after {:.6} s at {:+.3} mm, plate at {:+.4} m/s: the run ends there",
+            stop.time_s,
+            stop.position_m * 1e3,
+            stop.velocity_mps
+        ),
+        None => say!("end stop          not reached"),
+    }
 }
 
 fn regime_name(regime: Regime) -> &'static str {
@@ -201,11 +349,12 @@ fn print_simulation(report: &SimulateReport, point: &OperatingPoint, output: &Ou
         "quasi-static      {:.6} mm/s (Eq. 9)",
         report.quasi_static_feed_rate_mps * 1e3
     );
-    say!(
-        "stick fraction    {:.6} (model {:.6})",
-        report.stick_fraction,
-        report.model_stick_fraction
-    );
+    if let Some(stick_fraction) = report.stick_fraction {
+        say!(
+            "stick fraction    {stick_fraction:.6} (model {:.6})",
+            report.model_stick_fraction
+        );
+    }
     say!(
         "cycles            {} ({})",
         report.cycles,
@@ -215,7 +364,12 @@ fn print_simulation(report: &SimulateReport, point: &OperatingPoint, output: &Ou
             "not converged"
         }
     );
-    say!("plate excursion   {:.6} mm", report.plate_excursion_m * 1e3);
+    if let Some(excursion_m) = report.plate_excursion_m {
+        say!("plate excursion   {:.6} mm", excursion_m * 1e3);
+    }
+    if let Some(plant) = &report.plant {
+        print_plant(plant);
+    }
     say!(
         "speed             {:.3e} simulated cycles/s",
         report.cycles_per_s
