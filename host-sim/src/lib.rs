@@ -6,7 +6,9 @@
 //! detection; [`scenario`] is an operating point, its run and its analytic predictions;
 //! [`reference`] is a fixed-step integrator for validation; [`figures`] reproduces the paper's
 //! figures' data; [`hil`] checks a running firmware's event stream against the shared scheduler
-//! and drives the plant with its actual edge times.
+//! and drives the plant with its actual edge times. [`plate`] is a real plate under the same
+//! part (motor drive with offset, ± gains and current loop, slide friction, spring, end stops),
+//! read from a plant file; [`sensors`] are what a firmware would read from it.
 
 pub mod error;
 pub mod figures;
