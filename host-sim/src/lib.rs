@@ -4,7 +4,7 @@
 //! [`segments`] takes the plate's segments from the shared crate (exact waveform times or the
 //! scheduler's tick plan); [`sim`] runs the plant over any stream of them with steady-state
 //! detection; [`scenario`] is an operating point, its run and its analytic predictions;
-//! [`reference`] is a fixed-step integrator for validation; [`figures`] reproduces the paper's
+//! [`reference`](mod@reference) is a fixed-step integrator for validation; [`figures`] reproduces the paper's
 //! figures' data; [`hil`] checks a running firmware's event stream against the shared scheduler
 //! and drives the plant with its actual edge times. [`plate`] is a real plate under the same
 //! part (motor drive with offset, ± gains and current loop, slide friction, spring, end stops),
