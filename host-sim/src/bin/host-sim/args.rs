@@ -2,13 +2,14 @@
 //! before anything is computed.
 
 use std::fmt::Display;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use clap::Args;
 use feeder_shared::model::STANDARD_GRAVITY_MPS2;
 use feeder_shared::{Drive, WaveformSpec};
 use host_sim::plant::PAPER_PART_MASS_KG;
+use host_sim::plate::PlateParams;
 use host_sim::{Contact, SimError};
 
 use crate::plot;
@@ -136,6 +137,28 @@ impl TimingArgs {
             None
         } else {
             Some(self.clock_hz.unwrap_or(DEFAULT_CLOCK_HZ))
+        }
+    }
+}
+
+/// The plate a command drives.
+#[derive(Args, Clone)]
+pub struct PlantArgs {
+    /// The plate as a TOML plant file (host-sim/plants/); without it, the ideal plate. A plate
+    /// with any non-ideality runs --cycles (default 100) or until it hits an end stop.
+    #[arg(long, value_name = "FILE")]
+    pub plant: Option<PathBuf>,
+    /// The command exactly as planned, with no correction (the only mode of a plant so far).
+    #[arg(long)]
+    pub open_loop: bool,
+}
+
+impl PlantArgs {
+    /// The plant file and its plate, read and checked; `None` without `--plant`.
+    pub fn plate(&self) -> Result<Option<(&Path, PlateParams)>, SimError> {
+        match &self.plant {
+            Some(path) => Ok(Some((path.as_path(), PlateParams::from_path(path)?))),
+            None => Ok(None),
         }
     }
 }

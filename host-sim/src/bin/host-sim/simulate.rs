@@ -10,7 +10,7 @@ use host_sim::plate::{EndStop, PlateParams, PlateRun, PlateRunOptions};
 use host_sim::{OperatingPoint, RunOptions, SimError, Timing};
 use serde::Serialize;
 
-use crate::args::{count, ContactArgs, OutputArgs, TimingArgs, WaveArgs};
+use crate::args::{count, ContactArgs, OutputArgs, PlantArgs, TimingArgs, WaveArgs};
 use crate::output::{emit, say};
 use crate::trace::plot_trace;
 
@@ -40,20 +40,15 @@ pub struct SimulateArgs {
         allow_hyphen_values = true
     )]
     cycles: Option<u64>,
-    /// The plate as a TOML plant file (host-sim/plants/); without it, the ideal plate. A plate
-    /// with any non-ideality runs --cycles (default 100) or until it hits an end stop.
-    #[arg(long, value_name = "FILE")]
-    plant: Option<PathBuf>,
-    /// The command exactly as planned, with no correction (the only mode of a plant so far).
-    #[arg(long)]
-    open_loop: bool,
+    #[command(flatten)]
+    plant: PlantArgs,
     #[command(flatten)]
     output: OutputArgs,
 }
 
 /// What `--plant` adds: the plate's own motion under the open-loop command.
 #[derive(Serialize)]
-struct PlantReport {
+pub struct PlantReport {
     plant: PathBuf,
     open_loop: bool,
     /// Mean plate position over the last averaged cycles.
@@ -66,7 +61,7 @@ struct PlantReport {
 }
 
 impl PlantReport {
-    fn new(path: &Path, run: &PlateRun) -> Self {
+    pub fn new(path: &Path, run: &PlateRun) -> Self {
         PlantReport {
             plant: path.to_path_buf(),
             open_loop: true,
@@ -115,11 +110,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), SimError> {
         args.contact.contact()?,
         args.timing.clock_hz(),
     )?;
-    let plate = match &args.plant {
-        Some(path) => Some((path.as_path(), PlateParams::from_path(path)?)),
-        None => None,
-    };
-    match plate {
+    match args.plant.plate()? {
         Some((path, params)) if !params.is_ideal() => run_real_plate(args, &point, path, &params),
         ideal => run_ideal_plate(args, &point, ideal),
     }
@@ -265,7 +256,7 @@ fn clock_hz(point: &OperatingPoint) -> Option<u32> {
     }
 }
 
-fn print_plant(plant: &PlantReport) {
+pub fn print_plant(plant: &PlantReport) {
     say!("plant             {} (open loop)", plant.plant.display());
     say!(
         "plate position    mean {:.6} mm over the last cycles, peak {:.6} mm from the centre",
