@@ -4,7 +4,9 @@
 
 use serde::Serialize;
 
+use crate::error::SimError;
 use crate::plant::{Contact, PlateSegment};
+use crate::plate::{self, PlateParams, PlateRun, PlateRunOptions};
 use crate::sim::{run_segments, Criteria, CycleStats, RunOptions};
 
 use super::edge::{Edge, EdgeSource, EdgeTimes};
@@ -71,25 +73,7 @@ pub struct CyclePoint {
 pub fn simulate(edges: &[Edge], clock_hz: u32, contact: &Contact, times: EdgeTimes) -> PartReport {
     let clock_hz = f64::from(clock_hz.max(1));
     let edges: Vec<&Edge> = edges.iter().filter(|edge| edge.source.on(times)).collect();
-    let tick = |edge: &&Edge| match times {
-        EdgeTimes::Actual => edge.actual_tick,
-        EdgeTimes::Planned => edge.planned_tick,
-    };
-    let segments: Vec<PlateSegment> = edges
-        .iter()
-        .enumerate()
-        .map(|(index, edge)| {
-            let start_tick = tick(edge);
-            let end_tick = edges
-                .get(index + 1)
-                .map_or(start_tick.saturating_add(u64::from(edge.ticks)), tick);
-            PlateSegment {
-                duration_s: end_tick.saturating_sub(start_tick) as f64 / clock_hz,
-                accel_mps2: edge.accel_mps2,
-                starts_cycle: edge.starts_cycle,
-            }
-        })
-        .collect();
+    let segments = edge_segments(&edges, clock_hz, times);
     let options = RunOptions {
         fixed_cycles: Some(u64::MAX),
         record_cycles: true,
@@ -163,6 +147,55 @@ pub fn simulate(edges: &[Edge], clock_hz: u32, contact: &Contact, times: EdgeTim
         cycles,
         halts: plate_at_halts(&edges, &segments, clock_hz),
     }
+}
+
+/// One segment per edge of `edges` (already filtered for `times`): each level holds from its
+/// edge to the next one (the last for its planned length).
+fn edge_segments(edges: &[&Edge], clock_hz: f64, times: EdgeTimes) -> Vec<PlateSegment> {
+    let tick = |edge: &&Edge| match times {
+        EdgeTimes::Actual => edge.actual_tick,
+        EdgeTimes::Planned => edge.planned_tick,
+    };
+    edges
+        .iter()
+        .enumerate()
+        .map(|(index, edge)| {
+            let start_tick = tick(edge);
+            let end_tick = edges
+                .get(index + 1)
+                .map_or(start_tick.saturating_add(u64::from(edge.ticks)), tick);
+            PlateSegment {
+                duration_s: end_tick.saturating_sub(start_tick) as f64 / clock_hz,
+                accel_mps2: edge.accel_mps2,
+                starts_cycle: edge.starts_cycle,
+            }
+        })
+        .collect()
+}
+
+/// Runs the real plate `params` and its part on the edges of one timeline, from rest, averaging
+/// over the last [`STEADY_WINDOW_CYCLES`] cycles (all if fewer), until the edges end or the
+/// plate hits an end stop.
+pub fn simulate_plate(
+    edges: &[Edge],
+    clock_hz: u32,
+    contact: &Contact,
+    times: EdgeTimes,
+    params: &PlateParams,
+) -> Result<PlateRun, SimError> {
+    let clock_hz = f64::from(clock_hz.max(1));
+    let edges: Vec<&Edge> = edges.iter().filter(|edge| edge.source.on(times)).collect();
+    let segments = edge_segments(&edges, clock_hz, times);
+    let cycles = (segments
+        .iter()
+        .filter(|segment| segment.starts_cycle)
+        .count() as u64)
+        .max(1);
+    let options = PlateRunOptions {
+        cycles,
+        average_cycles: cycles.min(STEADY_WINDOW_CYCLES as u64),
+    };
+    plate::run(params, contact, segments, &options)
 }
 
 /// The plate's state where each `Zeroed` edge begins, integrating `segments` (one per edge)

@@ -13,9 +13,10 @@ use host_sim::hil::{
 use host_sim::SimError;
 use serde::Serialize;
 
-use crate::args::{ContactArgs, OutputArgs};
+use crate::args::{ContactArgs, OutputArgs, PlantArgs};
 use crate::output::{emit, say};
 use crate::plot::{self, Labels, Mark, Series};
+use crate::simulate::{print_plant, PlantReport};
 
 /// The flags of `host-sim hil`.
 #[derive(Args)]
@@ -28,6 +29,8 @@ pub struct HilArgs {
     open_ended: bool,
     #[command(flatten)]
     contact: ContactArgs,
+    #[command(flatten)]
+    plant: PlantArgs,
     #[command(flatten)]
     output: OutputArgs,
 }
@@ -63,6 +66,9 @@ struct HilReport<'a> {
     actual: &'a PartReport,
     /// The part on the scheduler's planned ticks.
     planned: &'a PartReport,
+    /// A plant that is not ideal: its plate under the actual edges.
+    #[serde(flatten)]
+    plant: Option<PlantReport>,
 }
 
 #[derive(Serialize)]
@@ -104,6 +110,7 @@ impl From<&EdgeWork> for WorkSummary {
 pub fn run(args: &HilArgs) -> Result<(), SimError> {
     args.output.check()?;
     let contact = args.contact.contact()?;
+    let plate = args.plant.plate()?;
     let source = args
         .input
         .as_ref()
@@ -137,6 +144,13 @@ pub fn run(args: &HilArgs) -> Result<(), SimError> {
     let (check, edges, clock_hz) = checker.finish(!args.open_ended);
     let actual = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Actual);
     let planned = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Planned);
+    let plant = match plate {
+        Some((path, params)) if !params.is_ideal() => {
+            let run = hil::simulate_plate(&edges, clock_hz, &contact, EdgeTimes::Actual, &params)?;
+            Some(PlantReport::new(path, &run))
+        }
+        _ => None,
+    };
     let passed = check.passed() && stream.errors.is_empty();
     let report = HilReport {
         passed,
@@ -177,6 +191,7 @@ pub fn run(args: &HilArgs) -> Result<(), SimError> {
         clock_hz,
         actual: &actual,
         planned: &planned,
+        plant,
     };
     emit(
         &args.output,
@@ -270,6 +285,9 @@ fn print_report(report: &HilReport, check: &CheckReport) {
             part.plate_drift_m * 1e3,
             part.duration_s
         );
+    }
+    if let Some(plant) = &report.plant {
+        print_plant(plant);
     }
     for problem in &check.problems {
         say!("  problem: {problem}");
