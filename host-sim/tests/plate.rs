@@ -148,3 +148,22 @@ fn bad_segments_and_windows_are_refused() {
     };
     assert!(plate::run(&params, &contact, constant(1.0), &window).is_err());
 }
+
+#[test]
+fn a_trace_follows_the_run_it_records() {
+    let params = PlateParams::from_path("plants/realistic.toml".as_ref()).unwrap();
+    let contact = Contact::new(1.0, 1.0, 9.81, 1e-4, 0.0).unwrap();
+    let run = plate::run(&params, &contact, cycles(0.586), &options(3)).unwrap();
+    let (traced, points) = plate::trace(&params, &contact, cycles(0.586), &options(3)).unwrap();
+    assert_eq!(traced, run);
+    assert!(points.len() >= 3 * 6 * plate::TRACE_SAMPLES_PER_SEGMENT / 2);
+    assert!(points.windows(2).all(|w| w[0].time_s <= w[1].time_s));
+    let peak_m = points
+        .iter()
+        .map(|p| p.plate_position_m.abs())
+        .fold(0.0, f64::max);
+    assert!(peak_m <= run.peak_excursion_m * (1.0 + 1e-12));
+    if let (Some(stop), Some(last)) = (run.end_stop, points.last()) {
+        assert_eq!(last.time_s, stop.time_s);
+    }
+}

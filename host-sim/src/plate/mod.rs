@@ -15,4 +15,6 @@ pub mod reference;
 pub mod run;
 
 pub use params::PlateParams;
-pub use run::{run, EndStop, PlateRun, PlateRunOptions};
+pub use run::{
+    run, trace, EndStop, PlatePoint, PlateRun, PlateRunOptions, TRACE_SAMPLES_PER_SEGMENT,
+};

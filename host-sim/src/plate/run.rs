@@ -3,7 +3,7 @@
 use crate::error::SimError;
 use crate::plant::{Contact, PlateSegment};
 
-use super::linear::{State, F, P, Q, U, V, X};
+use super::linear::{self, Matrix, State, F, P, Q, U, V, X};
 use super::motion::{Event, Model, Part, Slide, Steppers};
 use super::params::PlateParams;
 
@@ -40,6 +40,20 @@ pub struct PlateRun {
     pub end_stop: Option<EndStop>,
 }
 
+/// The plate and the part at one instant of a traced run.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct PlatePoint {
+    pub time_s: f64,
+    pub plate_position_m: f64,
+    pub plate_velocity_mps: f64,
+    pub part_velocity_mps: f64,
+    /// The segment's commanded acceleration.
+    pub command_mps2: f64,
+}
+
+/// Samples per segment of a trace, evenly spaced, besides every event.
+pub const TRACE_SAMPLES_PER_SEGMENT: usize = 32;
+
 /// At most this many events within one segment before the run is refused as chatter.
 const MAX_EVENTS_PER_SEGMENT: usize = 10_000;
 
@@ -51,6 +65,68 @@ pub fn run<I>(
     contact: &Contact,
     segments: I,
     options: &PlateRunOptions,
+) -> Result<PlateRun, SimError>
+where
+    I: IntoIterator<Item = PlateSegment>,
+{
+    run_recording(params, contact, segments, options, None)
+}
+
+/// [`run()`], also recording the plate and the part at every event and at
+/// [`TRACE_SAMPLES_PER_SEGMENT`] instants per segment.
+pub fn trace<I>(
+    params: &PlateParams,
+    contact: &Contact,
+    segments: I,
+    options: &PlateRunOptions,
+) -> Result<(PlateRun, Vec<PlatePoint>), SimError>
+where
+    I: IntoIterator<Item = PlateSegment>,
+{
+    let mut points = Vec::new();
+    let run = run_recording(params, contact, segments, options, Some(&mut points))?;
+    Ok((run, points))
+}
+
+fn point(time_s: f64, z: &State, part: Part, command_mps2: f64) -> PlatePoint {
+    PlatePoint {
+        time_s,
+        plate_position_m: z[X],
+        plate_velocity_mps: z[V],
+        part_velocity_mps: if part == Part::Stuck { z[V] } else { z[U] },
+        command_mps2,
+    }
+}
+
+/// Pushes the samples of a segment of `duration_s` (from `start_s`) that fall in
+/// `[from_s, until_s)` of it, from the state `z` at `from_s` under `a`.
+#[allow(clippy::too_many_arguments)]
+fn sample(
+    points: &mut Vec<PlatePoint>,
+    a: &Matrix,
+    z: &State,
+    part: Part,
+    command_mps2: f64,
+    (start_s, duration_s): (f64, f64),
+    from_s: f64,
+    until_s: f64,
+) {
+    let step_s = duration_s / TRACE_SAMPLES_PER_SEGMENT as f64;
+    for k in 0..TRACE_SAMPLES_PER_SEGMENT {
+        let at_s = k as f64 * step_s;
+        if at_s >= from_s && at_s < until_s {
+            let zt = linear::apply(&linear::exp(a, at_s - from_s), z);
+            points.push(point(start_s + at_s, &zt, part, command_mps2));
+        }
+    }
+}
+
+fn run_recording<I>(
+    params: &PlateParams,
+    contact: &Contact,
+    segments: I,
+    options: &PlateRunOptions,
+    mut points: Option<&mut Vec<PlatePoint>>,
 ) -> Result<PlateRun, SimError>
 where
     I: IntoIterator<Item = PlateSegment>,
@@ -111,6 +187,12 @@ where
             let (next, end_z) = model.next_event(&mut steppers, &a, &z, slide, part, rest_s, |x| {
                 peak_m = peak_m.max(x.abs());
             });
+            if let Some(points) = points.as_deref_mut() {
+                let until_s = next.map_or(segment.duration_s, |(_, t)| offset_s + t);
+                let span = (time_s, segment.duration_s);
+                let command = segment.accel_mps2;
+                sample(points, &a, &z, part, command, span, offset_s, until_s);
+            }
             z = end_z;
             if part == Part::Stuck {
                 z[U] = z[V];
@@ -129,11 +211,17 @@ where
                         velocity_mps: z[V],
                     });
                     peak_m = peak_m.max(x_lim);
+                    if let Some(points) = points.as_deref_mut() {
+                        points.push(point(time_s + offset_s + t, &z, part, segment.accel_mps2));
+                    }
                     break 'segments;
                 }
                 Some((event, t)) => {
                     offset_s += t;
                     model.apply(event, &mut z, &mut slide, &mut part, target_n);
+                    if let Some(points) = points.as_deref_mut() {
+                        points.push(point(time_s + offset_s, &z, part, segment.accel_mps2));
+                    }
                 }
             }
         }

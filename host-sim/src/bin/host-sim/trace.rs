@@ -4,10 +4,11 @@
 use std::path::Path;
 
 use clap::Args;
+use host_sim::plate::{self, PlateParams, PlatePoint, PlateRunOptions};
 use host_sim::sim::TracePoint;
 use host_sim::{OperatingPoint, RunOptions, SimError};
 
-use crate::args::{count, ContactArgs, OutputArgs, TimingArgs, WaveArgs};
+use crate::args::{count, ContactArgs, OutputArgs, PlantArgs, TimingArgs, WaveArgs};
 use crate::output::{emit, say};
 use crate::plot::{self, Labels, Mark, Series};
 
@@ -33,6 +34,8 @@ pub struct TraceArgs {
     )]
     cycles: u64,
     #[command(flatten)]
+    plant: PlantArgs,
+    #[command(flatten)]
     output: OutputArgs,
 }
 
@@ -44,6 +47,11 @@ pub fn run(args: &TraceArgs) -> Result<(), SimError> {
         args.contact.contact()?,
         args.timing.clock_hz(),
     )?;
+    if let Some((_, params)) = args.plant.plate()? {
+        if !params.is_ideal() {
+            return run_real_plate(args, &point, &params);
+        }
+    }
     let options = RunOptions {
         fixed_cycles: Some(args.cycles),
         trace: true,
@@ -63,6 +71,80 @@ pub fn run(args: &TraceArgs) -> Result<(), SimError> {
     emit(&args.output, &run.trace, plot, &run.trace, || {
         print_trace(&run.trace)
     })
+}
+
+/// The trace of a plate with non-idealities, from rest, for `--cycles` or until an end stop.
+fn run_real_plate(
+    args: &TraceArgs,
+    point: &OperatingPoint,
+    params: &PlateParams,
+) -> Result<(), SimError> {
+    let options = PlateRunOptions {
+        cycles: args.cycles,
+        average_cycles: args.cycles,
+    };
+    let (_, trace) = plate::trace(params, &point.contact, point.segments(), &options)?;
+    let plot = |path: &Path| {
+        let title = format!(
+            "Real plate, open loop: {} Hz, d = {}, a_max = {:.1} m/s², μ = {}",
+            point.waveform.frequency_hz(),
+            point.waveform.duty,
+            point.waveform.accel_mps2,
+            point.contact.mu
+        );
+        plot_plate_trace(path, &title, &trace)
+    };
+    emit(&args.output, &trace, plot, &trace, || {
+        print_plate_trace(&trace)
+    })
+}
+
+fn print_plate_trace(trace: &[PlatePoint]) {
+    say!(
+        "{:>12} {:>14} {:>14} {:>14} {:>14}",
+        "time ms",
+        "plate mm",
+        "plate mm/s",
+        "part mm/s",
+        "command m/s²"
+    );
+    for p in trace {
+        say!(
+            "{:>12.6} {:>14.6} {:>14.6} {:>14.6} {:>14.3}",
+            p.time_s * 1e3,
+            p.plate_position_m * 1e3,
+            p.plate_velocity_mps * 1e3,
+            p.part_velocity_mps * 1e3,
+            p.command_mps2
+        );
+    }
+}
+
+/// Plate and part velocity through a real plate's `trace`, beside the plate's position (mm,
+/// scaled ×100 to share the axis) that shows its drift.
+fn plot_plate_trace(path: &Path, title: &str, trace: &[PlatePoint]) -> Result<(), SimError> {
+    let line = |name: &str, color, value: fn(&PlatePoint) -> f64| Series {
+        name: name.into(),
+        points: trace.iter().map(|p| (p.time_s * 1e3, value(p))).collect(),
+        mark: Mark::Line,
+        color,
+    };
+    let series = [
+        line("plate velocity (mm/s)", 0, |p| p.plate_velocity_mps * 1e3),
+        line("part velocity (mm/s)", 1, |p| p.part_velocity_mps * 1e3),
+        line("plate position (mm × 100)", 2, |p| {
+            p.plate_position_m * 1e5
+        }),
+    ];
+    plot::chart(
+        path,
+        Labels {
+            title,
+            x: "time (ms)",
+            y: "velocity (mm/s), position (mm × 100)",
+        },
+        &series,
+    )
 }
 
 fn print_trace(trace: &[TracePoint]) {
