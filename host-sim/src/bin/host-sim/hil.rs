@@ -66,9 +66,20 @@ struct HilReport<'a> {
     actual: &'a PartReport,
     /// The part on the scheduler's planned ticks.
     planned: &'a PartReport,
+    /// A plant that is not ideal: the part's feed rate on its plate, on the actual edges and
+    /// on the planned ticks (each until an end stop).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    plant_feed_rate_mps: Option<PlantFeedRates>,
     /// A plant that is not ideal: its plate under the actual edges.
     #[serde(flatten)]
     plant: Option<PlantReport>,
+}
+
+/// The part's feed rate on a real plate, over its last cycles.
+#[derive(Serialize)]
+struct PlantFeedRates {
+    actual: f64,
+    planned: f64,
 }
 
 #[derive(Serialize)]
@@ -144,12 +155,17 @@ pub fn run(args: &HilArgs) -> Result<(), SimError> {
     let (check, edges, clock_hz) = checker.finish(!args.open_ended);
     let actual = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Actual);
     let planned = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Planned);
-    let plant = match plate {
+    let (plant_feed_rate_mps, plant) = match plate {
         Some((path, params)) if !params.is_ideal() => {
-            let run = hil::simulate_plate(&edges, clock_hz, &contact, EdgeTimes::Actual, &params)?;
-            Some(PlantReport::new(path, &run))
+            let on = |times| hil::simulate_plate(&edges, clock_hz, &contact, times, &params);
+            let (actual, planned) = (on(EdgeTimes::Actual)?, on(EdgeTimes::Planned)?);
+            let rates = PlantFeedRates {
+                actual: actual.feed_rate_mps,
+                planned: planned.feed_rate_mps,
+            };
+            (Some(rates), Some(PlantReport::new(path, &actual)))
         }
-        _ => None,
+        _ => (None, None),
     };
     let passed = check.passed() && stream.errors.is_empty();
     let report = HilReport {
@@ -191,6 +207,7 @@ pub fn run(args: &HilArgs) -> Result<(), SimError> {
         clock_hz,
         actual: &actual,
         planned: &planned,
+        plant_feed_rate_mps,
         plant,
     };
     emit(
@@ -284,6 +301,13 @@ fn print_report(report: &HilReport, check: &CheckReport) {
             part.plate_excursion_m * 1e3,
             part.plate_drift_m * 1e3,
             part.duration_s
+        );
+    }
+    if let Some(rates) = &report.plant_feed_rate_mps {
+        say!(
+            "  real plate      feed {:.3} mm/s on the actual edges, {:.3} mm/s on the planned ticks",
+            rates.actual * 1e3,
+            rates.planned * 1e3
         );
     }
     if let Some(plant) = &report.plant {
