@@ -145,7 +145,7 @@ impl TimingArgs {
 #[derive(Args, Clone)]
 pub struct PlantArgs {
     /// The plate as a TOML plant file (host-sim/plants/); without it, the ideal plate. A plate
-    /// with any non-ideality runs --cycles (default 100) or until it hits an end stop.
+    /// with any non-ideality runs until its command ends or it hits an end stop.
     #[arg(long, value_name = "FILE")]
     pub plant: Option<PathBuf>,
     /// The command exactly as planned, with no correction (the only mode of a plant so far).
