@@ -7,14 +7,21 @@
 //! (remainder below ½¹⁸/18! ≈ 6·10⁻²², under the unit roundoff) and squared `s` times.
 //! Root finding on linear functionals `c·z(t)` is bracketed (Illinois) to adjacent floats.
 
-/// State: plate position, velocity, drive force, part velocity, part position, `∫x dt`, 1.
+/// Length of the state vector `z`.
 pub const N: usize = 7;
+/// Index in `z` of the plate's position `x` (m).
 pub const X: usize = 0;
+/// Index in `z` of the plate's velocity `v` (m/s).
 pub const V: usize = 1;
+/// Index in `z` of the drive's force `F` (N).
 pub const F: usize = 2;
+/// Index in `z` of the part's velocity (m/s).
 pub const U: usize = 3;
+/// Index in `z` of the part's position (m).
 pub const P: usize = 4;
+/// Index in `z` of `∫x dt` (m·s), for the plate's mean position.
 pub const Q: usize = 5;
+/// Index in `z` of the constant 1 that carries the input column.
 pub const ONE: usize = 6;
 
 pub type State = [f64; N];
