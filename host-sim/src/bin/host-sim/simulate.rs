@@ -102,6 +102,47 @@ struct SimulateReport {
     plant: Option<PlantReport>,
 }
 
+/// What a run measured, beside the operating point and the model.
+struct Measured {
+    feed_rate_mps: f64,
+    stick_fraction: Option<f64>,
+    cycles: u64,
+    converged: bool,
+    plate_excursion_m: Option<f64>,
+    cycles_per_s: f64,
+}
+
+impl SimulateReport {
+    /// The report of `measured` at `point`, with the shared model's prediction beside it.
+    fn new(point: &OperatingPoint, measured: Measured, plant: Option<PlantReport>) -> Self {
+        let prediction = point.model();
+        SimulateReport {
+            feed_rate_mps: measured.feed_rate_mps,
+            model_feed_rate_mps: prediction.feed_rate_mps,
+            quasi_static_feed_rate_mps: prediction.quasi_static_feed_rate_mps,
+            regime: regime_name(prediction.regime),
+            stick_fraction: measured.stick_fraction,
+            model_stick_fraction: prediction.stick_fraction,
+            cycles: measured.cycles,
+            converged: measured.converged,
+            freq_hz: point.waveform.frequency_hz(),
+            duty: point.waveform.duty,
+            accel_mps2: point.waveform.accel_mps2,
+            stroke_m: point.waveform.stroke_m,
+            duty_sat_nqs: prediction.duty_sat_nqs,
+            mu: point.contact.mu,
+            mu_static: point.contact.mu_static,
+            gravity_mps2: point.contact.gravity_mps2,
+            mass_kg: point.contact.mass_kg,
+            force_n: point.contact.force_n,
+            clock_hz: clock_hz(point),
+            plate_excursion_m: measured.plate_excursion_m,
+            cycles_per_s: measured.cycles_per_s,
+            plant,
+        }
+    }
+}
+
 /// Runs `host-sim simulate`.
 pub fn run(args: &SimulateArgs) -> Result<(), SimError> {
     args.output.check()?;
@@ -137,31 +178,18 @@ fn run_ideal_plate(
         }
         None => None,
     };
-    let prediction = point.model();
-    let report = SimulateReport {
-        feed_rate_mps: run.feed_rate_mps,
-        model_feed_rate_mps: prediction.feed_rate_mps,
-        quasi_static_feed_rate_mps: prediction.quasi_static_feed_rate_mps,
-        regime: regime_name(prediction.regime),
-        stick_fraction: Some(run.stick_fraction),
-        model_stick_fraction: prediction.stick_fraction,
-        cycles: run.cycles,
-        converged: run.converged,
-        freq_hz: point.waveform.frequency_hz(),
-        duty: point.waveform.duty,
-        accel_mps2: point.waveform.accel_mps2,
-        stroke_m: point.waveform.stroke_m,
-        duty_sat_nqs: prediction.duty_sat_nqs,
-        mu: point.contact.mu,
-        mu_static: point.contact.mu_static,
-        gravity_mps2: point.contact.gravity_mps2,
-        mass_kg: point.contact.mass_kg,
-        force_n: point.contact.force_n,
-        clock_hz: clock_hz(point),
-        plate_excursion_m: Some(run.plate_excursion_m),
-        cycles_per_s: run.cycles as f64 / elapsed_s,
+    let report = SimulateReport::new(
+        point,
+        Measured {
+            feed_rate_mps: run.feed_rate_mps,
+            stick_fraction: Some(run.stick_fraction),
+            cycles: run.cycles,
+            converged: run.converged,
+            plate_excursion_m: Some(run.plate_excursion_m),
+            cycles_per_s: run.cycles as f64 / elapsed_s,
+        },
         plant,
-    };
+    );
     // Continues from the final state for a few cycles with the event trace on.
     let plot = |path: &Path| {
         let steady = RunOptions {
@@ -206,31 +234,18 @@ fn run_real_plate(
     let started = Instant::now();
     let run = point.run_plate(params, &plate_options(args.cycles.unwrap_or(PLATE_CYCLES)))?;
     let elapsed_s = started.elapsed().as_secs_f64().max(1e-9);
-    let prediction = point.model();
-    let report = SimulateReport {
-        feed_rate_mps: run.feed_rate_mps,
-        model_feed_rate_mps: prediction.feed_rate_mps,
-        quasi_static_feed_rate_mps: prediction.quasi_static_feed_rate_mps,
-        regime: regime_name(prediction.regime),
-        stick_fraction: None,
-        model_stick_fraction: prediction.stick_fraction,
-        cycles: run.cycles,
-        converged: false,
-        freq_hz: point.waveform.frequency_hz(),
-        duty: point.waveform.duty,
-        accel_mps2: point.waveform.accel_mps2,
-        stroke_m: point.waveform.stroke_m,
-        duty_sat_nqs: prediction.duty_sat_nqs,
-        mu: point.contact.mu,
-        mu_static: point.contact.mu_static,
-        gravity_mps2: point.contact.gravity_mps2,
-        mass_kg: point.contact.mass_kg,
-        force_n: point.contact.force_n,
-        clock_hz: clock_hz(point),
-        plate_excursion_m: None,
-        cycles_per_s: run.cycles as f64 / elapsed_s,
-        plant: Some(PlantReport::new(path, &run)),
-    };
+    let report = SimulateReport::new(
+        point,
+        Measured {
+            feed_rate_mps: run.feed_rate_mps,
+            stick_fraction: None,
+            cycles: run.cycles,
+            converged: false,
+            plate_excursion_m: None,
+            cycles_per_s: run.cycles as f64 / elapsed_s,
+        },
+        Some(PlantReport::new(path, &run)),
+    );
     let rows: [(); 0] = [];
     emit(
         &args.output,
