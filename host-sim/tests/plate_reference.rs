@@ -103,6 +103,33 @@ fn exact_solver_agrees_with_the_refined_reference_with_slide_friction() {
 }
 
 #[test]
+fn exact_solver_agrees_where_the_current_loop_cannot_be_split_off() {
+    // The slide's damping rate (c + b)/M equals the current loop's 2π·f_c: the two modes
+    // coincide, so no step is coarser than the fine one.
+    let current_bandwidth_hz = 1000.0;
+    let params = PlateParams {
+        spring_npm: 0.0,
+        spring_damping_nspm: 0.0,
+        viscous_friction_nspm: 1.5 * 2.0 * std::f64::consts::PI * current_bandwidth_hz,
+        force_limit_n: None,
+        ..lagging_sprung_plate()
+    };
+    assert_agree(&params, 0.586, 0.3, 0.3);
+}
+
+#[test]
+fn exact_solver_agrees_on_a_soft_spring_with_long_coarse_steps() {
+    let params = PlateParams {
+        spring_npm: 50.0,
+        spring_damping_nspm: 0.5,
+        ..lagging_sprung_plate()
+    };
+    for (duty, mu, mu_static) in [(0.586, 0.3, 0.3), (0.65, 0.2, 0.5)] {
+        assert_agree(&params, duty, mu, mu_static);
+    }
+}
+
+#[test]
 fn the_realistic_plant_hits_its_end_stop_when_the_reference_does() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("plants/realistic.toml");
     let params = PlateParams::from_path(&path).unwrap();

@@ -3,7 +3,8 @@
 //! same part under the same Coulomb contact as [`crate::plant`].
 //!
 //! [`params`] reads the plate from a TOML plant file; [`motion`] solves the plate and part
-//! exactly between events ([`linear`]: matrix exponential and bracketed root finding); [`run()`]
+//! exactly between events ([`linear`]: matrix exponential and bracketed root finding;
+//! [`regime`]: what is kept of each regime); [`run()`]
 //! drives them over the commanded segments; [`mod@reference`] is a fixed-step integrator for
 //! validation only. When [`PlateParams::is_ideal`] holds, callers keep the exact
 //! piecewise-linear simulator of [`crate::sim`].
@@ -12,6 +13,7 @@ pub mod linear;
 pub mod motion;
 pub mod params;
 pub mod reference;
+pub mod regime;
 pub mod run;
 
 pub use params::PlateParams;

@@ -4,8 +4,9 @@ use crate::error::SimError;
 use crate::plant::{Contact, PlateSegment};
 
 use super::linear::{self, Matrix, State, F, P, Q, U, V, X};
-use super::motion::{Event, Model, Part, Slide, Steppers};
+use super::motion::{Event, Model, Part, Slide};
 use super::params::PlateParams;
+use super::regime::Regimes;
 
 /// How long to run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -138,7 +139,7 @@ where
         });
     }
     let model = Model::new(*params, *contact);
-    let mut steppers = Steppers::default();
+    let mut regimes = Regimes::default();
     let mut z: State = [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0];
     let mut slide = if params.coulomb_friction_n > 0.0 {
         Slide::Stuck
@@ -181,17 +182,18 @@ where
         }
         let mut offset_s = 0.0;
         for _ in 0..MAX_EVENTS_PER_SEGMENT {
-            model.settle(&mut z, &mut slide, &mut part, target_n);
-            let a = model.matrix(slide, part, target_n);
+            model.settle(&mut z, &mut slide, &mut part);
+            let regime = regimes.get(&model, slide, part, target_n);
+            let a = &regime.a;
             let rest_s = (segment.duration_s - offset_s).max(0.0);
-            let (next, end_z) = model.next_event(&mut steppers, &a, &z, slide, part, rest_s, |x| {
+            let (next, end_z) = model.next_event(regime, &z, rest_s, |x| {
                 peak_m = peak_m.max(x.abs());
             });
             if let Some(points) = points.as_deref_mut() {
                 let until_s = next.map_or(segment.duration_s, |(_, t)| offset_s + t);
                 let span = (time_s, segment.duration_s);
                 let command = segment.accel_mps2;
-                sample(points, &a, &z, part, command, span, offset_s, until_s);
+                sample(points, a, &z, part, command, span, offset_s, until_s);
             }
             z = end_z;
             if part == Part::Stuck {
@@ -218,7 +220,7 @@ where
                 }
                 Some((event, t)) => {
                     offset_s += t;
-                    model.apply(event, &mut z, &mut slide, &mut part, target_n);
+                    model.apply(event, &mut z, &mut slide, &mut part);
                     if let Some(points) = points.as_deref_mut() {
                         points.push(point(time_s + offset_s, &z, part, segment.accel_mps2));
                     }
