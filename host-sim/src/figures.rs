@@ -1,6 +1,7 @@
 //! The data of the paper's figures, simulated beside the shared analytic models.
 //!
-//! * [`sweep`]: feed rate vs duty for several `a_max` (Fig. 4, Fig. 9).
+//! * [`sweep`]: feed rate vs duty for several `a_max` (Fig. 4, Fig. 9); [`plate_sweep`] the same
+//!   on a real plate in open loop.
 //! * [`viscosity`]: steady velocity vs external force and the least-squares `K` (Fig. 10, Eq. 10).
 //! * [`saturation`]: `d_sat,nqs` vs `a_max` for several `μ` (Fig. 7, Eq. 16).
 
@@ -11,6 +12,7 @@ use serde::Serialize;
 
 use crate::error::SimError;
 use crate::plant::Contact;
+use crate::plate::{PlateParams, PlateRunOptions};
 use crate::scenario::OperatingPoint;
 
 /// One point of a duty sweep.
@@ -47,22 +49,7 @@ pub fn sweep(
     clock_hz: Option<u32>,
     on_point: &(dyn Fn() + Sync),
 ) -> Result<Vec<SweepPoint>, SimError> {
-    if accels_mps2.is_empty() || duties.is_empty() {
-        return Err(SimError::BadRange {
-            what: "a sweep needs at least one a_max and one duty",
-        });
-    }
-    let mut points = Vec::with_capacity(accels_mps2.len() * duties.len());
-    for &accel_mps2 in accels_mps2 {
-        for &duty in duties {
-            let spec = WaveformSpec {
-                period_s,
-                duty,
-                drive: Drive::Accel { accel_mps2 },
-            };
-            points.push(OperatingPoint::new(spec, *contact, clock_hz)?);
-        }
-    }
+    let points = sweep_grid(period_s, accels_mps2, duties, contact, clock_hz)?;
     Ok(points
         .par_iter()
         .map(|point| {
@@ -81,6 +68,85 @@ pub fn sweep(
             }
         })
         .collect())
+}
+
+/// One point of a duty sweep on a real plate under the open-loop command.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PlateSweepPoint {
+    pub accel_mps2: f64,
+    pub duty: f64,
+    /// The part's mean velocity over the averaged cycles on the real plate.
+    pub feed_rate_mps: f64,
+    /// The ideal plate's non-quasi-static model (as in [`SweepPoint`]), for comparison.
+    pub model_feed_rate_mps: Option<f64>,
+    /// The plate's mean position over the averaged cycles.
+    pub mean_position_m: f64,
+    /// Largest distance of the plate from the centre over the run.
+    pub peak_excursion_m: f64,
+    /// Cycles completed: fewer than asked for when an end stop ended the run.
+    pub cycles: u64,
+    /// When the plate hit an end stop; `None` if it never did.
+    pub end_stop_after_s: Option<f64>,
+}
+
+/// Runs every (`a_max`, duty) pair on the real plate `plate` from rest for `options`, in
+/// parallel; `on_point` as in [`sweep`].
+#[allow(clippy::too_many_arguments)]
+pub fn plate_sweep(
+    period_s: f64,
+    accels_mps2: &[f64],
+    duties: &[f64],
+    contact: &Contact,
+    clock_hz: Option<u32>,
+    plate: &PlateParams,
+    options: &PlateRunOptions,
+    on_point: &(dyn Fn() + Sync),
+) -> Result<Vec<PlateSweepPoint>, SimError> {
+    let points = sweep_grid(period_s, accels_mps2, duties, contact, clock_hz)?;
+    points
+        .par_iter()
+        .map(|point| {
+            let run = point.run_plate(plate, options)?;
+            on_point();
+            Ok(PlateSweepPoint {
+                accel_mps2: point.waveform.accel_mps2,
+                duty: point.waveform.duty,
+                feed_rate_mps: run.feed_rate_mps,
+                model_feed_rate_mps: point.model().feed_rate_mps,
+                mean_position_m: run.mean_position_m,
+                peak_excursion_m: run.peak_excursion_m,
+                cycles: run.cycles,
+                end_stop_after_s: run.end_stop.map(|stop| stop.time_s),
+            })
+        })
+        .collect()
+}
+
+/// The operating points of a sweep, `a_max` by `a_max`, each over every duty.
+fn sweep_grid(
+    period_s: f64,
+    accels_mps2: &[f64],
+    duties: &[f64],
+    contact: &Contact,
+    clock_hz: Option<u32>,
+) -> Result<Vec<OperatingPoint>, SimError> {
+    if accels_mps2.is_empty() || duties.is_empty() {
+        return Err(SimError::BadRange {
+            what: "a sweep needs at least one a_max and one duty",
+        });
+    }
+    let mut points = Vec::with_capacity(accels_mps2.len() * duties.len());
+    for &accel_mps2 in accels_mps2 {
+        for &duty in duties {
+            let spec = WaveformSpec {
+                period_s,
+                duty,
+                drive: Drive::Accel { accel_mps2 },
+            };
+            points.push(OperatingPoint::new(spec, *contact, clock_hz)?);
+        }
+    }
+    Ok(points)
 }
 
 /// One point of the force sweep.

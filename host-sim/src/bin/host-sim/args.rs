@@ -9,7 +9,7 @@ use clap::Args;
 use feeder_shared::model::STANDARD_GRAVITY_MPS2;
 use feeder_shared::{Drive, WaveformSpec};
 use host_sim::plant::PAPER_PART_MASS_KG;
-use host_sim::plate::PlateParams;
+use host_sim::plate::{PlateParams, PlateRunOptions};
 use host_sim::{Contact, SimError};
 
 use crate::plot;
@@ -18,6 +18,10 @@ use crate::plot;
 const DEFAULT_CLOCK_HZ: u32 = 1_000_000;
 /// Peak-to-peak stroke when neither `--stroke-m` nor `--accel-mps2` is given.
 const DEFAULT_STROKE_M: f64 = 0.0025;
+/// Cycles a real plate runs when a command is not told (it has no steady-state detection).
+pub const PLATE_CYCLES: u64 = 100;
+/// The last cycles over which a real plate's feed rate and mean position are averaged.
+pub const PLATE_AVERAGE_CYCLES: u64 = 10;
 /// Most operating points one command simulates to steady state: a_max values × duties for
 /// `sweep`, forces for `viscosity`, a_max values × μ values for `saturation` (40 runs each).
 pub const MAX_POINTS: usize = 10_000;
@@ -154,12 +158,26 @@ pub struct PlantArgs {
 }
 
 impl PlantArgs {
-    /// The plant file and its plate, read and checked; `None` without `--plant`.
+    /// The plant file and its plate, read and checked; `None` without `--plant`, whose
+    /// `--open-loop` alone is refused.
     pub fn plate(&self) -> Result<Option<(&Path, PlateParams)>, SimError> {
         match &self.plant {
             Some(path) => Ok(Some((path.as_path(), PlateParams::from_path(path)?))),
+            None if self.open_loop => Err(SimError::BadRange {
+                what: "--open-loop says how the plate of a plant file is driven: give it with \
+                       --plant FILE",
+            }),
             None => Ok(None),
         }
+    }
+}
+
+/// `cycles` cycles of a real plate, averaged over the last [`PLATE_AVERAGE_CYCLES`] (all if
+/// fewer).
+pub fn plate_options(cycles: u64) -> PlateRunOptions {
+    PlateRunOptions {
+        cycles,
+        average_cycles: cycles.min(PLATE_AVERAGE_CYCLES),
     }
 }
 

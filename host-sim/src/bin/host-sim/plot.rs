@@ -26,6 +26,8 @@ pub enum Mark {
     Line,
     DashedLine,
     Points,
+    /// Hollow circles: points set apart from the filled ones of the same colour.
+    OpenPoints,
 }
 
 /// One named series of `(x, y)` points with a palette colour index.
@@ -132,6 +134,9 @@ fn draw<DB: DrawingBackend>(
             }
             Mark::Points => {
                 chart.draw_series(points.map(|point| Circle::new(point, 3, color.filled())))
+            }
+            Mark::OpenPoints => {
+                chart.draw_series(points.map(|point| Circle::new(point, 4, color.stroke_width(1))))
             }
         }
         .map_err(text)?;

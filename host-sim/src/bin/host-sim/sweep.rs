@@ -1,13 +1,16 @@
-//! `host-sim sweep`: feed rate vs duty for one or more a_max, beside the models (Fig. 4, Fig. 9).
+//! `host-sim sweep`: feed rate vs duty for one or more a_max, beside the models (Fig. 4, Fig. 9),
+//! on the ideal plate or, with `--plant`, on a real one in open loop.
 
 use std::path::Path;
 
 use clap::Args;
-use host_sim::figures::{self, SweepPoint};
-use host_sim::SimError;
+use host_sim::figures::{self, PlateSweepPoint, SweepPoint};
+use host_sim::plate::PlateParams;
+use host_sim::{Contact, SimError};
 
 use crate::args::{
-    check_grid, count, ContactArgs, FrequencyArgs, OutputArgs, TimingArgs, MAX_POINTS,
+    check_grid, count, plate_options, ContactArgs, FrequencyArgs, OutputArgs, PlantArgs,
+    TimingArgs, MAX_POINTS, PLATE_CYCLES,
 };
 use crate::output::{emit, progress, say};
 use crate::plot::{self, Labels, Mark, Series};
@@ -15,6 +18,8 @@ use crate::plot::{self, Labels, Mark, Series};
 /// Upper end of the swept duties: closer to 1 the first `+a` segment, `T(1 − d)²/(2(d + P/T))`,
 /// gets shorter than a tick of a 1 MHz clock at 50 Hz and the tick plan is refused.
 const MAX_DUTY: f64 = 0.98;
+/// Most cycles of `--cycles`: each point of a real plate runs them all unless it hits an end stop.
+const MAX_PLATE_CYCLES: u64 = 100_000;
 
 /// The flags of `host-sim sweep`.
 #[derive(Args)]
@@ -42,6 +47,17 @@ pub struct SweepArgs {
     contact: ContactArgs,
     #[command(flatten)]
     timing: TimingArgs,
+    /// Cycles each point runs from rest on a plate that is not ideal (default 100, at most
+    /// 100 000); the ideal plate runs each point to steady state.
+    #[arg(
+        long,
+        value_name = "N",
+        value_parser = count(1, MAX_PLATE_CYCLES),
+        allow_hyphen_values = true
+    )]
+    cycles: Option<u64>,
+    #[command(flatten)]
+    plant: PlantArgs,
     #[command(flatten)]
     output: OutputArgs,
 }
@@ -57,12 +73,31 @@ pub fn run(args: &SweepArgs) -> Result<(), SimError> {
     )?;
     let contact = args.contact.contact()?;
     let duties = figures::duty_grid(0.5, MAX_DUTY, args.duties);
+    match args.plant.plate()? {
+        Some((_, params)) if !params.is_ideal() => {
+            run_real_plate(args, period_s, &duties, &contact, &params)
+        }
+        _ if args.cycles.is_some() => Err(SimError::BadRange {
+            what: "--cycles sets how long each point runs on a plate that is not ideal (--plant \
+                   FILE); the ideal plate runs each point to steady state",
+        }),
+        _ => run_ideal_plate(args, period_s, &duties, &contact),
+    }
+}
+
+/// Each point to steady state on the ideal plate, beside the models.
+fn run_ideal_plate(
+    args: &SweepArgs,
+    period_s: f64,
+    duties: &[f64],
+    contact: &Contact,
+) -> Result<(), SimError> {
     let progress = progress(args.accel_mps2.len() * duties.len(), args.output.json);
     let points = figures::sweep(
         period_s,
         &args.accel_mps2,
-        &duties,
-        &contact,
+        duties,
+        contact,
         args.timing.clock_hz(),
         &|| progress.inc(1),
     )?;
@@ -73,6 +108,122 @@ pub fn run(args: &SweepArgs) -> Result<(), SimError> {
         |path| plot_sweep(path, args, &points),
         &points,
         || print_table(&points),
+    )
+}
+
+/// Each point on the real plate `params` from rest, for `--cycles` or until an end stop.
+fn run_real_plate(
+    args: &SweepArgs,
+    period_s: f64,
+    duties: &[f64],
+    contact: &Contact,
+    params: &PlateParams,
+) -> Result<(), SimError> {
+    let options = plate_options(args.cycles.unwrap_or(PLATE_CYCLES));
+    let progress = progress(args.accel_mps2.len() * duties.len(), args.output.json);
+    let points = figures::plate_sweep(
+        period_s,
+        &args.accel_mps2,
+        duties,
+        contact,
+        args.timing.clock_hz(),
+        params,
+        &options,
+        &|| progress.inc(1),
+    )?;
+    progress.finish_and_clear();
+    emit(
+        &args.output,
+        &points,
+        |path| plot_plate_sweep(path, args, &points),
+        &points,
+        || print_plate_table(&points),
+    )
+}
+
+fn print_plate_table(points: &[PlateSweepPoint]) {
+    say!(
+        "{:>10} {:>7} {:>12} {:>12} {:>12} {:>12} {:>7}",
+        "a_max",
+        "duty",
+        "plate mm/s",
+        "nqs mm/s",
+        "mean x mm",
+        "end stop s",
+        "cycles"
+    );
+    for point in points {
+        say!(
+            "{:>10.1} {:>7.4} {:>12.5} {:>12} {:>12.5} {:>12} {:>7}",
+            point.accel_mps2,
+            point.duty,
+            point.feed_rate_mps * 1e3,
+            point
+                .model_feed_rate_mps
+                .map_or("-".into(), |v| format!("{:.5}", v * 1e3)),
+            point.mean_position_m * 1e3,
+            point
+                .end_stop_after_s
+                .map_or("-".into(), |t| format!("{t:.6}")),
+            point.cycles
+        );
+    }
+}
+
+/// The real plate's feed rate vs duty, hollow where the run ended at an end stop, beside the
+/// ideal plate's model.
+fn plot_plate_sweep(
+    path: &Path,
+    args: &SweepArgs,
+    points: &[PlateSweepPoint],
+) -> Result<(), SimError> {
+    let mut series = Vec::new();
+    for (index, &accel) in args.accel_mps2.iter().enumerate() {
+        let of_accel: Vec<&PlateSweepPoint> =
+            points.iter().filter(|p| p.accel_mps2 == accel).collect();
+        let feed = |stopped: bool| -> Vec<(f64, f64)> {
+            of_accel
+                .iter()
+                .filter(|p| p.end_stop_after_s.is_some() == stopped)
+                .map(|p| (p.duty, p.feed_rate_mps * 1e3))
+                .collect()
+        };
+        for (name, stopped, mark) in [
+            ("real plate", false, Mark::Points),
+            ("real plate, ended at an end stop", true, Mark::OpenPoints),
+        ] {
+            let points = feed(stopped);
+            if !points.is_empty() {
+                series.push(Series {
+                    name: format!("{name}, a = {accel} m/s²"),
+                    points,
+                    mark,
+                    color: index,
+                });
+            }
+        }
+        series.push(Series {
+            name: format!("ideal plate (Eq. 15/18), a = {accel}"),
+            points: of_accel
+                .iter()
+                .filter_map(|p| p.model_feed_rate_mps.map(|v| (p.duty, v * 1e3)))
+                .collect(),
+            mark: Mark::DashedLine,
+            color: index,
+        });
+    }
+    let title = format!(
+        "Feed rate vs duty on a real plate in open loop at {} Hz, μ = {}",
+        args.frequency.freq_hz, args.contact.friction.mu
+    );
+    plot::chart(
+        path,
+        Labels {
+            title: &title,
+            x: "duty d",
+            y: "feed rate (mm/s)",
+        },
+        &series,
     )
 }
 
