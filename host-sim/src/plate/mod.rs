@@ -4,9 +4,9 @@
 //!
 //! [`params`] reads the plate from a TOML plant file; [`motion`] solves the plate and part
 //! exactly between events ([`linear`]: matrix exponential and bracketed root finding;
-//! [`regime`]: what is kept of each regime); [`run()`]
-//! drives them over the commanded segments; [`mod@reference`] is a fixed-step integrator for
-//! validation only. When [`PlateParams::is_ideal`] holds, callers keep the exact
+//! [`regime`]: what is kept of each regime); [`Stepper`] advances them one commanded segment
+//! at a time and [`run()`] over a stream of segments; [`Trajectory`] is the recorded motion at
+//! any instant, for sensors; [`mod@reference`] is a fixed-step integrator for validation only. When [`PlateParams::is_ideal`] holds, callers keep the exact
 //! piecewise-linear simulator of [`crate::sim`].
 
 pub mod linear;
@@ -15,8 +15,10 @@ pub mod params;
 pub mod reference;
 pub mod regime;
 pub mod run;
+pub mod stepper;
+pub mod trajectory;
 
 pub use params::PlateParams;
-pub use run::{
-    run, trace, EndStop, PlatePoint, PlateRun, PlateRunOptions, TRACE_SAMPLES_PER_SEGMENT,
-};
+pub use run::{run, trace, PlateRun, PlateRunOptions};
+pub use stepper::{EndStop, PlatePoint, Stepper, TRACE_SAMPLES_PER_SEGMENT};
+pub use trajectory::Trajectory;

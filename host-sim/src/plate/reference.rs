@@ -12,7 +12,8 @@ use crate::error::SimError;
 use crate::plant::{Contact, PlateSegment};
 
 use super::params::PlateParams;
-use super::run::{EndStop, PlateRun, PlateRunOptions};
+use super::run::{PlateRun, PlateRunOptions};
+use super::stepper::EndStop;
 
 type State = [f64; 6];
 
