@@ -5,12 +5,59 @@ mod support;
 
 use std::time::Duration;
 
-use support::{run, scratch_dir};
+use support::{golden_log, run, scratch_dir};
 
 const RUN_TIME: Duration = Duration::from_secs(60);
 
 fn plant(name: &str) -> String {
     format!("{}/plants/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `hil --plant` with a plate that is not ideal writes the trace of that plate on the actual
+/// edges, ending where the JSON says it hit its end stop.
+#[test]
+fn hil_on_a_real_plate_writes_the_real_plate_s_trace() {
+    let dir = scratch_dir("hil-plant");
+    let csv = dir.join("trace.csv");
+    let svg = dir.join("trace.svg");
+    let log = golden_log();
+    let outcome = run(
+        &[
+            "hil",
+            "--input",
+            log.to_str().expect("UTF-8 path"),
+            "--plant",
+            &plant("realistic.toml"),
+            "--csv",
+            csv.to_str().expect("UTF-8 path"),
+            "--plot",
+            svg.to_str().expect("UTF-8 path"),
+            "--json",
+        ],
+        RUN_TIME,
+    );
+    assert_eq!(outcome.code(), Some(0), "{outcome:#?}");
+    let report: serde_json::Value = serde_json::from_str(&outcome.stdout).expect("JSON");
+    let end_stop_s = report["end_stop_after_s"].as_f64().expect("an end stop");
+    let text = std::fs::read_to_string(&csv).expect("the CSV");
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some("time_s,plate_position_m,plate_velocity_mps,part_velocity_mps,command_mps2")
+    );
+    let last: Vec<f64> = lines
+        .last()
+        .expect("rows")
+        .split(',')
+        .map(|field| field.parse().expect("a number"))
+        .collect();
+    assert!(
+        (last[0] - end_stop_s).abs() < 1e-12,
+        "{last:?}, end stop at {end_stop_s} s"
+    );
+    assert!((last[1] - 0.005).abs() < 1e-12, "{last:?}");
+    let chart = std::fs::read_to_string(&svg).expect("the chart");
+    assert!(chart.contains("plate position"));
 }
 
 /// `sweep --plant` reports each point's end stop in the JSON and the CSV: a time where the

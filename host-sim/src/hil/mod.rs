@@ -27,7 +27,9 @@ pub mod stream;
 pub use check::Checker;
 pub use edge::{Edge, EdgeSource, EdgeTimes};
 pub use feeder_shared::event::{Event, SegmentEvent, EVENT_MARKER};
-pub use part::{simulate, simulate_plate, CyclePoint, HaltPoint, PartReport, STEADY_WINDOW_CYCLES};
+pub use part::{
+    simulate, simulate_plate, trace_plate, CyclePoint, HaltPoint, PartReport, STEADY_WINDOW_CYCLES,
+};
 pub use report::{slack_bucket, CheckReport, EdgeWork};
 pub use stream::{
     excerpt, parse_line, read_line, read_stream, HilError, LogLine, ParseError, Stream,

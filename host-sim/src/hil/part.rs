@@ -6,7 +6,7 @@ use serde::Serialize;
 
 use crate::error::SimError;
 use crate::plant::{Contact, PlateSegment};
-use crate::plate::{self, PlateParams, PlateRun, PlateRunOptions};
+use crate::plate::{self, PlateParams, PlatePoint, PlateRun, PlateRunOptions};
 use crate::sim::{run_segments, Criteria, CycleStats, RunOptions};
 
 use super::edge::{Edge, EdgeSource, EdgeTimes};
@@ -183,6 +183,29 @@ pub fn simulate_plate(
     times: EdgeTimes,
     params: &PlateParams,
 ) -> Result<PlateRun, SimError> {
+    let (segments, options) = plate_segments(edges, clock_hz, times);
+    plate::run(params, contact, segments, &options)
+}
+
+/// [`simulate_plate`], also recording the plate and the part through the run as
+/// [`plate::trace`] does.
+pub fn trace_plate(
+    edges: &[Edge],
+    clock_hz: u32,
+    contact: &Contact,
+    times: EdgeTimes,
+    params: &PlateParams,
+) -> Result<(PlateRun, Vec<PlatePoint>), SimError> {
+    let (segments, options) = plate_segments(edges, clock_hz, times);
+    plate::trace(params, contact, segments, &options)
+}
+
+/// The segments of one timeline's edges and a real plate's run over all of them.
+fn plate_segments(
+    edges: &[Edge],
+    clock_hz: u32,
+    times: EdgeTimes,
+) -> (Vec<PlateSegment>, PlateRunOptions) {
     let clock_hz = f64::from(clock_hz.max(1));
     let edges: Vec<&Edge> = edges.iter().filter(|edge| edge.source.on(times)).collect();
     let segments = edge_segments(&edges, clock_hz, times);
@@ -195,7 +218,7 @@ pub fn simulate_plate(
         cycles,
         average_cycles: cycles.min(STEADY_WINDOW_CYCLES as u64),
     };
-    plate::run(params, contact, segments, &options)
+    (segments, options)
 }
 
 /// The plate's state where each `Zeroed` edge begins, integrating `segments` (one per edge)

@@ -1,5 +1,6 @@
 //! `host-sim hil`: read a running firmware's decoded event stream, check every edge against the
-//! shared scheduler and simulate the part on the recorded edges.
+//! shared scheduler and simulate the part on the recorded edges; with a plant that is not ideal,
+//! also on its plate, whose trace on the actual edges the CSV and the chart then show.
 
 use std::fs::File;
 use std::io::BufReader;
@@ -10,6 +11,7 @@ use feeder_emulator::{ICOUNT_SHIFT, NS_PER_INSTRUCTION};
 use host_sim::hil::{
     self, CheckReport, Checker, EdgeTimes, EdgeWork, Event, HaltPoint, PartReport,
 };
+use host_sim::plate::PlatePoint;
 use host_sim::SimError;
 use serde::Serialize;
 
@@ -17,6 +19,7 @@ use crate::args::{ContactArgs, OutputArgs, PlantArgs};
 use crate::output::{emit, say};
 use crate::plot::{self, Labels, Mark, Series};
 use crate::simulate::{print_plant, PlantReport};
+use crate::trace::plot_plate_trace;
 
 /// The flags of `host-sim hil`.
 #[derive(Args)]
@@ -155,17 +158,28 @@ pub fn run(args: &HilArgs) -> Result<(), SimError> {
     let (check, edges, clock_hz) = checker.finish(!args.open_ended);
     let actual = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Actual);
     let planned = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Planned);
-    let (plant_feed_rate_mps, plant) = match plate {
+    // The real plate on the actual edges, traced when the CSV or the chart shows it.
+    let traced = args.output.csv.is_some() || args.output.plot.is_some();
+    let (plant_feed_rate_mps, plant, plate_trace) = match plate {
         Some((path, params)) if !params.is_ideal() => {
-            let on = |times| hil::simulate_plate(&edges, clock_hz, &contact, times, &params);
-            let (actual, planned) = (on(EdgeTimes::Actual)?, on(EdgeTimes::Planned)?);
+            let (actual, trace) = if traced {
+                let (run, trace) =
+                    hil::trace_plate(&edges, clock_hz, &contact, EdgeTimes::Actual, &params)?;
+                (run, Some((path, trace)))
+            } else {
+                let run =
+                    hil::simulate_plate(&edges, clock_hz, &contact, EdgeTimes::Actual, &params)?;
+                (run, None)
+            };
+            let planned =
+                hil::simulate_plate(&edges, clock_hz, &contact, EdgeTimes::Planned, &params)?;
             let rates = PlantFeedRates {
                 actual: actual.feed_rate_mps,
                 planned: planned.feed_rate_mps,
             };
-            (Some(rates), Some(PlantReport::new(path, &actual)))
+            (Some(rates), Some(PlantReport::new(path, &actual)), trace)
         }
-        _ => (None, None),
+        _ => (None, None, None),
     };
     let passed = check.passed() && stream.errors.is_empty();
     let report = HilReport {
@@ -210,13 +224,28 @@ pub fn run(args: &HilArgs) -> Result<(), SimError> {
         plant_feed_rate_mps,
         plant,
     };
-    emit(
-        &args.output,
-        &actual.cycles,
-        |path| plot_run(path, &actual, &planned),
-        &report,
-        || print_report(&report, &check),
-    )?;
+    let shown = if plate_trace.is_some() {
+        "the real plate and its part on the actual edges"
+    } else {
+        "per-cycle means on the ideal plate"
+    };
+    let report_text = || print_report(&report, &check, &args.output, shown);
+    match &plate_trace {
+        Some((plant, trace)) => emit(
+            &args.output,
+            trace,
+            |path| plot_plate_run(path, plant, trace),
+            &report,
+            report_text,
+        ),
+        None => emit(
+            &args.output,
+            &actual.cycles,
+            |path| plot_run(path, &actual, &planned),
+            &report,
+            report_text,
+        ),
+    }?;
     if passed {
         Ok(())
     } else {
@@ -226,7 +255,8 @@ pub fn run(args: &HilArgs) -> Result<(), SimError> {
     }
 }
 
-fn print_report(report: &HilReport, check: &CheckReport) {
+/// The report; `shown` says what the CSV and the chart, if written, hold.
+fn print_report(report: &HilReport, check: &CheckReport, output: &OutputArgs, shown: &str) {
     let microseconds = |ticks: i64| ticks as f64 * 1e6 / f64::from(report.clock_hz.max(1));
     say!(
         "firmware in the loop: {}",
@@ -319,6 +349,21 @@ fn print_report(report: &HilReport, check: &CheckReport) {
     for error in &report.firmware_errors {
         say!("  firmware: {error}");
     }
+    for (what, path) in [("csv", &output.csv), ("plot", &output.plot)] {
+        if let Some(path) = path {
+            say!("  {what:<16}{} ({shown})", path.display());
+        }
+    }
+}
+
+/// The real plate and its part through the run on the actual edges, until the edges end or an
+/// end stop.
+fn plot_plate_run(path: &Path, plant: &Path, trace: &[PlatePoint]) -> Result<(), SimError> {
+    let title = format!(
+        "Firmware in the loop on {}, open loop: actual edges",
+        plant.display()
+    );
+    plot_plate_trace(path, &title, trace)
 }
 
 /// Per-cycle mean velocities through the run: the part on both timings and the plate's drift.

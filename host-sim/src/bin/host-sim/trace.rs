@@ -122,7 +122,7 @@ fn print_plate_trace(trace: &[PlatePoint]) {
 
 /// Plate and part velocity through a real plate's `trace`, beside the plate's position (mm,
 /// scaled ×100 to share the axis) that shows its drift.
-fn plot_plate_trace(path: &Path, title: &str, trace: &[PlatePoint]) -> Result<(), SimError> {
+pub fn plot_plate_trace(path: &Path, title: &str, trace: &[PlatePoint]) -> Result<(), SimError> {
     let line = |name: &str, color, value: fn(&PlatePoint) -> f64| Series {
         name: name.into(),
         points: trace.iter().map(|p| (p.time_s * 1e3, value(p))).collect(),
