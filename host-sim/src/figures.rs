@@ -2,6 +2,8 @@
 //!
 //! * [`sweep`]: feed rate vs duty for several `a_max` (Fig. 4, Fig. 9); [`plate_sweep`] the same
 //!   on a real plate in open loop.
+//! * [`open_loop_drift`]: what each non-ideality of a real plate does to one operating point in
+//!   open loop ([`open_loop_cases`]).
 //! * [`viscosity`]: steady velocity vs external force and the least-squares `K` (Fig. 10, Eq. 10).
 //! * [`saturation`]: `d_sat,nqs` vs `a_max` for several `μ` (Fig. 7, Eq. 16).
 
@@ -12,7 +14,7 @@ use serde::Serialize;
 
 use crate::error::SimError;
 use crate::plant::Contact;
-use crate::plate::{PlateParams, PlateRunOptions};
+use crate::plate::{self, EndStop, PlateParams, PlatePoint, PlateRunOptions};
 use crate::scenario::OperatingPoint;
 
 /// One point of a duty sweep.
@@ -322,6 +324,119 @@ pub fn saturation(
                 accel_mps2,
                 model_duty: model::duty_sat_non_quasi_static(accel_mps2, &contact.friction()),
                 duty: 0.5 * (low + high),
+            })
+        })
+        .collect()
+}
+
+/// Moving mass of the plates of [`open_loop_cases`]: `realistic.toml`'s.
+pub const CASE_PLATE_MASS_KG: f64 = 1.5;
+
+/// A plate of [`open_loop_drift`], named for its report.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlateCase {
+    pub name: &'static str,
+    pub plate: PlateParams,
+}
+
+/// The ideal plate, each non-ideality of `host-sim/plants/realistic.toml` alone (the lag also
+/// at 159 Hz) on a [`CASE_PLATE_MASS_KG`] plate without end stops, then `realistic.toml` itself.
+pub fn open_loop_cases() -> Result<Vec<PlateCase>, SimError> {
+    let ideal = PlateParams {
+        mass_kg: CASE_PLATE_MASS_KG,
+        full_scale_accel_mps2: 200.0,
+        ..PlateParams::default()
+    };
+    let realistic = PlateParams::from_toml_str(include_str!("../plants/realistic.toml"))?;
+    let case = |name, plate| PlateCase { name, plate };
+    Ok(vec![
+        case("none (ideal)", ideal),
+        case(
+            "zero offset 0.5 % of 200 m/s²",
+            PlateParams {
+                zero_offset_fraction: 0.005,
+                ..ideal
+            },
+        ),
+        case(
+            "gains +2 % / −2 %",
+            PlateParams {
+                gain_positive: 1.02,
+                gain_negative: 0.98,
+                ..ideal
+            },
+        ),
+        case(
+            "current loop 1 kHz",
+            PlateParams {
+                current_bandwidth_hz: Some(1000.0),
+                ..ideal
+            },
+        ),
+        case(
+            "current loop 159 Hz (ODrive's default)",
+            PlateParams {
+                current_bandwidth_hz: Some(159.0),
+                ..ideal
+            },
+        ),
+        case(
+            "slide friction 2 N + 5 N·s/m",
+            PlateParams {
+                coulomb_friction_n: 2.0,
+                viscous_friction_nspm: 5.0,
+                ..ideal
+            },
+        ),
+        case("realistic.toml", realistic),
+    ])
+}
+
+/// One plate of [`open_loop_drift`] under the open-loop command.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DriftCase {
+    pub name: &'static str,
+    /// The part's mean velocity over the averaged cycles.
+    pub feed_rate_mps: f64,
+    /// The plate's mean position over the same cycles.
+    pub mean_position_m: f64,
+    /// Largest distance of the plate from the centre over the run.
+    pub peak_excursion_m: f64,
+    /// Cycles completed: fewer than asked for when an end stop ended the run.
+    pub cycles: u64,
+    /// When the plate hit an end stop; `None` if it never did.
+    pub end_stop_after_s: Option<f64>,
+    pub end_stop: Option<EndStop>,
+    /// The plate and the part through the run, if traced.
+    #[serde(skip)]
+    pub trace: Vec<PlatePoint>,
+}
+
+/// Runs `point`'s open-loop command on every plate of `cases` from rest for `options`, in
+/// parallel; with `traced`, also records each run ([`crate::plate::trace`]).
+pub fn open_loop_drift(
+    point: &OperatingPoint,
+    cases: &[PlateCase],
+    options: &PlateRunOptions,
+    traced: bool,
+) -> Result<Vec<DriftCase>, SimError> {
+    cases
+        .par_iter()
+        .map(|case| {
+            let (run, trace) = if traced {
+                plate::trace(&case.plate, &point.contact, point.segments(), options)?
+            } else {
+                (point.run_plate(&case.plate, options)?, Vec::new())
+            };
+            Ok(DriftCase {
+                name: case.name,
+                feed_rate_mps: run.feed_rate_mps,
+                mean_position_m: run.mean_position_m,
+                peak_excursion_m: run.peak_excursion_m,
+                cycles: run.cycles,
+                end_stop_after_s: run.end_stop.map(|stop| stop.time_s),
+                end_stop: run.end_stop,
+                trace,
             })
         })
         .collect()

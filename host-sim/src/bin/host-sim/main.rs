@@ -4,6 +4,7 @@
 //! they produce, [`plot`] draws their charts and [`refusal`] reports what they cannot run.
 
 mod args;
+mod drift;
 mod hil;
 mod output;
 mod plot;
@@ -45,6 +46,9 @@ enum Command {
     /// Check a running firmware's decoded event stream against the shared scheduler, edge by
     /// edge, and simulate the part on its actual edge times.
     Hil(hil::HilArgs),
+    /// What each non-ideality of a real plate does to one operating point in open loop: feed
+    /// rate, plate position, end stop.
+    Drift(drift::DriftArgs),
 }
 
 fn main() -> ExitCode {
@@ -65,6 +69,7 @@ fn main() -> ExitCode {
         Command::Saturation(args) => saturation::run(&args),
         Command::Trace(args) => trace::run(&args),
         Command::Hil(args) => hil::run(&args),
+        Command::Drift(args) => drift::run(&args),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

@@ -11,19 +11,23 @@ use host_sim::SimError;
 
 const SIZE: (u32, u32) = (960, 600);
 const FONT: &str = "sans-serif";
-const PALETTE: [RGBColor; 6] = [
+const PALETTE: [RGBColor; 8] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
     RGBColor(44, 160, 44),
     RGBColor(255, 127, 14),
     RGBColor(148, 103, 189),
     RGBColor(23, 190, 207),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
 ];
 
 /// How a series is drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Mark {
     Line,
+    /// A one-pixel line, for long traces that would merge into a band at the usual width.
+    ThinLine,
     DashedLine,
     Points,
     /// Hollow circles: points set apart from the filled ones of the same colour.
@@ -129,6 +133,7 @@ fn draw<DB: DrawingBackend>(
         let points = one.points.iter().copied();
         let drawn = match one.mark {
             Mark::Line => chart.draw_series(LineSeries::new(points, color.stroke_width(2))),
+            Mark::ThinLine => chart.draw_series(LineSeries::new(points, color.stroke_width(1))),
             Mark::DashedLine => {
                 chart.draw_series(DashedLineSeries::new(points, 8, 5, color.stroke_width(2)))
             }
