@@ -2,7 +2,7 @@
 //! current loop, a force limit, slide friction, a centring spring and end stops, carrying the
 //! same part under the same Coulomb contact as [`crate::plant`].
 //!
-//! [`params`] reads the plate from a TOML plant file; [`motion`] solves the plate and part
+//! [`params`] are the plate's keys of a TOML plant file ([`PlantFile`]: with its sensors); [`motion`] solves the plate and part
 //! exactly between events ([`linear`]: matrix exponential and bracketed root finding;
 //! [`regime`]: what is kept of each regime); [`Stepper`] advances them one commanded segment
 //! at a time and [`run()`] over a stream of segments; [`Trajectory`] is the recorded motion at
@@ -12,6 +12,7 @@
 pub mod linear;
 pub mod motion;
 pub mod params;
+pub mod plant_file;
 pub mod reference;
 pub mod regime;
 pub mod run;
@@ -19,6 +20,7 @@ pub mod stepper;
 pub mod trajectory;
 
 pub use params::PlateParams;
+pub use plant_file::PlantFile;
 pub use run::{run, trace, PlateRun, PlateRunOptions};
 pub use stepper::{EndStop, PlatePoint, Stepper, TRACE_SAMPLES_PER_SEGMENT};
 pub use trajectory::Trajectory;

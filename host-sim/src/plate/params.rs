@@ -10,6 +10,8 @@ use serde::Deserialize;
 
 use crate::error::SimError;
 
+use super::plant_file::PlantFile;
+
 /// A linear-motor slide carrying the plate, and the drive that powers it.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -65,28 +67,14 @@ const NON_NEGATIVE: &str = "finite and ≥ 0";
 const FRACTION: &str = "between -1 and 1";
 
 impl PlateParams {
-    /// Parses and validates a plant file's text.
+    /// Parses and validates a plant file's text (its `[sensors]` table, if any, too).
     pub fn from_toml_str(text: &str) -> Result<Self, SimError> {
-        Self::parse(text, "TOML text")
+        Ok(PlantFile::from_toml_str("TOML text", text)?.plate)
     }
 
-    /// Reads, parses and validates the plant file at `path`.
+    /// Reads, parses and validates the plant file at `path` (its `[sensors]` table, if any, too).
     pub fn from_path(path: &Path) -> Result<Self, SimError> {
-        let source = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|error| SimError::Input {
-            source: source.clone(),
-            reason: error.to_string(),
-        })?;
-        Self::parse(&text, &source)
-    }
-
-    fn parse(text: &str, source: &str) -> Result<Self, SimError> {
-        let params: PlateParams = toml::from_str(text).map_err(|error| SimError::PlantFile {
-            source: source.to_string(),
-            reason: error.message().to_string(),
-        })?;
-        params.validate()?;
-        Ok(params)
+        Ok(PlantFile::from_path(path)?.plate)
     }
 
     /// Refuses every value outside its physical range, naming the key.
