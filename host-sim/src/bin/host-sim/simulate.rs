@@ -6,11 +6,13 @@ use std::time::Instant;
 
 use clap::Args;
 use feeder_shared::model::Regime;
-use host_sim::plate::{EndStop, PlateParams, PlateRun, PlateRunOptions};
+use host_sim::plate::{EndStop, PlateParams, PlateRun};
 use host_sim::{OperatingPoint, RunOptions, SimError, Timing};
 use serde::Serialize;
 
-use crate::args::{count, ContactArgs, OutputArgs, PlantArgs, TimingArgs, WaveArgs};
+use crate::args::{
+    count, plate_options, ContactArgs, OutputArgs, PlantArgs, TimingArgs, WaveArgs, PLATE_CYCLES,
+};
 use crate::output::{emit, say};
 use crate::trace::plot_trace;
 
@@ -18,10 +20,6 @@ use crate::trace::plot_trace;
 const PLOT_CYCLES: u64 = 3;
 /// Most cycles of `--cycles`: about a second of simulation, a few more with `--csv`.
 const MAX_CYCLES: u64 = 10_000_000;
-/// Cycles a real plate runs without `--cycles` (it has no steady-state detection).
-const PLATE_CYCLES: u64 = 100;
-/// The last cycles over which a real plate's feed rate and mean position are averaged.
-const PLATE_AVERAGE_CYCLES: u64 = 10;
 
 /// The flags of `host-sim simulate`.
 #[derive(Args)]
@@ -254,14 +252,6 @@ fn run_real_plate(
         &report,
         || print_simulation(&report, point, &args.output),
     )
-}
-
-/// `cycles` cycles, averaged over the last [`PLATE_AVERAGE_CYCLES`] (all if fewer).
-fn plate_options(cycles: u64) -> PlateRunOptions {
-    PlateRunOptions {
-        cycles,
-        average_cycles: cycles.min(PLATE_AVERAGE_CYCLES),
-    }
 }
 
 fn clock_hz(point: &OperatingPoint) -> Option<u32> {
