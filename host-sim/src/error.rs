@@ -3,6 +3,7 @@
 
 use core::fmt;
 
+use feeder_shared::closed_loop::{IdentifyError, LoopError};
 use feeder_shared::number::Significant;
 use feeder_shared::{Error, Quantity};
 
@@ -55,6 +56,12 @@ pub enum SimError {
         t_s: f64,
         reason: &'static str,
     },
+    /// A run needs a sensor its plant file does not list.
+    MissingSensor { sensor: &'static str },
+    /// The drive's identification at start-up refused to let the feeder run.
+    Identification(IdentifyError),
+    /// The closed loop gave up at this time.
+    Loop { time_s: f64, error: LoopError },
 }
 
 impl fmt::Display for SimError {
@@ -135,6 +142,16 @@ impl fmt::Display for SimError {
                 f,
                 "sensor `{sensor}` at t = {} s: {reason}",
                 Significant(*t_s)
+            ),
+            SimError::MissingSensor { sensor } => write!(
+                f,
+                "the closed loop needs a `[sensors.{sensor}]` table in the plant file"
+            ),
+            SimError::Identification(error) => write!(f, "identification refused: {error}"),
+            SimError::Loop { time_s, error } => write!(
+                f,
+                "the closed loop stopped at t = {} s: {error}",
+                Significant(*time_s)
             ),
         }
     }

@@ -10,6 +10,7 @@
 //! part (motor drive with offset, ± gains and current loop, slide friction, spring, end stops),
 //! read from a plant file; [`sensors`] are what a firmware would read from it.
 
+pub mod closed_loop;
 pub mod error;
 pub mod figures;
 pub mod hil;

@@ -19,6 +19,11 @@ pub struct EncoderConfig {
 }
 
 impl EncoderConfig {
+    /// The count at `position_m`, `None` beyond 2^53 counts.
+    pub fn count(&self, position_m: f64) -> Option<i64> {
+        count_of(position_m, self.resolution_m)
+    }
+
     pub fn validate(&self) -> Result<(), SimError> {
         check_value(SENSOR, "resolution_m", self.resolution_m, true)?;
         if let Some(index_m) = self.index_m {

@@ -1,0 +1,351 @@
+//! The shared closed loop against a real plate: the drive identified from a probe, then the
+//! shared scheduler's cycles trimmed at every boundary by the shared cycle-rate loop, from the
+//! plate's encoder latched at each cycle's start tick and turning tick.
+
+use feeder_shared::closed_loop::{
+    identify, CommandSegment, CycleLoop, CycleShape, Identified, IdentifyLimits, Latch, LoopError,
+    LoopLimits, Stroke,
+};
+use feeder_shared::{Scheduler, SegmentKind, TickPlan, Waveform};
+
+use crate::error::SimError;
+use crate::plant::{Contact, PlateSegment};
+use crate::plate::{EndStop, PlantFile, Stepper};
+use crate::segments::exact_cycle;
+use crate::sensors::{Encoder, EncoderConfig};
+
+/// The plate counts as centred within this of its centre at a cycle start …
+const CENTRED_M: f64 = 20e-6;
+/// … for this many idle cycles in a row, and the feeder starts.
+const CENTRED_CYCLES: u32 = 5;
+/// Centring that takes longer than this (from the probe's start) fails.
+const CENTRING_TIMEOUT_S: f64 = 5.0;
+
+/// How the closed loop runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClosedLoopOptions {
+    /// Cycles of motion after the probe, soft start included.
+    pub cycles: u64,
+    /// Soft start over this many cycles.
+    pub ramp_cycles: u16,
+    /// Cycles of the probe, at `probe_fraction` of the waveform's levels.
+    pub probe_cycles: u32,
+    pub probe_fraction: f64,
+    /// Interval of the encoder's reads during the probe.
+    pub probe_sample_s: f64,
+    /// A new plan requested at the start of this cycle (counted from the first after the probe).
+    pub plan_change: Option<(u64, TickPlan)>,
+    /// The last cycles over which the feed rate is averaged.
+    pub average_cycles: u64,
+    pub limits: LoopLimits,
+}
+
+impl ClosedLoopOptions {
+    /// `cycles` of motion with a 25-cycle soft start after a 3-cycle probe at 30 % amplitude
+    /// read every millisecond; the loop may add up to 10 m/s² and trim the stroke by ±20 %,
+    /// and gives up 4 mm from centre.
+    pub fn new(cycles: u64) -> Self {
+        ClosedLoopOptions {
+            cycles,
+            ramp_cycles: 25,
+            probe_cycles: 3,
+            probe_fraction: 0.3,
+            probe_sample_s: 1e-3,
+            plan_change: None,
+            average_cycles: 50.min(cycles),
+            limits: LoopLimits {
+                correction_max_mps2: 10.0,
+                amplitude_max: 0.2,
+                position_error_max_m: 4e-3,
+            },
+        }
+    }
+}
+
+/// One cycle of the closed loop.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct CycleRecord {
+    pub cycle: u64,
+    /// Time at the cycle's start, the probe included.
+    pub time_s: f64,
+    /// The plate's position latched by the encoder at the cycle's start tick.
+    pub start_m: f64,
+    /// The plate's mean position over the cycle (exact).
+    pub mean_position_m: f64,
+    /// The part's displacement at the cycle's start.
+    pub part_m: f64,
+    pub positive_trim: f64,
+    pub negative_trim: f64,
+    pub bias_mps2: f64,
+    /// True for a cycle of the start-up's centring, before the scheduler runs.
+    pub centring: bool,
+    /// True for an idle cycle of the scheduler.
+    pub idle: bool,
+}
+
+/// The outcome of a closed-loop run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClosedLoopRun {
+    pub identified: Identified,
+    pub cycles: Vec<CycleRecord>,
+    /// Mean part velocity over the last `average_cycles` cycles.
+    pub feed_rate_mps: f64,
+    /// The largest `|mean position|` of a cycle after the soft start.
+    pub worst_mean_position_m: f64,
+    pub end_stop: Option<EndStop>,
+}
+
+/// Identifies the drive, then runs the loop. An identification the shared limits refuse, a loop
+/// that gives up and a plant file without an encoder are errors; an end stop ends the run.
+pub fn run_closed_loop(
+    plant: &PlantFile,
+    contact: &Contact,
+    waveform: &Waveform,
+    plan: TickPlan,
+    options: &ClosedLoopOptions,
+) -> Result<ClosedLoopRun, SimError> {
+    let encoder_config = plant
+        .sensors
+        .encoder
+        .ok_or(SimError::MissingSensor { sensor: "encoder" })?;
+    let mut stepper = Stepper::new(&plant.plate, contact)?.with_trajectory();
+    let identified = probe(&mut stepper, encoder_config, waveform, options)?;
+    let mut cycle_loop = CycleLoop::new(&identified, options.limits);
+    let mut scheduler = Scheduler::new(plan, options.ramp_cycles);
+    // Cycles in a row the plate has started centred while the loop centres it.
+    let mut centred = 0;
+    let mut records = Vec::new();
+    let mut trims = cycle_loop.trims();
+    // The last cycle's start and turning positions and its plan, for its stroke.
+    let mut last: Option<(f64, f64, CycleShape)> = None;
+    let mut worst_mean_position_m = 0.0_f64;
+    let mut cycle = 0;
+    while cycle < options.cycles {
+        if let Some((at, new_plan)) = options.plan_change {
+            if cycle == at {
+                scheduler.set_plan(new_plan)?;
+            }
+        }
+        // Until the scheduler runs, the soft start's first cycle, over and over, keeps the slide
+        // moving while the loop centres it.
+        let centring = !scheduler.run_requested();
+        let (commanded, idle) = if centring {
+            let mut first = scheduler.clone();
+            first.start();
+            next_cycle(&mut first)
+        } else {
+            next_cycle(&mut scheduler)
+        };
+        let shape = if idle {
+            CycleShape::idle(commanded[0].duration_s)
+        } else {
+            CycleShape::new(&commanded).ok_or(SimError::BadRange {
+                what: "a planned cycle must turn back",
+            })?
+        };
+        let start_s = stepper.time_s();
+        let start_m = latch(&stepper, encoder_config)?;
+        let integral_start = stepper.position_integral_ms();
+        let part_m = stepper.part_position_m();
+        let next = cycle_loop
+            .update(
+                start_m,
+                last.filter(|_| !centring)
+                    .map(|(s, t, plan)| Stroke::latched(s, t, start_m, &plan)),
+                &shape,
+                next_means_m(&scheduler, &shape, centring),
+            )
+            .map_err(|error| SimError::Loop {
+                time_s: start_s,
+                error,
+            })?;
+        if centring {
+            centred = if (start_m + shape.mean_m).abs() <= CENTRED_M {
+                centred + 1
+            } else {
+                0
+            };
+            if centred == CENTRED_CYCLES {
+                scheduler.start();
+            } else if start_s > CENTRING_TIMEOUT_S {
+                return Err(SimError::Loop {
+                    time_s: start_s,
+                    error: LoopError::Position {
+                        error_m: start_m + shape.mean_m,
+                    },
+                });
+            }
+        }
+        let mut turn_m = None;
+        let mut offset_s = 0.0;
+        for segment in &commanded {
+            let accel_mps2 = trims.apply(segment.accel_mps2);
+            let mut pieces = vec![segment.duration_s];
+            let turn_s = shape.turn_s - offset_s;
+            if !idle && turn_s > 0.0 && turn_s < segment.duration_s {
+                pieces = vec![turn_s, segment.duration_s - turn_s];
+            }
+            for (k, duration_s) in pieces.iter().enumerate() {
+                if k == 1 {
+                    turn_m = Some(latch(&stepper, encoder_config)?);
+                }
+                stepper.segment(&PlateSegment {
+                    duration_s: *duration_s,
+                    accel_mps2,
+                    starts_cycle: false,
+                })?;
+            }
+            offset_s += segment.duration_s;
+        }
+        last = turn_m.map(|turn_m| (start_m, turn_m, shape));
+        let period_s = stepper.time_s() - start_s;
+        let mean_position_m = (stepper.position_integral_ms() - integral_start) / period_s;
+        if !idle && !centring && stepper.end_stop().is_none() {
+            worst_mean_position_m = worst_mean_position_m.max(mean_position_m.abs());
+        }
+        records.push(CycleRecord {
+            cycle,
+            time_s: start_s,
+            start_m,
+            mean_position_m,
+            part_m,
+            positive_trim: trims.positive,
+            negative_trim: trims.negative,
+            bias_mps2: trims.bias_mps2,
+            centring,
+            idle,
+        });
+        trims = next;
+        if !idle && !centring {
+            cycle += 1;
+        }
+        if stepper.end_stop().is_some() {
+            break;
+        }
+    }
+    let feed_rate_mps = feed_rate(&records, &stepper, options.average_cycles);
+    Ok(ClosedLoopRun {
+        identified,
+        cycles: records,
+        feed_rate_mps,
+        worst_mean_position_m,
+        end_stop: stepper.end_stop(),
+    })
+}
+
+/// The probe: `probe_cycles` of the waveform at `probe_fraction`, the encoder read every
+/// `probe_sample_s`; the drive identified from it.
+fn probe(
+    stepper: &mut Stepper,
+    config: EncoderConfig,
+    waveform: &Waveform,
+    options: &ClosedLoopOptions,
+) -> Result<Identified, SimError> {
+    let probe: Vec<CommandSegment> = (0..options.probe_cycles)
+        .flat_map(|_| probe_cycle(waveform, options))
+        .collect();
+    let length_s: f64 = probe.iter().map(|s| s.duration_s).sum();
+    for segment in &probe {
+        stepper.segment(&PlateSegment {
+            duration_s: segment.duration_s,
+            accel_mps2: segment.accel_mps2,
+            starts_cycle: false,
+        })?;
+    }
+    let trajectory = stepper.stop_trajectory();
+    let mut encoder = Encoder::new(config)?;
+    let samples = (length_s / options.probe_sample_s).floor() as u64;
+    let latches = (0..=samples)
+        .map(|k| {
+            let t_s = (k as f64 * options.probe_sample_s).min(length_s);
+            Ok(Latch {
+                t_s,
+                position_m: middle(encoder.sample(&trajectory, t_s)?.count, config),
+            })
+        })
+        .collect::<Result<Vec<_>, SimError>>()?;
+    let limits = IdentifyLimits::for_probe(
+        waveform.accel_mps2 * options.probe_fraction,
+        config.resolution_m,
+    );
+    identify(&probe, &latches, &limits).map_err(SimError::Identification)
+}
+
+/// The planned mean displacements of the two cycles after the one starting now: what a copy of
+/// the scheduler plans next (while centring, the same cycle again).
+fn next_means_m(scheduler: &Scheduler, now: &CycleShape, centring: bool) -> [f64; 2] {
+    if centring {
+        return [now.mean_m; 2];
+    }
+    let mut ahead = scheduler.clone();
+    let mut mean = || {
+        let (commanded, _) = next_cycle(&mut ahead);
+        CycleShape::new(&commanded).map_or(0.0, |shape| shape.mean_m)
+    };
+    [mean(), mean()]
+}
+
+/// One cycle of the waveform at the probe's fraction of its levels.
+fn probe_cycle(waveform: &Waveform, options: &ClosedLoopOptions) -> Vec<CommandSegment> {
+    exact_cycle(waveform)
+        .iter()
+        .map(|s| CommandSegment {
+            duration_s: s.duration_s,
+            accel_mps2: s.accel_mps2 * options.probe_fraction,
+        })
+        .collect()
+}
+
+/// The scheduler's next cycle in seconds (the four segments of a running cycle, or one idle
+/// period), and whether it is idle.
+fn next_cycle(scheduler: &mut Scheduler) -> (Vec<CommandSegment>, bool) {
+    let first = scheduler.next_segment();
+    let idle = first.kind == SegmentKind::Idle;
+    let mut segments = vec![first];
+    if !idle {
+        while segments.len() < 4 {
+            segments.push(scheduler.next_segment());
+        }
+    }
+    let plan = scheduler.plan();
+    let commanded = segments
+        .iter()
+        .map(|s| CommandSegment {
+            duration_s: plan.ticks_to_s(u64::from(s.ticks)),
+            accel_mps2: s.accel_mps2(),
+        })
+        .collect();
+    (commanded, idle)
+}
+
+/// The position the firmware takes from a count: the middle of it.
+fn middle(count: i64, config: EncoderConfig) -> f64 {
+    (count as f64 + 0.5) * config.resolution_m
+}
+
+/// The encoder latched now, as a timer capture does at a tick.
+fn latch(stepper: &Stepper, config: EncoderConfig) -> Result<f64, SimError> {
+    let count = config
+        .count(stepper.plate_position_m())
+        .ok_or(SimError::SensorInput {
+            sensor: "encoder",
+            t_s: stepper.time_s(),
+            reason: "the position is beyond 2^53 counts",
+        })?;
+    Ok(middle(count, config))
+}
+
+/// Mean part velocity over the last `average_cycles` cycles recorded (to the stepper's end).
+fn feed_rate(records: &[CycleRecord], stepper: &Stepper, average_cycles: u64) -> f64 {
+    let window = (average_cycles as usize).min(records.len());
+    match records
+        .len()
+        .checked_sub(window)
+        .and_then(|i| records.get(i))
+    {
+        Some(first) if stepper.time_s() > first.time_s => {
+            (stepper.part_position_m() - first.part_m) / (stepper.time_s() - first.time_s)
+        }
+        _ => 0.0,
+    }
+}

@@ -1,0 +1,13 @@
+//! The closed loop on a real plate: identification of the drive at start-up ([`identify`]), the
+//! cycle-rate loop that keeps the plate centred and its stroke right ([`cycle_loop`]) from the
+//! planned motion of a cycle ([`shape`]), and track control with a part sensor ([`track`]).
+
+pub mod cycle_loop;
+pub mod identify;
+pub mod shape;
+pub mod track;
+
+pub use cycle_loop::{CycleLoop, LoopError, LoopLimits, Stroke, Trims};
+pub use identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};
+pub use shape::{CommandSegment, CycleShape};
+pub use track::{Track, TrackConfig, TrackState};

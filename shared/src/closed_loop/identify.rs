@@ -1,0 +1,395 @@
+//! Identification at start-up: the drive's ± gains and zero offset from plate positions read
+//! during a few low-amplitude probe cycles.
+//!
+//! The drive's force follows its target through the current loop, a first-order lag `τ`, so
+//! from the probe's start the plate moves as
+//! `x(t) = x₀ + v₀·t + e·E(t) + g₊·P(t) + g₋·N(t) − (F_c/M)·C(t) − (b/M)·X(t)`:
+//! `P`, `N` and `E` the double integrals of the lagged positive part of the command, its negative
+//! part and of 1 (the zero offset `e` goes through the lag too), `C` the double integral of the
+//! sign of the plate's velocity (slide friction `F_c`) and `X` the integral of its displacement
+//! (viscous friction `b`), both taken from the latched positions. For a given `τ` the seven
+//! unknowns enter linearly and are fitted by least squares; `τ` is the one that leaves the least
+//! residual (golden-section search), the fit at it the result.
+
+use libm::{fabs, sqrt};
+
+use super::shape::CommandSegment;
+
+/// A plate position read at a time since the probe started.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Latch {
+    pub t_s: f64,
+    pub position_m: f64,
+}
+
+/// What a probe found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Identified {
+    /// Gain on a positive command (1 is ideal).
+    pub gain_positive: f64,
+    /// Gain on a negative command (1 is ideal).
+    pub gain_negative: f64,
+    /// Constant acceleration at zero command.
+    pub offset_mps2: f64,
+    /// The current loop's lag `τ`.
+    pub lag_s: f64,
+    /// Slide friction as a deceleration `F_c/M`.
+    pub coulomb_mps2: f64,
+    /// Viscous friction as a rate `b/M`.
+    pub viscous_per_s: f64,
+    /// Root-mean-square difference between the fitted and the latched positions.
+    pub residual_m: f64,
+}
+
+/// The ranges an identification must fall in for the feeder to run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct IdentifyLimits {
+    /// Each gain within `[gain_min, gain_max]`.
+    pub gain_min: f64,
+    pub gain_max: f64,
+    /// `|e|` at most this.
+    pub offset_max_mps2: f64,
+    /// The plate must move at least this far from its first position.
+    pub min_excursion_m: f64,
+}
+
+impl IdentifyLimits {
+    /// Gains within ±30 %, an offset of at most 5 % of `probe_accel_mps2`, and a motion of at
+    /// least 20 `resolution_m`.
+    pub fn for_probe(probe_accel_mps2: f64, resolution_m: f64) -> Self {
+        IdentifyLimits {
+            gain_min: 0.7,
+            gain_max: 1.3,
+            offset_max_mps2: 0.05 * fabs(probe_accel_mps2),
+            min_excursion_m: 20.0 * resolution_m,
+        }
+    }
+}
+
+/// Why an identification was refused.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum IdentifyError {
+    /// Fewer latches than the fit has unknowns, or a latch outside the probe or out of order.
+    Latches,
+    /// The command has no positive or no negative part: its gain cannot be told.
+    Probe,
+    /// The plate did not move: motor disconnected, driver disabled or a sensor that is stuck.
+    NoMotion { excursion_m: f64 },
+    /// The latches do not tell the unknowns apart.
+    Singular,
+    /// A gain outside its range; a negative one means the motor or the sensor is wired backwards.
+    Gain { positive: bool, gain: f64 },
+    /// The zero offset is beyond its limit.
+    Offset { offset_mps2: f64, limit_mps2: f64 },
+}
+
+impl core::fmt::Display for IdentifyError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            IdentifyError::Latches => f.write_str(
+                "identification needs 14 to 512 positions, in time order, inside the probe",
+            ),
+            IdentifyError::Probe => {
+                f.write_str("the probe must command both a positive and a negative acceleration")
+            }
+            IdentifyError::NoMotion { excursion_m } => write!(
+                f,
+                "the plate moved {excursion_m} m during the probe: check the motor, the driver \
+                 enable and the position sensor"
+            ),
+            IdentifyError::Singular => {
+                f.write_str("the probe's positions do not determine the drive's gains")
+            }
+            IdentifyError::Gain { positive, gain } => write!(
+                f,
+                "the drive's {} gain is {gain}{}",
+                if positive { "positive" } else { "negative" },
+                if gain < 0.0 {
+                    ": the motor or the position sensor is wired backwards"
+                } else {
+                    ", outside its range"
+                }
+            ),
+            IdentifyError::Offset {
+                offset_mps2,
+                limit_mps2,
+            } => write!(
+                f,
+                "the drive's zero offset is {offset_mps2} m/s², beyond ±{limit_mps2} m/s²: trim \
+                 the drive's analog input"
+            ),
+        }
+    }
+}
+
+/// Unknowns of the fit: `x₀, v₀, e, g₊, g₋, F_c/M, b/M`.
+const UNKNOWNS: usize = 7;
+
+/// Longest current-loop lag searched.
+const LAG_MAX_S: f64 = 5e-3;
+
+/// Golden-section steps: the lag to `LAG_MAX_S·0.618⁴⁰ ≈ 2·10⁻¹¹ s`.
+const LAG_STEPS: usize = 40;
+
+/// A first-order lag of `τ` on a piecewise-constant signal, its output `y` and the first and
+/// second integrals of `y`, carried exactly across each piece.
+#[derive(Clone, Copy, Default)]
+struct Lagged {
+    y: f64,
+    once: f64,
+    twice: f64,
+}
+
+impl Lagged {
+    /// After `s` of input `c`.
+    fn advance(self, c: f64, s: f64, lag_s: f64) -> Lagged {
+        let d = self.y - c;
+        let (decay, rise, rise_twice) = if lag_s > 0.0 {
+            let e = libm::exp(-s / lag_s);
+            (e, lag_s * (1.0 - e), lag_s * (s - lag_s * (1.0 - e)))
+        } else {
+            (0.0, 0.0, 0.0)
+        };
+        Lagged {
+            y: c + d * decay,
+            once: self.once + c * s + d * rise,
+            twice: self.twice + self.once * s + c * s * s / 2.0 + d * rise_twice,
+        }
+    }
+}
+
+/// The lagged regressors `P, N, E` at each latch, for one `τ`, passed to `each` in order.
+fn lagged_rows(
+    probe: &[CommandSegment],
+    latches: &[Latch],
+    lag_s: f64,
+    mut each: impl FnMut(usize, [f64; 3]),
+) {
+    let mut index = 0;
+    let mut start_s = 0.0;
+    let mut at_start = [Lagged::default(); 3];
+    let inputs = |u: f64| [u.max(0.0), u.min(0.0), 1.0];
+    for (i, latch) in latches.iter().enumerate() {
+        while index + 1 < probe.len() && latch.t_s > start_s + probe[index].duration_s {
+            let segment = probe[index];
+            let u = inputs(segment.accel_mps2);
+            for (l, c) in at_start.iter_mut().zip(u) {
+                *l = l.advance(c, segment.duration_s, lag_s);
+            }
+            start_s += segment.duration_s;
+            index += 1;
+        }
+        let u = inputs(probe[index].accel_mps2);
+        let s = latch.t_s - start_s;
+        let [p, n, e] = [0, 1, 2].map(|k| at_start[k].advance(u[k], s, lag_s).twice);
+        each(i, [p, n, e]);
+    }
+}
+
+/// The friction regressors at each latch from the latched motion: `C`, the double integral of
+/// the sign of the velocity, and `X`, the integral of the displacement from the first latch
+/// (trapezoids). The velocity at each latch is the central difference of its neighbours; where
+/// it changes sign between two latches, it does so where its linear interpolation does.
+fn friction_rows(latches: &[Latch], mut each: impl FnMut(usize, [f64; 2])) {
+    let n = latches.len();
+    let velocity = |i: usize| {
+        let (a, b) = (latches[i.saturating_sub(1)], latches[(i + 1).min(n - 1)]);
+        (b.position_m - a.position_m) / (b.t_s - a.t_s)
+    };
+    let sign = |v: f64| {
+        if v > 0.0 {
+            1.0
+        } else if v < 0.0 {
+            -1.0
+        } else {
+            0.0
+        }
+    };
+    let (mut c1, mut c, mut x) = (0.0, 0.0, 0.0);
+    let integrate = |sign: f64, s: f64, c1: &mut f64, c: &mut f64| {
+        *c += *c1 * s + sign * s * s / 2.0;
+        *c1 += sign * s;
+    };
+    let first_m = latches[0].position_m;
+    each(0, [0.0, 0.0]);
+    for i in 0..n - 1 {
+        let (a, b) = (latches[i], latches[i + 1]);
+        let s = b.t_s - a.t_s;
+        let (va, vb) = (velocity(i), velocity(i + 1));
+        if sign(va) * sign(vb) < 0.0 {
+            let first = s * va / (va - vb);
+            integrate(sign(va), first, &mut c1, &mut c);
+            integrate(sign(vb), s - first, &mut c1, &mut c);
+        } else {
+            integrate(sign(va + vb), s, &mut c1, &mut c);
+        }
+        x += s * ((a.position_m - first_m) + (b.position_m - first_m)) / 2.0;
+        each(i + 1, [c, x]);
+    }
+}
+
+/// The least-squares fit for one lag, with its residual sum of squares.
+fn fit(probe: &[CommandSegment], latches: &[Latch], lag_s: f64) -> Option<([f64; UNKNOWNS], f64)> {
+    let mut lagged = [[0.0; 3]; MAX_LATCHES];
+    lagged_rows(probe, latches, lag_s, |i, r| lagged[i] = r);
+    let mut friction = [[0.0; 2]; MAX_LATCHES];
+    friction_rows(latches, |i, r| friction[i] = r);
+    let row = |i: usize| -> [f64; UNKNOWNS] {
+        let [p, n, e] = lagged[i];
+        let [c, x] = friction[i];
+        [1.0, latches[i].t_s, e, p, n, c, x]
+    };
+    // Columns scaled to a largest value of 1.
+    let mut scale = [0.0_f64; UNKNOWNS];
+    for i in 0..latches.len() {
+        for (s, r) in scale.iter_mut().zip(row(i)) {
+            *s = s.max(fabs(r));
+        }
+    }
+    for s in scale.iter_mut() {
+        if *s == 0.0 {
+            *s = 1.0;
+        }
+    }
+    let mut normal = [[0.0; UNKNOWNS]; UNKNOWNS];
+    let mut right = [0.0; UNKNOWNS];
+    for (i, latch) in latches.iter().enumerate() {
+        let mut r = row(i);
+        for (r, s) in r.iter_mut().zip(scale) {
+            *r /= s;
+        }
+        for a in 0..UNKNOWNS {
+            right[a] += r[a] * latch.position_m;
+            for b in 0..UNKNOWNS {
+                normal[a][b] += r[a] * r[b];
+            }
+        }
+    }
+    let mut theta = cholesky_solve(normal, right)?;
+    for (t, s) in theta.iter_mut().zip(scale) {
+        *t /= s;
+    }
+    let squares = latches
+        .iter()
+        .enumerate()
+        .map(|(i, latch)| {
+            let fitted: f64 = row(i).iter().zip(theta).map(|(r, t)| r * t).sum();
+            (fitted - latch.position_m) * (fitted - latch.position_m)
+        })
+        .sum();
+    Some((theta, squares))
+}
+
+/// Latches a fit takes at most.
+pub const MAX_LATCHES: usize = 512;
+
+/// Fits the probe's model to `latches` (at most [`MAX_LATCHES`], the first at the probe's start)
+/// and checks it against `limits`.
+pub fn identify(
+    probe: &[CommandSegment],
+    latches: &[Latch],
+    limits: &IdentifyLimits,
+) -> Result<Identified, IdentifyError> {
+    let valid_probe = probe
+        .iter()
+        .all(|s| s.duration_s.is_finite() && s.duration_s >= 0.0 && s.accel_mps2.is_finite());
+    if !valid_probe
+        || !probe.iter().any(|s| s.accel_mps2 > 0.0)
+        || !probe.iter().any(|s| s.accel_mps2 < 0.0)
+    {
+        return Err(IdentifyError::Probe);
+    }
+    let length_s: f64 = probe.iter().map(|s| s.duration_s).sum();
+    let ordered = latches.windows(2).all(|w| w[0].t_s < w[1].t_s);
+    let inside = latches
+        .iter()
+        .all(|l| l.t_s >= 0.0 && l.t_s <= length_s && l.position_m.is_finite());
+    if latches.len() < 2 * UNKNOWNS || latches.len() > MAX_LATCHES || !ordered || !inside {
+        return Err(IdentifyError::Latches);
+    }
+    let first_m = latches[0].position_m;
+    let excursion_m = latches
+        .iter()
+        .map(|l| fabs(l.position_m - first_m))
+        .fold(0.0, f64::max);
+    if excursion_m.is_nan() || excursion_m < limits.min_excursion_m {
+        return Err(IdentifyError::NoMotion { excursion_m });
+    }
+    let residual = |lag_s: f64| fit(probe, latches, lag_s).map_or(f64::INFINITY, |(_, r)| r);
+    let golden = 0.5 * (sqrt(5.0) - 1.0);
+    let (mut lo, mut hi) = (0.0, LAG_MAX_S);
+    let (mut a, mut b) = (hi - golden * (hi - lo), lo + golden * (hi - lo));
+    let (mut fa, mut fb) = (residual(a), residual(b));
+    for _ in 0..LAG_STEPS {
+        if fa <= fb {
+            hi = b;
+            b = a;
+            fb = fa;
+            a = hi - golden * (hi - lo);
+            fa = residual(a);
+        } else {
+            lo = a;
+            a = b;
+            fa = fb;
+            b = lo + golden * (hi - lo);
+            fb = residual(b);
+        }
+    }
+    let lag_s = if fa <= fb { a } else { b };
+    let (theta, squares) = fit(probe, latches, lag_s).ok_or(IdentifyError::Singular)?;
+    let [_, _, offset_mps2, gain_positive, gain_negative, friction, viscous] = theta;
+    let identified = Identified {
+        gain_positive,
+        gain_negative,
+        offset_mps2,
+        lag_s,
+        coulomb_mps2: -friction,
+        viscous_per_s: -viscous,
+        residual_m: sqrt(squares / latches.len() as f64),
+    };
+    for (positive, gain) in [(true, gain_positive), (false, gain_negative)] {
+        if !(limits.gain_min..=limits.gain_max).contains(&gain) {
+            return Err(IdentifyError::Gain { positive, gain });
+        }
+    }
+    if offset_mps2.is_nan() || fabs(offset_mps2) > limits.offset_max_mps2 {
+        return Err(IdentifyError::Offset {
+            offset_mps2,
+            limit_mps2: limits.offset_max_mps2,
+        });
+    }
+    Ok(identified)
+}
+
+/// Solves the symmetric positive definite `a·x = b`; `None` if a pivot is not clearly positive
+/// (or not a number).
+fn cholesky_solve(
+    mut a: [[f64; UNKNOWNS]; UNKNOWNS],
+    mut b: [f64; UNKNOWNS],
+) -> Option<[f64; UNKNOWNS]> {
+    let largest = (0..UNKNOWNS).map(|i| a[i][i]).fold(0.0, f64::max);
+    let dot = |x: &[f64], y: &[f64]| -> f64 { x.iter().zip(y).map(|(p, q)| p * q).sum() };
+    for j in 0..UNKNOWNS {
+        let d = a[j][j] - dot(&a[j][..j], &a[j][..j]);
+        if d.is_nan() || d <= 1e-13 * largest {
+            return None;
+        }
+        let d = sqrt(d);
+        a[j][j] = d;
+        for i in j + 1..UNKNOWNS {
+            a[i][j] = (a[i][j] - dot(&a[i][..j], &a[j][..j])) / d;
+        }
+    }
+    for i in 0..UNKNOWNS {
+        b[i] = (b[i] - dot(&a[i][..i], &b[..i])) / a[i][i];
+    }
+    for i in (0..UNKNOWNS).rev() {
+        let later: f64 = (i + 1..UNKNOWNS).map(|k| a[k][i] * b[k]).sum();
+        b[i] = (b[i] - later) / a[i][i];
+    }
+    Some(b)
+}
