@@ -32,6 +32,8 @@ mod operator;
 mod operator;
 mod output;
 mod pins;
+#[cfg(feature = "cosim")]
+mod plant_link;
 mod setup;
 mod time_driver;
 #[cfg(feature = "console")]

@@ -5,6 +5,8 @@ use embassy_time::{Instant, Timer};
 use feeder_shared::{DacLevels, DriveError, Segment, TickClock};
 
 use super::edge_work::{overrun_if_provoked, record_edge_work};
+#[cfg(feature = "cosim")]
+use super::plant_link::PlantLink;
 use super::time_driver::{self, CYCLES_PER_TICK};
 use super::{exit, register_read, register_write, OUTPUT_CODE, OUTPUT_RUN};
 use crate::config;
@@ -46,6 +48,9 @@ pub struct ReportingOutput {
     edge_cycles: Option<u64>,
     /// The missed edge's replay, until the halt reports it.
     replay: Option<Replay>,
+    /// The plant on the host that each applied level goes to and each cycle's sample comes from.
+    #[cfg(feature = "cosim")]
+    plant: PlantLink,
 }
 
 /// At a missed edge the timer played `segment` again from `actual_tick`; `slack_ticks` is the
@@ -67,6 +72,32 @@ impl ReportingOutput {
             levels: None,
             edge_cycles: None,
             replay: None,
+            #[cfg(feature = "cosim")]
+            plant: super::plant_link::open_or_end(),
+        }
+    }
+
+    /// Sends the level the output applies at `actual_tick` to the plant and, if `segment`
+    /// begins a cycle, takes the plant's sample at that tick and logs it. A failed link ends the
+    /// run with the output at zero and the driver disabled.
+    #[cfg(feature = "cosim")]
+    fn exchange(&mut self, segment: &Segment, actual_tick: u64, code: u32) {
+        let sampled =
+            self.plant
+                .send_level(actual_tick, code)
+                .and_then(|()| match segment.starts_cycle() {
+                    true => self.plant.sample(actual_tick).map(Some),
+                    false => Ok(None),
+                });
+        match sampled {
+            Ok(Some(count)) => defmt::info!(
+                "plant: cycle {=u64} tick={=u64} count={=i32}",
+                segment.cycle,
+                actual_tick,
+                count
+            ),
+            Ok(None) => {}
+            Err(error) => super::plant_link::lost(error),
         }
     }
 
@@ -109,11 +140,14 @@ impl SegmentOutput for ReportingOutput {
             self.timeline_ticks = now_ticks;
             exit::set_timeline(now_ticks);
         }
-        register_write(OUTPUT_CODE as usize, self.code(segment));
+        let code = self.code(segment);
+        register_write(OUTPUT_CODE as usize, code);
         register_write(OUTPUT_RUN as usize, 1);
         self.playing = Some((*segment, None));
         self.queued = None;
         self.edge_cycles = None;
+        #[cfg(feature = "cosim")]
+        self.exchange(segment, self.actual(now_ticks), code);
     }
 
     fn preload(&mut self, segment: &Segment) -> Result<(), EdgeMissed> {
@@ -147,6 +181,8 @@ impl SegmentOutput for ReportingOutput {
             core::future::pending::<()>().await;
         }
         register_write(OUTPUT_CODE as usize, code);
+        #[cfg(feature = "cosim")]
+        self.exchange(&segment, self.actual(edge_ticks), code);
         self.playing = Some((segment, Some(slack_ticks)));
         let end_ticks = self.clock_tick(segment.end_tick());
         if Instant::now().as_ticks() >= end_ticks {
