@@ -15,9 +15,9 @@ use crate::segments::exact_cycle;
 use crate::sensors::{Encoder, EncoderConfig};
 
 /// The plate counts as centred within this of its centre at a cycle start …
-const CENTRED_M: f64 = 20e-6;
+const CENTRED_M: f64 = 25e-6;
 /// … for this many idle cycles in a row, and the feeder starts.
-const CENTRED_CYCLES: u32 = 5;
+const CENTRED_CYCLES: u32 = 3;
 /// Centring that takes longer than this (from the probe's start) fails.
 const CENTRING_TIMEOUT_S: f64 = 5.0;
 
@@ -42,7 +42,7 @@ pub struct ClosedLoopOptions {
 
 impl ClosedLoopOptions {
     /// `cycles` of motion with a 25-cycle soft start after a 3-cycle probe at 30 % amplitude
-    /// read every millisecond; the loop may add up to 10 m/s² and trim the stroke by ±20 %,
+    /// read every 0.25 ms; the loop may add up to 10 m/s² and trim the stroke by ±20 %,
     /// and gives up 4 mm from centre.
     pub fn new(cycles: u64) -> Self {
         ClosedLoopOptions {
@@ -50,7 +50,7 @@ impl ClosedLoopOptions {
             ramp_cycles: 25,
             probe_cycles: 3,
             probe_fraction: 0.3,
-            probe_sample_s: 1e-3,
+            probe_sample_s: 2.5e-4,
             plan_change: None,
             average_cycles: 50.min(cycles),
             limits: LoopLimits {
@@ -116,7 +116,7 @@ pub fn run_closed_loop(
     let mut centred = 0;
     let mut records = Vec::new();
     let mut trims = cycle_loop.trims();
-    // The last cycle's start and turning positions and its plan, for its stroke.
+    // The last full-amplitude cycle's start and turning positions and its plan, for its stroke.
     let mut last: Option<(f64, f64, CycleShape)> = None;
     let mut worst_mean_position_m = 0.0_f64;
     let mut cycle = 0;
@@ -126,13 +126,11 @@ pub fn run_closed_loop(
                 scheduler.set_plan(new_plan)?;
             }
         }
-        // Until the scheduler runs, the soft start's first cycle, over and over, keeps the slide
-        // moving while the loop centres it.
+        // Until the scheduler runs, the probe's cycle keeps the slide moving while the loop
+        // centres it.
         let centring = !scheduler.run_requested();
-        let (commanded, idle) = if centring {
-            let mut first = scheduler.clone();
-            first.start();
-            next_cycle(&mut first)
+        let (commanded, idle, full) = if centring {
+            (probe_cycle(waveform, options), false, false)
         } else {
             next_cycle(&mut scheduler)
         };
@@ -147,27 +145,13 @@ pub fn run_closed_loop(
         let start_m = latch(&stepper, encoder_config)?;
         let integral_start = stepper.position_integral_ms();
         let part_m = stepper.part_position_m();
-        let next = cycle_loop
-            .update(
-                start_m,
-                last.filter(|_| !centring)
-                    .map(|(s, t, plan)| Stroke::latched(s, t, start_m, &plan)),
-                &shape,
-                next_means_m(&scheduler, &shape, centring),
-            )
-            .map_err(|error| SimError::Loop {
-                time_s: start_s,
-                error,
-            })?;
         if centring {
-            centred = if (start_m + shape.mean_m).abs() <= CENTRED_M {
+            centred = if centred >= CENTRED_CYCLES || (start_m + shape.mean_m).abs() <= CENTRED_M {
                 centred + 1
             } else {
                 0
             };
-            if centred == CENTRED_CYCLES {
-                scheduler.start();
-            } else if start_s > CENTRING_TIMEOUT_S {
+            if start_s > CENTRING_TIMEOUT_S && centred < CENTRED_CYCLES {
                 return Err(SimError::Loop {
                     time_s: start_s,
                     error: LoopError::Position {
@@ -175,6 +159,32 @@ pub fn run_closed_loop(
                     },
                 });
             }
+        }
+        // Centred, the plate runs one more probe cycle while the loop already aims at the soft
+        // start's first cycle, two cycles ahead, and then the scheduler starts.
+        let upcoming = if !centring {
+            scheduled_shapes(&scheduler, false)
+        } else if centred == CENTRED_CYCLES {
+            [shape, scheduled_shapes(&scheduler, true)[0]]
+        } else if centred > CENTRED_CYCLES {
+            scheduled_shapes(&scheduler, true)
+        } else {
+            [shape; 2]
+        };
+        let next = cycle_loop
+            .update(
+                start_m,
+                last.filter(|_| !centring)
+                    .map(|(s, t, plan)| Stroke::latched(s, t, start_m, &plan)),
+                &shape,
+                [&upcoming[0], &upcoming[1]],
+            )
+            .map_err(|error| SimError::Loop {
+                time_s: start_s,
+                error,
+            })?;
+        if centring && centred > CENTRED_CYCLES {
+            scheduler.start();
         }
         let mut turn_m = None;
         let mut offset_s = 0.0;
@@ -197,7 +207,11 @@ pub fn run_closed_loop(
             }
             offset_s += segment.duration_s;
         }
-        last = turn_m.map(|turn_m| (start_m, turn_m, shape));
+        // The stroke is only held at full amplitude: friction shortens a soft start's strokes
+        // more than the full one's.
+        last = turn_m
+            .filter(|_| full)
+            .map(|turn_m| (start_m, turn_m, shape));
         let period_s = stepper.time_s() - start_s;
         let mean_position_m = (stepper.position_integral_ms() - integral_start) / period_s;
         if !idle && !centring && stepper.end_stop().is_none() {
@@ -271,18 +285,23 @@ fn probe(
     identify(&probe, &latches, &limits).map_err(SimError::Identification)
 }
 
-/// The planned mean displacements of the two cycles after the one starting now: what a copy of
-/// the scheduler plans next (while centring, the same cycle again).
-fn next_means_m(scheduler: &Scheduler, now: &CycleShape, centring: bool) -> [f64; 2] {
-    if centring {
-        return [now.mean_m; 2];
-    }
+/// The plans of the scheduler's next two cycles, from a copy of it (`start`ed first when it has
+/// not been yet).
+fn scheduled_shapes(scheduler: &Scheduler, start: bool) -> [CycleShape; 2] {
     let mut ahead = scheduler.clone();
-    let mut mean = || {
-        let (commanded, _) = next_cycle(&mut ahead);
-        CycleShape::new(&commanded).map_or(0.0, |shape| shape.mean_m)
+    if start {
+        ahead.start();
+    }
+    let mut shape = || {
+        let (commanded, idle, _) = next_cycle(&mut ahead);
+        let idle_shape = CycleShape::idle(commanded[0].duration_s);
+        if idle {
+            idle_shape
+        } else {
+            CycleShape::new(&commanded).unwrap_or(idle_shape)
+        }
     };
-    [mean(), mean()]
+    [shape(), shape()]
 }
 
 /// One cycle of the waveform at the probe's fraction of its levels.
@@ -297,10 +316,11 @@ fn probe_cycle(waveform: &Waveform, options: &ClosedLoopOptions) -> Vec<CommandS
 }
 
 /// The scheduler's next cycle in seconds (the four segments of a running cycle, or one idle
-/// period), and whether it is idle.
-fn next_cycle(scheduler: &mut Scheduler) -> (Vec<CommandSegment>, bool) {
+/// period), whether it is idle, and whether it runs at the plan's full amplitude.
+fn next_cycle(scheduler: &mut Scheduler) -> (Vec<CommandSegment>, bool, bool) {
     let first = scheduler.next_segment();
     let idle = first.kind == SegmentKind::Idle;
+    let full = !idle && first.amplitude.step == first.amplitude.steps;
     let mut segments = vec![first];
     if !idle {
         while segments.len() < 4 {
@@ -315,7 +335,7 @@ fn next_cycle(scheduler: &mut Scheduler) -> (Vec<CommandSegment>, bool) {
             accel_mps2: s.accel_mps2(),
         })
         .collect();
-    (commanded, idle)
+    (commanded, idle, full)
 }
 
 /// The position the firmware takes from a count: the middle of it.

@@ -2,32 +2,34 @@
 //! cycle's start tick and at its turning tick, the trims of the next cycle's levels.
 //!
 //! The command of the next cycle is `+a·s₊·m + b`, `b` and `−a·s₋·m + b` for the `+`, zero and
-//! `−` levels: `s± = 1/ĝ±` undo the identified gains, `m` (amplitude) is integral action on the
-//! stroke measured between the two latches, and the bias `b = −ê + δ` undoes the identified zero
-//! offset `ê` and adds the centring correction `δ`.
+//! `−` levels. Feedforward from the identification: `s± = 1/ĝ±` undo the drive's gains, and the
+//! bias `b` holds `−ê` against its zero offset and `(F̂_c/M)·⟨sign v⟩` against the slide
+//! friction the cycle's velocity profile meets. Feedback: `m` is integral action on the stroke of
+//! full-amplitude cycles (latched from start to turning tick, less the drift between two starts),
+//! and the centring correction `δ` is added to `b`.
 //!
 //! Centring. Over a cycle a constant `δ` moves the plate `δ·T²/2` and changes its velocity by
 //! `δ·T`; in units of `ũ = δ·T²/2` the cycle-start position `x` and `w = T·v` obey
-//! `x⁺ = x + w + ũ`, `w⁺ = w + 2ũ`. The correction decided at boundary `k` runs in cycle `k + 1`,
-//! so the loop reconstructs `w_k = x_k − x_{k−1} + ũ_{k−1}`, predicts the state at `k + 1` and
-//! places both poles of that prediction at 1/2 (`ũ = −x/8 − 7w/16`), with a slow integral
-//! (`0.01·Σx`) for what the feedforward leaves. On the linear model the loop error shrinks by
-//! 0.85 a cycle, and by at most 0.93 for any loop gain from 0.5 to 1.6 (the drive's gain may be
-//! off by a factor 2 before the loop goes unstable; `shared/tests/closed_loop.rs`).
+//! `x⁺ = x + w + ũ + d`, `w⁺ = w + 2(ũ + d)` with `d` what the feedforward leaves. The correction
+//! decided at boundary `k` runs in cycle `k + 1`, so the loop estimates `d` from the second
+//! difference of the starts (`x_k − 2x_{k−1} + x_{k−2} = ũ_{k−1} + ũ_{k−2} + 2d`, filtered),
+//! reconstructs `w_k`, predicts the state at `k + 1`, cancels `d̂` and places both poles of the
+//! prediction at 0.3 (`ũ = −0.245·x − 0.5775·w − d̂`). The target is each cycle's mean
+//! position at the centre: a start at `−mean − w/2`, known two cycles ahead, so a soft start or
+//! a new plan moves the target and the loop follows it at its speed. On the per-cycle linear
+//! model the loop is stable for a drive gain from 0.4 to 1.35 times the identified one
+//! (`shared/tests/closed_loop.rs`), far wider than the identification's error.
 
 use libm::fabs;
 
 use super::identify::Identified;
 use super::shape::CycleShape;
 
-/// `ũ = −A·x_p − B·w_p − I·Σx` with the predicted `x_p`, `w_p`.
-const POSITION_GAIN: f64 = 0.125;
-const VELOCITY_GAIN: f64 = 0.4375;
-const INTEGRAL_GAIN: f64 = 0.01;
-/// The disturbance estimate moves by this fraction of its last measurement's difference.
+/// `ũ = −A·x_p − B·w_p − d̂` with the predicted `x_p`, `w_p` (both poles at 0.3).
+const POSITION_GAIN: f64 = 0.245;
+const VELOCITY_GAIN: f64 = 0.5775;
+/// The disturbance estimate moves by this fraction of its difference from each measurement.
 const DISTURBANCE_GAIN: f64 = 0.3;
-/// The integral only takes errors up to this.
-const INTEGRATE_WITHIN_M: f64 = 100e-6;
 /// The amplitude trim moves by this fraction of the relative stroke error each cycle.
 const AMPLITUDE_GAIN: f64 = 0.3;
 
@@ -136,6 +138,8 @@ impl core::fmt::Display for LoopError {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CycleLoop {
     feedforward: Trims,
+    /// The identified slide friction `F_c/M`, fed forward through each cycle's velocity sign.
+    friction_mps2: f64,
     limits: LoopLimits,
     amplitude: f64,
     /// `ũ` of the cycle running now and of the one before, and the previous start position.
@@ -147,7 +151,6 @@ pub struct CycleLoop {
     earlier_x_m: Option<f64>,
     /// The disturbance `d̂` estimated so far, in units of `ũ`.
     disturbance_m: f64,
-    integral_m: f64,
     trims: Trims,
 }
 
@@ -161,6 +164,7 @@ impl CycleLoop {
         };
         CycleLoop {
             feedforward,
+            friction_mps2: identified.coulomb_mps2,
             limits,
             amplitude: 1.0,
             running: 0.0,
@@ -169,7 +173,6 @@ impl CycleLoop {
             previous_x_m: None,
             earlier_x_m: None,
             disturbance_m: 0.0,
-            integral_m: 0.0,
             trims: feedforward,
         }
     }
@@ -190,7 +193,7 @@ impl CycleLoop {
         start_m: f64,
         stroke: Option<Stroke>,
         shape: &CycleShape,
-        next_means_m: [f64; 2],
+        next: [&CycleShape; 2],
     ) -> Result<Trims, LoopError> {
         let stroke_valid = stroke.is_none_or(|s| s.measured_m.is_finite());
         if !start_m.is_finite() || !stroke_valid {
@@ -217,8 +220,8 @@ impl CycleLoop {
             self.amplitude = amplitude;
             return Ok(self.trims);
         };
-        // A constant disturbance `d` (friction, what the feedforward left) adds to every `ũ`:
-        // the second difference of the starts is `ũ_{k−1} + ũ_{k−2} + 2d`.
+        // A disturbance `d` (what the feedforward left) adds to every `ũ`: the second difference
+        // of the starts is `ũ_{k−1} + ũ_{k−2} + 2d`.
         let mut disturbance_m = self.disturbance_m;
         if let Some(earlier_x_m) = self.earlier_x_m {
             let measured =
@@ -226,37 +229,31 @@ impl CycleLoop {
             disturbance_m += DISTURBANCE_GAIN * (measured - disturbance_m);
         }
         let w = start_m - previous_x_m + self.previous + disturbance_m;
-        let [next_target_m, after_target_m] = next_means_m.map(|m| -m);
+        let [next_target_m, after_target_m] = next.map(|shape| -shape.mean_m);
+        let target_w = after_target_m - next_target_m;
+        // A cycle that starts at `x` with `w` has its mean at `x + mean + w/2 + (ũ + d)/3`.
         let input = self.running + disturbance_m;
-        let predicted_x = start_m + w + input - next_target_m;
-        let predicted_w = w + 2.0 * input - (after_target_m - next_target_m);
-        // Integrated only near the target, so that a large error (at start-up) does not wind it up.
-        let integral_m = if fabs(error_m) <= INTEGRATE_WITHIN_M {
-            self.integral_m + error_m
-        } else {
-            self.integral_m
-        };
-        let next = -POSITION_GAIN * predicted_x
-            - VELOCITY_GAIN * predicted_w
-            - INTEGRAL_GAIN * integral_m
-            - disturbance_m;
-        let half_period_squared = shape.period_s * shape.period_s / 2.0;
-        let correction_mps2 = next / half_period_squared;
+        let predicted_x = start_m + w + input - (next_target_m - target_w / 2.0);
+        let predicted_w = w + 2.0 * input - target_w;
+        let correction = -POSITION_GAIN * predicted_x - VELOCITY_GAIN * predicted_w - disturbance_m;
+        let half_period_squared = next[0].period_s * next[0].period_s / 2.0;
+        let correction_mps2 = correction / half_period_squared;
         if fabs(correction_mps2) > self.limits.correction_max_mps2 {
             return Err(LoopError::Correction { correction_mps2 });
         }
         self.amplitude = amplitude;
-        self.integral_m = integral_m;
         self.earlier_x_m = Some(previous_x_m);
         self.previous_x_m = Some(start_m);
         self.disturbance_m = disturbance_m;
         self.earlier = self.previous;
         self.previous = self.running;
-        self.running = next;
+        self.running = correction;
         self.trims = Trims {
             positive: self.feedforward.positive * amplitude,
             negative: self.feedforward.negative * amplitude,
-            bias_mps2: self.feedforward.bias_mps2 + correction_mps2,
+            bias_mps2: self.feedforward.bias_mps2
+                + self.friction_mps2 * next[0].velocity_sign_mean
+                + correction_mps2,
         };
         Ok(self.trims)
     }

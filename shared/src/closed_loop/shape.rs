@@ -20,6 +20,9 @@ pub struct CycleShape {
     pub stroke_m: f64,
     /// Mean displacement over the cycle.
     pub mean_m: f64,
+    /// Mean over the cycle of the sign of the velocity: slide friction `F_c` changes the
+    /// plate's velocity by `−(F_c/M)·T·velocity_sign_mean` a cycle.
+    pub velocity_sign_mean: f64,
 }
 
 impl CycleShape {
@@ -30,6 +33,7 @@ impl CycleShape {
             turn_s: period_s,
             stroke_m: 0.0,
             mean_m: 0.0,
+            velocity_sign_mean: 0.0,
         }
     }
 
@@ -37,13 +41,34 @@ impl CycleShape {
     /// `None` if it never turns.
     pub fn new(segments: &[CommandSegment]) -> Option<Self> {
         let (mut t, mut v, mut x, mut area) = (0.0_f64, 0.0_f64, 0.0_f64, 0.0_f64);
+        let mut signed_s = 0.0;
         let mut turn: Option<(f64, f64)> = None;
         for segment in segments {
             let (d, a) = (segment.duration_s, segment.accel_mps2);
-            if turn.is_none() && v > 0.0 && a < 0.0 && -v / a <= d {
-                let s = -v / a;
+            // The velocity `v + a·s` changes sign at most once in a segment.
+            let crossing_s = if a != 0.0 && v * a < 0.0 {
+                -v / a
+            } else {
+                f64::INFINITY
+            };
+            if turn.is_none() && v > 0.0 && a < 0.0 && crossing_s <= d {
+                let s = crossing_s;
                 turn = Some((t + s, x + v * s + a * s * s / 2.0));
             }
+            let sign = |v: f64| {
+                if v > 0.0 {
+                    1.0
+                } else if v < 0.0 {
+                    -1.0
+                } else {
+                    0.0
+                }
+            };
+            signed_s += if crossing_s < d {
+                sign(v) * crossing_s + sign(a) * (d - crossing_s)
+            } else {
+                sign(v + a * d / 2.0) * d
+            };
             area += x * d + v * d * d / 2.0 + a * d * d * d / 6.0;
             x += v * d + a * d * d / 2.0;
             v += a * d;
@@ -55,6 +80,7 @@ impl CycleShape {
             turn_s,
             stroke_m,
             mean_m: area / t,
+            velocity_sign_mean: signed_s / t,
         })
     }
 }

@@ -1,0 +1,525 @@
+//! The closed loop's parts against independent expectations: a cycle's planned shape against a
+//! fine numerical integration, identification against plates simulated by RK4, the cycle-rate
+//! loop against the per-cycle linear plant it was designed on, and track control.
+
+use feeder_shared::closed_loop::{
+    identify, CommandSegment, CycleLoop, CycleShape, Identified, IdentifyError, IdentifyLimits,
+    Latch, LoopError, LoopLimits, Stroke, Track, TrackConfig, TrackState,
+};
+use feeder_shared::{Drive, Limits, Waveform, WaveformSpec};
+use proptest::prelude::*;
+
+fn paper_cycle(duty: f64) -> (Waveform, Vec<CommandSegment>) {
+    let spec = WaveformSpec::from_frequency(50.0, duty, Drive::Stroke { stroke_m: 2.5e-3 });
+    let waveform = Waveform::new(spec, &Limits::NONE).unwrap();
+    let segments = waveform
+        .segments()
+        .iter()
+        .map(|s| CommandSegment {
+            duration_s: s.duration_s,
+            accel_mps2: f64::from(s.level.sign()) * waveform.accel_mps2,
+        })
+        .collect();
+    (waveform, segments)
+}
+
+/// `(period, turn, stroke, mean, mean sign of velocity)` in `steps` steps, each exact for the
+/// command at its midpoint (to about 10⁻⁸ m here).
+fn integrate(segments: &[CommandSegment], steps: usize) -> (f64, f64, f64, f64, f64) {
+    let period: f64 = segments.iter().map(|s| s.duration_s).sum();
+    let dt = period / steps as f64;
+    let (mut t, mut v, mut x, mut area, mut signed) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    let mut turn: Option<(f64, f64)> = None;
+    let accel = |t: f64| {
+        let mut end = 0.0;
+        for s in segments {
+            end += s.duration_s;
+            if t < end {
+                return s.accel_mps2;
+            }
+        }
+        segments.last().unwrap().accel_mps2
+    };
+    for _ in 0..steps {
+        let a = accel(t + dt / 2.0);
+        let v_next = v + a * dt;
+        if turn.is_none() && v > 0.0 && v_next <= 0.0 {
+            let s = v / -a;
+            turn = Some((t + s, x + v * s + a * s * s / 2.0));
+        }
+        area += x * dt + v * dt * dt / 2.0 + a * dt * dt * dt / 6.0;
+        signed += (v + a * dt / 2.0).signum() * dt;
+        x += v * dt + a * dt * dt / 2.0;
+        v = v_next;
+        t += dt;
+    }
+    let (turn_s, stroke_m) = turn.unwrap();
+    (period, turn_s, stroke_m, area / period, signed / period)
+}
+
+#[test]
+fn a_cycles_shape_matches_its_numerical_integration() {
+    for duty in [0.55, 0.586, 0.7, 0.9] {
+        let (waveform, segments) = paper_cycle(duty);
+        let shape = CycleShape::new(&segments).unwrap();
+        let (period, turn, stroke, mean, sign) = integrate(&segments, 2_000_000);
+        assert!((shape.period_s - period).abs() < 1e-15);
+        assert!(
+            (shape.turn_s - turn).abs() < 1e-9,
+            "{duty}: {} {turn}",
+            shape.turn_s
+        );
+        assert!(
+            (shape.stroke_m - stroke).abs() < 1e-7,
+            "{duty}: {} {stroke}",
+            shape.stroke_m
+        );
+        // The planned stroke is the waveform's (Eq. 1–5).
+        assert!((shape.stroke_m - waveform.stroke_m).abs() < 1e-15 + 1e-12 * waveform.stroke_m);
+        assert!(
+            (shape.mean_m - mean).abs() < 1e-7,
+            "{duty}: {} {mean}",
+            shape.mean_m
+        );
+        assert!((shape.velocity_sign_mean - sign).abs() < 1e-5, "{duty}");
+    }
+}
+
+#[test]
+fn a_cycle_that_never_turns_back_has_no_shape() {
+    let forward = [CommandSegment {
+        duration_s: 0.01,
+        accel_mps2: 10.0,
+    }];
+    assert_eq!(CycleShape::new(&forward), None);
+    let idle = CycleShape::idle(0.02);
+    assert_eq!(
+        (idle.stroke_m, idle.mean_m, idle.period_s),
+        (0.0, 0.0, 0.02)
+    );
+}
+
+#[test]
+fn a_stroke_latched_on_a_drifting_plate_reads_the_plate_at_rest() {
+    let (_, segments) = paper_cycle(0.586);
+    let shape = CycleShape::new(&segments).unwrap();
+    let (start_m, drift_mps) = (1e-3, 0.01);
+    let turn_m = start_m + shape.stroke_m + drift_mps * shape.turn_s;
+    let next_m = start_m + drift_mps * shape.period_s;
+    let stroke = Stroke::latched(start_m, turn_m, next_m, &shape);
+    assert!((stroke.measured_m - shape.stroke_m).abs() < 1e-15);
+    assert_eq!(stroke.planned_m, shape.stroke_m);
+}
+
+/// A plate `x'' = g±·lag(u) + e·lag(1) − (F_c/M)·sign(x') − (b/M)·x'` with a first-order lag of
+/// `τ`, by RK4 at `dt`, read at every `every`-th step.
+struct Plate {
+    gains: (f64, f64),
+    offset_mps2: f64,
+    lag_s: f64,
+    coulomb_mps2: f64,
+    viscous_per_s: f64,
+}
+
+impl Plate {
+    fn latches(&self, probe: &[CommandSegment], dt: f64, every: usize) -> Vec<Latch> {
+        // State: x, v, lagged force per mass `f`.
+        let command = |t: f64| {
+            let mut end = 0.0;
+            for s in probe {
+                end += s.duration_s;
+                if t < end {
+                    return s.accel_mps2;
+                }
+            }
+            0.0
+        };
+        let target = |u: f64| {
+            let g = if u > 0.0 { self.gains.0 } else { self.gains.1 };
+            g * u + self.offset_mps2
+        };
+        let derivative = |t: f64, s: [f64; 3], u_target: f64| {
+            let [_, v, f] = s;
+            let f_dot = if self.lag_s > 0.0 {
+                (u_target - f) / self.lag_s
+            } else {
+                0.0
+            };
+            let friction = if v != 0.0 {
+                self.coulomb_mps2 * v.signum()
+            } else {
+                0.0
+            };
+            let _ = t;
+            [v, f - friction - self.viscous_per_s * v, f_dot]
+        };
+        let length: f64 = probe.iter().map(|s| s.duration_s).sum();
+        let steps = (length / dt).round() as usize;
+        let mut s = [
+            0.0,
+            0.0,
+            if self.lag_s > 0.0 {
+                0.0
+            } else {
+                target(command(0.0))
+            },
+        ];
+        let mut latches = vec![Latch {
+            t_s: 0.0,
+            position_m: 0.0,
+        }];
+        for k in 0..steps {
+            let t = k as f64 * dt;
+            let u = target(command(t + dt / 2.0));
+            if self.lag_s == 0.0 {
+                s[2] = u;
+            }
+            let add = |a: [f64; 3], b: [f64; 3], h: f64| {
+                [a[0] + h * b[0], a[1] + h * b[1], a[2] + h * b[2]]
+            };
+            let k1 = derivative(t, s, u);
+            let k2 = derivative(t, add(s, k1, dt / 2.0), u);
+            let k3 = derivative(t, add(s, k2, dt / 2.0), u);
+            let k4 = derivative(t, add(s, k3, dt), u);
+            for i in 0..3 {
+                s[i] += dt / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
+            if (k + 1) % every == 0 {
+                latches.push(Latch {
+                    t_s: (k + 1) as f64 * dt,
+                    position_m: s[0],
+                });
+            }
+        }
+        latches
+    }
+}
+
+fn probe(cycles: usize, fraction: f64) -> Vec<CommandSegment> {
+    let (_, cycle) = paper_cycle(0.586);
+    (0..cycles)
+        .flat_map(|_| cycle.clone())
+        .map(|s| CommandSegment {
+            accel_mps2: s.accel_mps2 * fraction,
+            ..s
+        })
+        .collect()
+}
+
+const WIDE: IdentifyLimits = IdentifyLimits {
+    gain_min: 0.5,
+    gain_max: 1.5,
+    offset_max_mps2: 10.0,
+    min_excursion_m: 1e-6,
+};
+
+/// The segments are whole multiples of `dt` only approximately, so the RK4 plate switches its
+/// command up to `dt` late: `dt = 1 µs` keeps that below the tolerances.
+#[test]
+fn identification_recovers_the_drive_of_a_plate_without_friction() {
+    let plate = Plate {
+        gains: (1.02, 0.98),
+        offset_mps2: 1.0,
+        lag_s: 1.0 / (2.0 * std::f64::consts::PI * 1000.0),
+        coulomb_mps2: 0.0,
+        viscous_per_s: 3.3,
+    };
+    let probe = probe(3, 0.3);
+    let latches = plate.latches(&probe, 1e-6, 250);
+    let found = identify(&probe, &latches, &WIDE).unwrap();
+    println!("{found:?}");
+    assert!((found.gain_positive - 1.02).abs() < 2e-4 * 1.02);
+    assert!((found.gain_negative - 0.98).abs() < 2e-4 * 0.98);
+    assert!((found.offset_mps2 - 1.0).abs() < 5e-3);
+    assert!((found.lag_s - plate.lag_s).abs() < 0.02 * plate.lag_s);
+    assert!((found.viscous_per_s - 3.3).abs() < 0.05);
+    assert!(found.coulomb_mps2.abs() < 0.02);
+    assert!(found.residual_m < 1e-8);
+}
+
+#[test]
+fn identification_recovers_the_gains_of_a_plate_with_slide_friction() {
+    let plate = Plate {
+        gains: (1.03, 0.97),
+        offset_mps2: -0.5,
+        lag_s: 1.0 / (2.0 * std::f64::consts::PI * 1000.0),
+        coulomb_mps2: 4.0 / 3.0,
+        viscous_per_s: 10.0 / 3.0,
+    };
+    let probe = probe(3, 0.3);
+    let latches = plate.latches(&probe, 1e-6, 250);
+    let found = identify(&probe, &latches, &WIDE).unwrap();
+    println!("{found:?}");
+    assert!((found.gain_positive - 1.03).abs() < 2e-3 * 1.03);
+    assert!((found.gain_negative - 0.97).abs() < 2e-3 * 0.97);
+    assert!((found.offset_mps2 + 0.5).abs() < 0.05);
+    assert!((found.coulomb_mps2 - 4.0 / 3.0).abs() < 0.1);
+}
+
+#[test]
+fn identification_refuses_what_cannot_run() {
+    let probe = probe(3, 0.3);
+    let plate = Plate {
+        gains: (1.0, 1.0),
+        offset_mps2: 0.0,
+        lag_s: 0.0,
+        coulomb_mps2: 0.0,
+        viscous_per_s: 0.0,
+    };
+    let latches = plate.latches(&probe, 1e-6, 250);
+    let limits = IdentifyLimits::for_probe(0.3 * 146.0, 1e-6);
+    assert!(identify(&probe, &latches, &limits).is_ok());
+    // A motor that does not move the plate, or a sensor that does not count.
+    let still: Vec<Latch> = latches
+        .iter()
+        .map(|l| Latch {
+            position_m: 0.0,
+            ..*l
+        })
+        .collect();
+    assert!(matches!(
+        identify(&probe, &still, &limits),
+        Err(IdentifyError::NoMotion { .. })
+    ));
+    // A sensor (or motor) wired backwards.
+    let reversed: Vec<Latch> = latches
+        .iter()
+        .map(|l| Latch {
+            position_m: -l.position_m,
+            ..*l
+        })
+        .collect();
+    match identify(&probe, &reversed, &limits) {
+        Err(IdentifyError::Gain { gain, .. }) => assert!(gain < 0.0),
+        other => panic!("{other:?}"),
+    }
+    // Too strong an offset for the probe.
+    let drifting = Plate {
+        offset_mps2: 5.0,
+        ..plate
+    };
+    let latches_drift = drifting.latches(&probe, 1e-6, 250);
+    assert!(matches!(
+        identify(&probe, &latches_drift, &limits),
+        Err(IdentifyError::Offset { .. })
+    ));
+    // Latches out of order, too few, or outside the probe.
+    let mut shuffled = latches.clone();
+    shuffled.swap(3, 4);
+    assert_eq!(
+        identify(&probe, &shuffled, &limits),
+        Err(IdentifyError::Latches)
+    );
+    assert_eq!(
+        identify(&probe, &latches[..10], &limits),
+        Err(IdentifyError::Latches)
+    );
+    let mut late = latches.clone();
+    late.last_mut().unwrap().t_s = 1.0;
+    assert_eq!(
+        identify(&probe, &late, &limits),
+        Err(IdentifyError::Latches)
+    );
+    // A probe that only pushes one way.
+    let forward: Vec<CommandSegment> = probe
+        .iter()
+        .map(|s| CommandSegment {
+            accel_mps2: s.accel_mps2.abs(),
+            ..*s
+        })
+        .collect();
+    assert_eq!(
+        identify(&forward, &latches, &limits),
+        Err(IdentifyError::Probe)
+    );
+}
+
+fn unit_drive() -> Identified {
+    Identified {
+        gain_positive: 1.0,
+        gain_negative: 1.0,
+        offset_mps2: 0.0,
+        lag_s: 0.0,
+        coulomb_mps2: 0.0,
+        viscous_per_s: 0.0,
+        residual_m: 0.0,
+    }
+}
+
+const LOOSE: LoopLimits = LoopLimits {
+    correction_max_mps2: 1e9,
+    amplitude_max: 1.0,
+    position_error_max_m: 1e9,
+};
+
+/// The per-cycle plant the loop is designed on: a bias `δ` over a cycle of `T` moves the plate
+/// `δ·T²/2` and its velocity `δ·T`; the drive applies `gain·δ` and adds `disturbance_mps2`.
+/// Returns every cycle-start position from `x0_m`.
+fn linear_run(gain: f64, disturbance_mps2: f64, x0_m: f64, cycles: usize) -> Vec<f64> {
+    let period_s = 0.02;
+    let idle = CycleShape::idle(period_s);
+    let mut cycle_loop = CycleLoop::new(&unit_drive(), LOOSE);
+    let (mut x, mut v) = (x0_m, 0.0);
+    let mut trims = cycle_loop.trims();
+    let mut starts = Vec::new();
+    for _ in 0..cycles {
+        starts.push(x);
+        let next = cycle_loop.update(x, None, &idle, [&idle, &idle]).unwrap();
+        let a = gain * trims.bias_mps2 + disturbance_mps2;
+        x += v * period_s + a * period_s * period_s / 2.0;
+        v += a * period_s;
+        trims = next;
+    }
+    starts
+}
+
+/// The factor by which the error shrinks per cycle, from cycles 20–40 to 40–60.
+fn decay(starts: &[f64]) -> f64 {
+    let peak = |s: &[f64]| s.iter().map(|x| x.abs()).fold(0.0, f64::max);
+    (peak(&starts[40..60]) / peak(&starts[20..40])).powf(1.0 / 20.0)
+}
+
+#[test]
+fn the_loop_centres_the_linear_plant_and_rejects_a_constant_disturbance() {
+    let starts = linear_run(1.0, 0.3, 1e-3, 300);
+    assert!(
+        starts[60..].iter().all(|x| x.abs() < 1e-6),
+        "{:?}",
+        &starts[..60]
+    );
+}
+
+#[test]
+fn the_loop_is_stable_for_a_drive_gain_from_half_to_five_quarters_of_the_identified() {
+    for gain in [0.5, 0.6, 0.8, 1.0, 1.2, 1.25] {
+        let rate = decay(&linear_run(gain, 0.1, 1e-3, 60));
+        println!("loop gain {gain}: error × {rate:.3} a cycle");
+        assert!(rate < 0.98, "gain {gain}: {rate}");
+    }
+    // Beyond its margin the loop is unstable, so the test above can fail.
+    for gain in [0.3, 1.6] {
+        let rate = decay(&linear_run(gain, 0.1, 1e-3, 60));
+        assert!(rate > 1.0, "gain {gain}: {rate}");
+    }
+}
+
+proptest! {
+    #[test]
+    fn the_loop_settles_from_any_start_under_any_constant_disturbance(
+        x0_m in -3e-3..3e-3_f64,
+        disturbance_mps2 in -2.0..2.0_f64,
+        gain in 0.8..1.2_f64,
+    ) {
+        let starts = linear_run(gain, disturbance_mps2, x0_m, 300);
+        prop_assert!(starts[250..].iter().all(|x| x.abs() < 1e-6), "{:?}", &starts[240..250]);
+    }
+}
+
+#[test]
+fn the_loop_gives_up_beyond_its_limits_and_on_a_sensor_fault() {
+    let limits = LoopLimits {
+        correction_max_mps2: 1.0,
+        amplitude_max: 0.1,
+        position_error_max_m: 2e-3,
+    };
+    let idle = CycleShape::idle(0.02);
+    let mut far = CycleLoop::new(&unit_drive(), limits);
+    assert_eq!(
+        far.update(3e-3, None, &idle, [&idle, &idle]),
+        Err(LoopError::Position { error_m: 3e-3 })
+    );
+    let mut sensor = CycleLoop::new(&unit_drive(), limits);
+    assert_eq!(
+        sensor.update(f64::NAN, None, &idle, [&idle, &idle]),
+        Err(LoopError::Sensor)
+    );
+    // A plate running away at 1 m/s needs more than 1 m/s² to stop within a cycle or two.
+    let mut runaway = CycleLoop::new(&unit_drive(), limits);
+    runaway.update(0.0, None, &idle, [&idle, &idle]).unwrap();
+    assert!(matches!(
+        runaway.update(1.9e-3, None, &idle, [&idle, &idle]),
+        Err(LoopError::Correction { .. })
+    ));
+    // A stroke 30 % short asks for more amplitude than 10 %.
+    let (_, segments) = paper_cycle(0.586);
+    let shape = CycleShape::new(&segments).unwrap();
+    let mut weak = CycleLoop::new(&unit_drive(), limits);
+    let stroke = Stroke {
+        measured_m: 0.5 * shape.stroke_m,
+        planned_m: shape.stroke_m,
+    };
+    assert!(matches!(
+        weak.update(-shape.mean_m, Some(stroke), &shape, [&shape, &shape]),
+        Err(LoopError::Amplitude { .. })
+    ));
+}
+
+#[test]
+fn the_feedforward_undoes_the_identified_drive() {
+    let drive = Identified {
+        gain_positive: 1.25,
+        gain_negative: 0.8,
+        offset_mps2: 0.5,
+        ..unit_drive()
+    };
+    let trims = CycleLoop::new(&drive, LOOSE).trims();
+    assert!((1.25 * trims.positive - 1.0).abs() < 1e-15);
+    assert!((0.8 * trims.negative - 1.0).abs() < 1e-15);
+    assert_eq!(trims.bias_mps2, -0.5);
+    assert_eq!(trims.apply(100.0), 100.0 * trims.positive - 0.5);
+    assert_eq!(trims.apply(-100.0), -100.0 * trims.negative - 0.5);
+    assert_eq!(trims.apply(0.0), -0.5);
+}
+
+#[test]
+fn track_control_pauses_a_full_track_and_resumes_an_empty_one() {
+    let mut track = Track::new(TrackConfig {
+        full_after_s: 1.0,
+        empty_after_s: 2.0,
+    });
+    // Parts pass every 0.5 s, blocking the beam for 0.1 s: never full.
+    for k in 0..10 {
+        let t = k as f64 * 0.5;
+        assert_eq!(track.update(t, true), TrackState::Empty);
+        assert_eq!(track.update(t + 0.1, false), TrackState::Empty);
+    }
+    assert!((track.parts_per_minute() - 120.0).abs() < 1e-9);
+    // A part stays in the beam: full after 1 s, not before.
+    assert_eq!(track.update(5.0, true), TrackState::Empty);
+    assert_eq!(track.update(5.99, true), TrackState::Empty);
+    assert_eq!(track.update(6.0, true), TrackState::Full);
+    // Cleared: empty again only after 2 s clear; a blip resets the wait.
+    assert_eq!(track.update(6.5, false), TrackState::Full);
+    assert_eq!(track.update(8.0, true), TrackState::Full);
+    assert_eq!(track.update(8.1, false), TrackState::Full);
+    assert_eq!(track.update(10.0, false), TrackState::Full);
+    assert_eq!(track.update(10.1, false), TrackState::Empty);
+}
+
+proptest! {
+    #[test]
+    fn track_control_only_changes_state_after_its_hold_times(
+        readings in proptest::collection::vec((0.001..0.5_f64, any::<bool>()), 1..200),
+    ) {
+        let config = TrackConfig { full_after_s: 0.7, empty_after_s: 0.4 };
+        let mut track = Track::new(config);
+        let (mut t, mut blocked, mut since) = (0.0, false, 0.0);
+        let mut state = TrackState::Empty;
+        for (dt, reading) in readings {
+            t += dt;
+            if reading != blocked {
+                blocked = reading;
+                since = t;
+            }
+            let next = track.update(t, reading);
+            if next != state {
+                let held = t - since;
+                match next {
+                    TrackState::Full => prop_assert!(blocked && held >= config.full_after_s),
+                    TrackState::Empty => prop_assert!(!blocked && held >= config.empty_after_s),
+                }
+            }
+            state = next;
+        }
+    }
+}
