@@ -8,6 +8,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use crate::command::{command, Serial};
+use crate::plant::{LinkCounts, Plant, PlantThread};
 use crate::{LaunchError, DECODER, QEMU};
 
 /// Pause between looks at whether a run has ended.
@@ -30,13 +31,39 @@ impl Board {
         serial: Serial,
         decoded: Stdio,
     ) -> Result<Self, LaunchError> {
-        let mut emulator = command(elf, scenario, serial)
-            .stdout(Stdio::piped())
-            .spawn()
-            .map_err(|source| LaunchError::Start {
-                program: QEMU,
-                source,
-            })?;
+        Self::spawn(command(elf, scenario, serial), elf, decoded)
+    }
+
+    /// Starts the `cosim` image `elf` as [`Board::start`] does, in lockstep with `plant`: QEMU
+    /// runs in the directory of the link's FIFOs, which the returned thread serves `plant` on
+    /// (see [`crate::plant`]). Join the thread once the board has ended.
+    pub fn start_with_plant<S: AsRef<str>, P: Plant + Send + 'static>(
+        elf: &Path,
+        scenario: &[S],
+        serial: Serial,
+        decoded: Stdio,
+        plant: P,
+    ) -> Result<(Self, PlantThread<P>), LaunchError> {
+        // QEMU runs elsewhere: the image's path must not depend on the working directory.
+        let elf = std::path::absolute(elf).map_err(LaunchError::Plant)?;
+        let link = PlantThread::start(plant).map_err(LaunchError::Plant)?;
+        let mut emulator = command(&elf, scenario, serial);
+        emulator.current_dir(link.dir());
+        let board = Self::spawn(emulator, &elf, decoded)?;
+        Ok((board, link))
+    }
+
+    /// Starts QEMU's `emulator` command for `elf` with its standard output decoded into
+    /// `decoded`.
+    fn spawn(mut emulator: Command, elf: &Path, decoded: Stdio) -> Result<Self, LaunchError> {
+        let mut emulator =
+            emulator
+                .stdout(Stdio::piped())
+                .spawn()
+                .map_err(|source| LaunchError::Start {
+                    program: QEMU,
+                    source,
+                })?;
         let decoder = match emulator.stdout.take() {
             Some(raw) => Command::new(DECODER)
                 .arg("-e")
@@ -121,7 +148,41 @@ pub fn run_to_end<S: AsRef<str>>(
     scenario: &[S],
     limit: Duration,
 ) -> Result<Run, LaunchError> {
-    let mut board = Board::start(elf, scenario, Serial::None, Stdio::piped())?;
+    let board = Board::start(elf, scenario, Serial::None, Stdio::piped())?;
+    run_board(board, limit)
+}
+
+/// A scripted run in lockstep with a plant that has ended.
+#[derive(Debug)]
+pub struct PlantRun<P> {
+    pub run: Run,
+    /// The plant as the run left it.
+    pub plant: P,
+    /// What the link carried.
+    pub counts: LinkCounts,
+}
+
+/// Runs the `cosim` image `elf` with the scenario words, in lockstep with `plant` (see
+/// [`Board::start_with_plant`]), until the firmware ends, at most `limit`.
+pub fn run_with_plant<S: AsRef<str>, P: Plant + Send + 'static>(
+    elf: &Path,
+    scenario: &[S],
+    limit: Duration,
+    plant: P,
+) -> Result<PlantRun<P>, LaunchError> {
+    let (board, link) =
+        Board::start_with_plant(elf, scenario, Serial::None, Stdio::piped(), plant)?;
+    let run = run_board(board, limit);
+    let (plant, counts) = link.join()?;
+    Ok(PlantRun {
+        run: run?,
+        plant,
+        counts,
+    })
+}
+
+/// Takes `board`, started with its decoded log piped, to its end, at most `limit`.
+fn run_board(mut board: Board, limit: Duration) -> Result<Run, LaunchError> {
     let mut decoded = board.decoded_log()?;
     let reader = thread::spawn(move || {
         let mut log = String::new();

@@ -23,6 +23,8 @@ pub enum LaunchError {
     Log(io::Error),
     /// The run went on longer than allowed and was ended.
     Timeout { limit: Duration },
+    /// The plant link's FIFOs could not be made, or the link failed on the host's side.
+    Plant(io::Error),
 }
 
 impl fmt::Display for LaunchError {
@@ -34,6 +36,7 @@ impl fmt::Display for LaunchError {
                 write!(f, "cannot wait for {program}: {source}")
             }
             LaunchError::Log(source) => write!(f, "cannot read the decoded log: {source}"),
+            LaunchError::Plant(source) => write!(f, "the plant link failed: {source}"),
             LaunchError::Timeout { limit } => {
                 write!(
                     f,
@@ -49,7 +52,8 @@ impl std::error::Error for LaunchError {
         match self {
             LaunchError::Start { source, .. }
             | LaunchError::Wait { source, .. }
-            | LaunchError::Log(source) => Some(source),
+            | LaunchError::Log(source)
+            | LaunchError::Plant(source) => Some(source),
             LaunchError::NoOutput { .. } | LaunchError::Timeout { .. } => None,
         }
     }

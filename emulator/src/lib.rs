@@ -3,14 +3,18 @@
 //! a chosen backend, and the firmware's defmt log, which appears on QEMU's standard output,
 //! decoded by `defmt-print`.
 //!
+//! The `cosim` image runs in lockstep with a plant on the host over two FIFOs ([`plant`]):
+//! [`run_with_plant`] serves a [`plant::Plant`] on a thread while the firmware runs.
+//!
 //! `qemu-system-arm` and `defmt-print` are found on `PATH`: `cargo xtask` installs them and puts
 //! `target/tools/bin` first on the `PATH` of everything it starts, the tests included.
 
 mod board;
 mod command;
 mod error;
+pub mod plant;
 
-pub use board::{run_to_end, Board, Run};
+pub use board::{run_to_end, run_with_plant, Board, PlantRun, Run};
 pub use command::{command, Serial, ICOUNT_SHIFT, NS_PER_INSTRUCTION};
 pub use error::LaunchError;
 

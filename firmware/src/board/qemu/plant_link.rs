@@ -7,7 +7,7 @@
 //! # Files
 //!
 //! Two FIFOs with fixed names in QEMU's working directory, opened with `SYS_OPEN` when the board
-//! comes up (each open waits until the host has opened the other end):
+//! comes up, samples first (each open waits until the host has opened the other end):
 //!
 //! * `plant-levels`, written by the firmware: its [`Message`]s;
 //! * `plant-samples`, read by the firmware: the plant's [`Sample`]s.
@@ -125,11 +125,12 @@ pub struct PlantLink {
 }
 
 impl PlantLink {
-    /// Opens `plant-levels` for writing, then `plant-samples` for reading; with FIFOs each
-    /// open waits until the host has opened the other end, in the same order.
+    /// Opens `plant-samples` for reading, then `plant-levels` for writing; with FIFOs each
+    /// open waits until the host has opened the other end, in the same order. The samples come
+    /// first so that a run without the link's FIFOs fails without creating a file.
     pub fn open() -> Result<Self, LinkError> {
-        let levels = open(Channel::Levels, W_TRUNC_BINARY)?;
         let samples = open(Channel::Samples, R_BINARY)?;
+        let levels = open(Channel::Levels, W_TRUNC_BINARY)?;
         Ok(PlantLink { levels, samples })
     }
 

@@ -1,0 +1,175 @@
+//! The lockstep plant link under QEMU: the `cosim` image (`--features cosim`) sends every level
+//! its output applies to a plant on the host and takes a sample back at every cycle start, over
+//! semihosting FIFOs. QEMU runs no instruction while the firmware waits for an answer, and under
+//! `-icount` virtual time is the instruction count, so the run must not depend on how long the
+//! host takes: runs whose plant answers at once and after random delays give byte-identical logs.
+//!
+//! This test needs the `cosim` image's ELF in `FEEDER_COSIM_ELF`, `qemu-system-arm` and
+//! `defmt-print`:
+//!
+//! ```sh
+//! (cd firmware && cargo build --release --locked --no-default-features --features cosim \
+//!     --target-dir target/qemu-cosim)
+//! FEEDER_COSIM_ELF=firmware/target/qemu-cosim/thumbv7em-none-eabihf/release/feeder-firmware \
+//!     cargo test -p feeder-tests --test cosim -- --ignored --nocapture
+//! ```
+
+use std::path::PathBuf;
+use std::thread;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+
+use feeder_emulator::plant::{EchoPlant, LinkCounts, Plant};
+use feeder_emulator::PlantRun;
+
+/// A scenario may take this long before it is killed and failed.
+const TIMEOUT: Duration = Duration::from_secs(300);
+/// The scenario: a few hundred cycles at the firmware's default 50 Hz.
+const SCENARIO: [&str; 2] = ["cycles=300", "ramp=8"];
+/// The longest the delaying plant waits before an answer.
+const MAX_DELAY: Duration = Duration::from_millis(20);
+
+fn elf() -> PathBuf {
+    std::env::var_os("FEEDER_COSIM_ELF")
+        .map(PathBuf::from)
+        .expect("FEEDER_COSIM_ELF must name the cosim firmware image")
+}
+
+/// The echo plant, answering each sample request after a random delay of 0 to [`MAX_DELAY`].
+struct Delayed {
+    plant: EchoPlant,
+    /// xorshift64 state.
+    state: u64,
+    slept: Duration,
+}
+
+impl Delayed {
+    fn new(seed: u64) -> Self {
+        Delayed {
+            plant: EchoPlant::default(),
+            state: seed | 1,
+            slept: Duration::ZERO,
+        }
+    }
+
+    fn next_delay(&mut self) -> Duration {
+        self.state ^= self.state << 13;
+        self.state ^= self.state >> 7;
+        self.state ^= self.state << 17;
+        let micros = self.state % (MAX_DELAY.as_micros() as u64 + 1);
+        Duration::from_micros(micros)
+    }
+}
+
+impl Plant for Delayed {
+    fn level(&mut self, tick: u64, code: i32) {
+        self.plant.level(tick, code);
+    }
+
+    fn sample(&mut self, tick: u64) -> i32 {
+        let delay = self.next_delay();
+        thread::sleep(delay);
+        self.slept += delay;
+        self.plant.sample(tick)
+    }
+}
+
+/// One run: its log, what the link carried, the wall time it took and its virtual time.
+struct Timed {
+    log: String,
+    counts: LinkCounts,
+    wall: Duration,
+    virtual_s: f64,
+}
+
+fn run<P: Plant + Send + 'static>(plant: P) -> (Timed, P) {
+    let started = Instant::now();
+    let PlantRun { run, plant, counts } =
+        feeder_emulator::run_with_plant(&elf(), &SCENARIO, TIMEOUT, plant)
+            .unwrap_or_else(|error| panic!("the cosim run: {error}"));
+    let wall = started.elapsed();
+    assert!(run.status.success(), "the firmware failed:\n{}", run.log);
+    let end_tick: u64 = run
+        .log
+        .lines()
+        .find_map(|line| line.strip_prefix("EVT end tick="))
+        .expect("the run ends with `EVT end`")
+        .trim()
+        .parse()
+        .expect("the end tick is a number");
+    let timed = Timed {
+        log: run.log,
+        counts,
+        wall,
+        virtual_s: end_tick as f64 * 1e-6,
+    };
+    (timed, plant)
+}
+
+fn seed() -> u64 {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .expect("the clock is past 1970")
+        .as_nanos() as u64
+}
+
+fn report(name: &str, timed: &Timed, slept: Duration) {
+    println!(
+        "{name}: {} levels, {} samples; wall {:.3} s (host delays {:.3} s), virtual {:.3} s, \
+         virtual/wall {:.2}",
+        timed.counts.levels,
+        timed.counts.samples,
+        timed.wall.as_secs_f64(),
+        slept.as_secs_f64(),
+        timed.virtual_s,
+        timed.virtual_s / timed.wall.as_secs_f64()
+    );
+}
+
+#[test]
+#[ignore = "needs the cosim firmware image in FEEDER_COSIM_ELF"]
+fn the_lockstep_run_does_not_depend_on_how_long_the_plant_takes() {
+    let (prompt, _) = run(EchoPlant::default());
+    report("plant answering at once", &prompt, Duration::ZERO);
+
+    // Every cycle start took a sample, which the firmware logged with its tick; the first cycle
+    // start is the output's first restart (actual tick 0) with the first level already summed.
+    let samples: Vec<&str> = prompt
+        .log
+        .lines()
+        .filter(|line| line.contains("plant: cycle"))
+        .collect();
+    assert_eq!(samples.len() as u64, prompt.counts.samples);
+    assert!(prompt.counts.samples >= 300, "{:?}", prompt.counts);
+    assert!(prompt.counts.levels > 2 * prompt.counts.samples);
+    assert!(
+        samples[0].contains("tick=0 count=") && !samples[0].ends_with("count=0"),
+        "{}",
+        samples[0]
+    );
+
+    for name in ["delayed (first seed)", "delayed (second seed)"] {
+        let seed = seed();
+        let (delayed, plant) = run(Delayed::new(seed));
+        report(&format!("{name} {seed:#x}"), &delayed, plant.slept);
+        assert!(
+            plant.slept > Duration::from_secs(1),
+            "the plant slept {:?}",
+            plant.slept
+        );
+        assert_eq!(delayed.counts, prompt.counts);
+        if delayed.log != prompt.log {
+            let line = prompt
+                .log
+                .lines()
+                .zip(delayed.log.lines())
+                .position(|(a, b)| a != b)
+                .unwrap_or_else(|| prompt.log.lines().count().min(delayed.log.lines().count()));
+            panic!(
+                "the log with host delays differs at line {}:\n  at once: {:?}\n  delayed: {:?}",
+                line + 1,
+                prompt.log.lines().nth(line),
+                delayed.log.lines().nth(line)
+            );
+        }
+    }
+}
