@@ -112,6 +112,7 @@ pub fn run_closed_loop(
     let identified = probe(&mut stepper, encoder_config, waveform, options)?;
     let mut cycle_loop = CycleLoop::new(&identified, options.limits);
     let mut scheduler = Scheduler::new(plan, options.ramp_cycles);
+    let first = scheduled_shapes(&scheduler, true);
     // Cycles in a row the plate has started centred while the loop centres it.
     let mut centred = 0;
     let mut records = Vec::new();
@@ -145,45 +146,45 @@ pub fn run_closed_loop(
         let start_m = latch(&stepper, encoder_config)?;
         let integral_start = stepper.position_integral_ms();
         let part_m = stepper.part_position_m();
-        if centring {
-            centred = if centred >= CENTRED_CYCLES || (start_m + shape.mean_m).abs() <= CENTRED_M {
-                centred + 1
-            } else {
-                0
-            };
-            if start_s > CENTRING_TIMEOUT_S && centred < CENTRED_CYCLES {
+        // While centring, the probe's cycle aims at the start of the soft start's first cycle,
+        // so that the motion begins centred and at rest.
+        let aim = CycleShape {
+            mean_m: first[0].mean_m,
+            ..shape
+        };
+        let starting = centring && (start_m + aim.mean_m).abs() <= CENTRED_M && {
+            centred += 1;
+            centred == CENTRED_CYCLES
+        };
+        if centring && !starting && (start_m + aim.mean_m).abs() > CENTRED_M {
+            centred = 0;
+            if start_s > CENTRING_TIMEOUT_S {
                 return Err(SimError::Loop {
                     time_s: start_s,
                     error: LoopError::Position {
-                        error_m: start_m + shape.mean_m,
+                        error_m: start_m + aim.mean_m,
                     },
                 });
             }
         }
-        // Centred, the plate runs one more probe cycle while the loop already aims at the soft
-        // start's first cycle, two cycles ahead, and then the scheduler starts.
-        let upcoming = if !centring {
-            scheduled_shapes(&scheduler, false)
-        } else if centred == CENTRED_CYCLES {
-            [shape, scheduled_shapes(&scheduler, true)[0]]
-        } else if centred > CENTRED_CYCLES {
-            scheduled_shapes(&scheduler, true)
-        } else {
-            [shape; 2]
+        let (now, upcoming) = match (centring, starting) {
+            (false, _) => (shape, scheduled_shapes(&scheduler, false)),
+            (true, true) => (aim, first),
+            (true, false) => (aim, [aim; 2]),
         };
         let next = cycle_loop
             .update(
                 start_m,
                 last.filter(|_| !centring)
                     .map(|(s, t, plan)| Stroke::latched(s, t, start_m, &plan)),
-                &shape,
+                &now,
                 [&upcoming[0], &upcoming[1]],
             )
             .map_err(|error| SimError::Loop {
                 time_s: start_s,
                 error,
             })?;
-        if centring && centred > CENTRED_CYCLES {
+        if starting {
             scheduler.start();
         }
         let mut turn_m = None;
