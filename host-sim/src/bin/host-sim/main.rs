@@ -4,6 +4,7 @@
 //! they produce, [`plot`] draws their charts and [`refusal`] reports what they cannot run.
 
 mod args;
+mod closed_loop;
 mod drift;
 mod hil;
 mod output;
@@ -49,6 +50,9 @@ enum Command {
     /// What each non-ideality of a real plate does to one operating point in open loop: feed
     /// rate, plate position, end stop.
     Drift(drift::DriftArgs),
+    /// The shared closed loop on a real plate: the drive it identifies, how well it centres the
+    /// plate and its feed rate beside the ideal plate's, with a verdict.
+    ClosedLoop(closed_loop::ClosedLoopArgs),
 }
 
 fn main() -> ExitCode {
@@ -70,6 +74,13 @@ fn main() -> ExitCode {
         Command::Trace(args) => trace::run(&args),
         Command::Hil(args) => hil::run(&args),
         Command::Drift(args) => drift::run(&args),
+        // A run that fails its criteria is not a refusal: its report is out, and exit code 1
+        // says so.
+        Command::ClosedLoop(args) => match closed_loop::run(&args) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::FAILURE,
+            Err(error) => Err(error),
+        },
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,

@@ -78,8 +78,45 @@ pub fn check_path(path: &Path) -> Result<(), SimError> {
     format(path).map(|_| ())
 }
 
+/// One panel of a [`stacked`] chart: its y axis title and its series.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Panel<'a> {
+    pub y: &'a str,
+    pub series: Vec<Series>,
+}
+
+/// What one chart file holds.
+enum Layout<'a> {
+    /// One chart.
+    Single(Labels<'a>, &'a [Series]),
+    /// Panels stacked top to bottom under one title, each with the x axis titled `x`.
+    Stacked {
+        title: &'a str,
+        x: &'a str,
+        panels: &'a [Panel<'a>],
+    },
+}
+
+/// Height of each panel of a [`stacked`] chart.
+const PANEL_HEIGHT: u32 = 300;
+
 /// Writes the chart to `path`: `.svg` or `.png`.
 pub fn chart(path: &Path, labels: Labels<'_>, series: &[Series]) -> Result<(), SimError> {
+    write(path, SIZE, &Layout::Single(labels, series))
+}
+
+/// Writes `panels` stacked top to bottom under `title`, each over its own time (or other) axis
+/// titled `x`, to `path`: `.svg` or `.png`.
+pub fn stacked(path: &Path, title: &str, x: &str, panels: &[Panel<'_>]) -> Result<(), SimError> {
+    let height = 40 + PANEL_HEIGHT * u32::try_from(panels.len()).unwrap_or(1).max(1);
+    write(
+        path,
+        (SIZE.0, height),
+        &Layout::Stacked { title, x, panels },
+    )
+}
+
+fn write(path: &Path, size: (u32, u32), layout: &Layout<'_>) -> Result<(), SimError> {
     let failure = |reason: String| SimError::Output {
         path: path.display().to_string(),
         reason,
@@ -92,28 +129,53 @@ pub fn chart(path: &Path, labels: Labels<'_>, series: &[Series]) -> Result<(), S
         .map_err(|_| failure("the embedded font is unreadable".into()))?;
     match format {
         Format::Svg => {
-            let root = SVGBackend::new(path, SIZE).into_drawing_area();
-            draw(&root, labels, series).map_err(failure)?;
+            let root = SVGBackend::new(path, size).into_drawing_area();
+            draw_layout(&root, layout).map_err(failure)?;
             root.present().map_err(|e| failure(e.to_string()))
         }
         Format::Png => {
-            let root = BitMapBackend::new(path, SIZE).into_drawing_area();
-            draw(&root, labels, series).map_err(failure)?;
+            let root = BitMapBackend::new(path, size).into_drawing_area();
+            draw_layout(&root, layout).map_err(failure)?;
             root.present().map_err(|e| failure(e.to_string()))
+        }
+    }
+}
+
+fn draw_layout<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    layout: &Layout<'_>,
+) -> Result<(), String> {
+    let text = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    root.fill(&WHITE).map_err(text)?;
+    match layout {
+        Layout::Single(labels, series) => {
+            draw(root, Some(labels.title), labels.x, labels.y, series)
+        }
+        Layout::Stacked { title, x, panels } => {
+            let below = root.titled(title, (FONT, 22)).map_err(text)?;
+            let areas = below.split_evenly((panels.len().max(1), 1));
+            for (area, panel) in areas.iter().zip(panels.iter()) {
+                draw(area, None, x, panel.y, &panel.series)?;
+            }
+            Ok(())
         }
     }
 }
 
 fn draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
-    labels: Labels<'_>,
+    caption: Option<&str>,
+    x: &str,
+    y: &str,
     series: &[Series],
 ) -> Result<(), String> {
     let text = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
-    root.fill(&WHITE).map_err(text)?;
     let (x_range, y_range) = bounds(series);
-    let mut chart = ChartBuilder::on(root)
-        .caption(labels.title, (FONT, 22))
+    let mut builder = ChartBuilder::on(root);
+    if let Some(caption) = caption {
+        builder.caption(caption, (FONT, 22));
+    }
+    let mut chart = builder
         .margin(16)
         .x_label_area_size(48)
         .y_label_area_size(72)
@@ -121,8 +183,8 @@ fn draw<DB: DrawingBackend>(
         .map_err(text)?;
     chart
         .configure_mesh()
-        .x_desc(labels.x)
-        .y_desc(labels.y)
+        .x_desc(x)
+        .y_desc(y)
         .label_style((FONT, 14))
         .axis_desc_style((FONT, 16))
         .light_line_style(RGBColor(235, 235, 235))
