@@ -4,13 +4,13 @@
 //! `-icount` virtual time is the instruction count, so the run must not depend on how long the
 //! host takes: runs whose plant answers at once and after random delays give byte-identical logs.
 //!
-//! This test needs the `cosim` image's ELF in `FEEDER_COSIM_ELF`, `qemu-system-arm` and
-//! `defmt-print`:
+//! This test needs the `cosim` image's ELF in `FEEDER_COSIM_ELF` (an absolute path: tests run
+//! in `tests/`), `qemu-system-arm` and `defmt-print`:
 //!
 //! ```sh
 //! (cd firmware && cargo build --release --locked --no-default-features --features cosim \
 //!     --target-dir target/qemu-cosim)
-//! FEEDER_COSIM_ELF=firmware/target/qemu-cosim/thumbv7em-none-eabihf/release/feeder-firmware \
+//! FEEDER_COSIM_ELF=$PWD/firmware/target/qemu-cosim/thumbv7em-none-eabihf/release/feeder-firmware \
 //!     cargo test -p feeder-tests --test cosim -- --ignored --nocapture
 //! ```
 

@@ -21,6 +21,15 @@
 //!   ([`SAFE_STATE_WRITES`]) can name them, and the model honours what they hold.
 //! * Logs: defmt over semihosting; the run ends with a semihosting exit code, non-zero after a
 //!   panic or fault, which first reports the output's state from those registers ([`exit`]).
+//! * Plant link (feature `cosim`): `plant_link` opens two FIFOs in QEMU's working directory
+//!   with semihosting file calls; the output stage sends a plant simulated on the host every
+//!   level it applies (tick and DAC code) and, at every cycle start, waits for the plant's
+//!   sample (an encoder count) and logs it (`plant: cycle … tick=… count=…`). QEMU executes no
+//!   instruction while the call waits, so under `-icount` the firmware's time stands still while
+//!   the host computes and a run is byte-identical however long the plant takes
+//!   (`tests/tests/cosim.rs`). A host that goes away ends the run like a fault: the output at
+//!   zero, the driver disabled, the error logged, a failure exit code. `feeder_emulator::plant`
+//!   is the host's end.
 
 mod edge_work;
 mod exit;
