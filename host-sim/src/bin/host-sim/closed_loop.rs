@@ -164,8 +164,12 @@ struct ClosedLoopReport {
     /// `identified / plant − 1` of each gain.
     gain_positive_error: f64,
     gain_negative_error: f64,
-    /// The largest `|cycle mean position|` over the running cycles.
+    /// The largest `|cycle mean position|` over the running cycles …
     worst_mean_position_m: f64,
+    /// … the cycle where it was …
+    worst_cycle: Option<u64>,
+    /// … and the largest from the end of the soft start on (null if the run ends before).
+    worst_after_ramp_m: Option<f64>,
     /// The last cycles the feed rate is averaged over.
     average_cycles: u64,
     feed_rate_mps: f64,
@@ -405,6 +409,9 @@ impl ClosedLoopReport {
             gain_positive_error,
             gain_negative_error,
             worst_mean_position_m: run.worst_mean_position_m,
+            worst_cycle: worst_cycle(run, 0).map(|c| c.cycle),
+            worst_after_ramp_m: worst_cycle(run, u64::from(options.ramp_cycles))
+                .map(|c| c.mean_position_m.abs()),
             average_cycles: options.average_cycles,
             feed_rate_mps: run.feed_rate_mps,
             ideal_feed_rate_mps,
@@ -416,6 +423,16 @@ impl ClosedLoopReport {
             wall_time_s,
         }
     }
+}
+
+/// The running cycle from `from` on (not idle, before any end stop) whose mean position is the
+/// farthest from the centre.
+fn worst_cycle(run: &ClosedLoopRun, from: u64) -> Option<&CycleRecord> {
+    let end_s = run.end_stop.map_or(f64::INFINITY, |stop| stop.time_s);
+    run.cycles
+        .iter()
+        .filter(|c| !c.centring && !c.idle && c.cycle >= from && c.time_s < end_s)
+        .max_by(|a, b| a.mean_position_m.abs().total_cmp(&b.mean_position_m.abs()))
 }
 
 /// `|value| ≤ limit`; false for NaN.
@@ -478,8 +495,14 @@ fn print_report(report: &ClosedLoopReport, output: &OutputArgs) {
     if let Some(residual_m) = found.residual_m {
         say!("  fit residual    {:.2} µm", residual_m * 1e6);
     }
+    let at = report
+        .worst_cycle
+        .map_or(String::new(), |cycle| format!(" (cycle {cycle})"));
+    let after = report.worst_after_ramp_m.map_or(String::new(), |worst_m| {
+        format!(", {:.1} µm after the soft start", worst_m * 1e6)
+    });
     say!(
-        "mean position     worst |cycle mean| {:.1} µm over the running cycles",
+        "mean position     worst |cycle mean| {:.1} µm over the running cycles{at}{after}",
         report.worst_mean_position_m * 1e6
     );
     let difference = report
