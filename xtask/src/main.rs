@@ -249,6 +249,8 @@ fn test() -> Result {
     tools::ensure_emulation()?;
     let scripted = qemu::build_firmware(qemu::Image::Scripted)?;
     exec(&mut ignored_tests("feeder-tests", "qemu", &scripted))?;
+    let cosim = qemu::build_firmware(qemu::Image::Cosim)?;
+    exec(ignored_tests("feeder-tests", "cosim", &cosim).env("FEEDER_COSIM_ELF", &cosim))?;
     let console = qemu::build_firmware(qemu::Image::Console)?;
     exec(&mut ignored_tests("feeder-ctl", "qemu_session", &console))?;
     let seed = std::env::var_os("FEEDER_SOAK_SEED")

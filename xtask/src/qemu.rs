@@ -5,11 +5,13 @@ use std::path::PathBuf;
 
 use crate::{exec, firmware_cargo, firmware_dir, Result, THUMB_TARGET};
 
-/// The QEMU firmware with the scripted operator, or with the serial console instead.
+/// The QEMU firmware with the scripted operator, with the serial console instead, or with the
+/// scripted operator and the lockstep link to a plant on the host.
 #[derive(Clone, Copy)]
 pub enum Image {
     Scripted,
     Console,
+    Cosim,
 }
 
 /// Builds a QEMU firmware image (in its own target directory, beside the board image) and
@@ -18,6 +20,7 @@ pub fn build_firmware(image: Image) -> Result<PathBuf> {
     let (directory, features) = match image {
         Image::Scripted => ("qemu", "board-qemu"),
         Image::Console => ("qemu-console", "board-qemu,console"),
+        Image::Cosim => ("qemu-cosim", "cosim"),
     };
     let target_dir = firmware_dir().join("target").join(directory);
     exec(
