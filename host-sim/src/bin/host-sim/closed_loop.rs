@@ -70,7 +70,8 @@ pub struct ClosedLoopArgs {
     )]
     ramp_cycles: u16,
     /// Ask for a new plan at the start of this cycle (counted from 0, the soft start's first;
-    /// below --cycles): duty --to-duty, the same frequency and stroke (or a_max).
+    /// below --cycles): duty --to-duty, the same frequency and stroke (or a_max). The feed rate
+    /// is that of the last 50 cycles, compared with the ideal plate's at the new duty.
     #[arg(
         long,
         value_name = "CYCLE",
