@@ -623,3 +623,86 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
     );
     plot::stacked(path, &title, "time (s)", &panels)
 }
+
+#[cfg(test)]
+mod tests {
+    use feeder_shared::{Drive as WaveDrive, WaveformSpec};
+    use host_sim::Contact;
+
+    use super::*;
+
+    fn report(run: &ClosedLoopRun, ideal_feed_rate_mps: f64) -> ClosedLoopReport {
+        let spec =
+            WaveformSpec::from_frequency(50.0, 0.586, WaveDrive::Stroke { stroke_m: 2.5e-3 });
+        let point =
+            OperatingPoint::new(spec, Contact::kinetic(1.0, 1e-4).unwrap(), Some(1_000_000))
+                .unwrap();
+        let plate = PlateParams {
+            gain_positive: 1.02,
+            gain_negative: 0.98,
+            ..PlateParams::default()
+        };
+        ClosedLoopReport::new(ReportInputs {
+            path: Path::new("plant.toml"),
+            point: &point,
+            clock_hz: 1_000_000,
+            options: &ClosedLoopOptions::new(100),
+            change: None,
+            plate: &plate,
+            run,
+            ideal_feed_rate_mps,
+            velocity_scale_mps: point.velocity_scale_mps(),
+            wall_time_s: 0.0,
+        })
+    }
+
+    fn run(gain_positive: f64, worst_m: f64, feed_rate_mps: f64) -> ClosedLoopRun {
+        ClosedLoopRun {
+            identified: Identified {
+                gain_positive,
+                gain_negative: 0.98,
+                offset_mps2: 0.0,
+                lag_s: 0.0,
+                coulomb_mps2: 0.0,
+                viscous_per_s: 0.0,
+                residual_m: 0.0,
+            },
+            cycles: Vec::new(),
+            feed_rate_mps,
+            worst_mean_position_m: worst_m,
+            end_stop: None,
+        }
+    }
+
+    #[test]
+    fn a_run_within_every_criterion_passes() {
+        let report = report(&run(1.02 * 1.009, 49e-6, 0.1009), 0.1);
+        assert_eq!(report.verdict, "closed loop: PASSED");
+        assert!(report.passed && report.reasons.is_empty());
+    }
+
+    #[test]
+    fn a_failed_run_names_each_criterion_it_misses() {
+        let mut missed = run(1.02 * 1.011, 51e-6, 0.0989);
+        missed.end_stop = Some(EndStop {
+            time_s: 1.5,
+            position_m: -0.005,
+            velocity_mps: -0.2,
+        });
+        let report = report(&missed, 0.1);
+        assert!(!report.passed);
+        assert_eq!(
+            report.verdict,
+            "closed loop: FAILED (worst mean position 51.0 µm: over 50 µm, feed rate 1.10 % below \
+             the ideal plate's: over 1 %, gain + identified 1.10 % high: over 1 %, end stop at \
+             -5.0 mm after 1.500 s)"
+        );
+        assert_eq!(report.reasons.len(), 4);
+    }
+
+    #[test]
+    fn a_feed_rate_that_is_not_a_number_fails() {
+        let report = report(&run(1.02, 0.0, f64::NAN), 0.1);
+        assert_eq!(report.reasons.len(), 1, "{:?}", report.reasons);
+    }
+}
