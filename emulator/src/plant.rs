@@ -21,6 +21,10 @@ use tempfile::TempDir;
 
 use crate::LaunchError;
 
+/// The rate of the ticks the firmware's messages carry: the QEMU board's output clock, embassy's
+/// default tick of 1 µs.
+pub const TICK_HZ: u32 = 1_000_000;
+
 /// The FIFO the firmware writes its messages to, in QEMU's working directory.
 pub const LEVELS_FILE: &str = "plant-levels";
 /// The FIFO the firmware reads the plant's samples from, in QEMU's working directory.

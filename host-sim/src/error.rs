@@ -145,7 +145,8 @@ impl fmt::Display for SimError {
             ),
             SimError::MissingSensor { sensor } => write!(
                 f,
-                "the closed loop needs a `[sensors.{sensor}]` table in the plant file"
+                "this run reads the plate's {sensor}: the plant file needs a `[sensors.{sensor}]` \
+                 table"
             ),
             SimError::Identification(error) => write!(f, "identification refused: {error}"),
             SimError::Loop { time_s, error } => write!(

@@ -11,6 +11,7 @@
 //! read from a plant file; [`sensors`] are what a firmware would read from it.
 
 pub mod closed_loop;
+pub mod cosim;
 pub mod error;
 pub mod figures;
 pub mod hil;

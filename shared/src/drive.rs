@@ -192,6 +192,12 @@ impl DacCalibration {
         }
     }
 
+    /// The plate acceleration the driver commands at DAC code `code`: the calibration read
+    /// backwards, for a plant that receives the codes.
+    pub fn accel_mps2(&self, code: i32) -> f64 {
+        f64::from(code - i32::from(self.zero_code)) / self.counts_per_mps2
+    }
+
     /// The codes of a plan with peak acceleration `peak_accel_mps2`, or why they do not fit in
     /// the output's linear range.
     pub fn levels(&self, peak_accel_mps2: f64) -> Result<DacLevels, DriveError> {

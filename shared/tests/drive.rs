@@ -27,6 +27,27 @@ fn default_dac_codes_at_the_paper_operating_point() {
 }
 
 #[test]
+fn a_dac_code_reads_back_as_its_acceleration() {
+    let dac = DacCalibration::DEFAULT;
+    let levels = dac.levels(150.0).unwrap();
+    for (level, accel_mps2) in [
+        (Level::Positive, 150.0),
+        (Level::Zero, 0.0),
+        (Level::Negative, -150.0),
+    ] {
+        assert_eq!(
+            dac.accel_mps2(i32::from(levels.code(level, FULL))),
+            accel_mps2
+        );
+    }
+    // A quarter step of a soft start: 300 counts, 37.5 m/s².
+    assert_eq!(
+        dac.accel_mps2(i32::from(levels.code(Level::Positive, amp(1, 4)))),
+        37.5
+    );
+}
+
+#[test]
 fn soft_start_steps_scale_the_amplitude_in_integers() {
     let levels = DacCalibration::DEFAULT.levels(150.0).unwrap();
     assert_eq!(levels.code(Level::Positive, amp(1, 3)), 2048 + 400);

@@ -173,3 +173,46 @@ fn the_lockstep_run_does_not_depend_on_how_long_the_plant_takes() {
         }
     }
 }
+
+/// The firmware drives the real plate of `realistic.toml` open loop: its zero offset and gain
+/// mismatch walk the plate into an end stop within a few cycles, at the same instant in every
+/// run.
+#[test]
+#[ignore = "needs the cosim firmware image in FEEDER_COSIM_ELF"]
+fn the_firmware_walks_the_realistic_plate_into_its_end_stop_open_loop() {
+    use host_sim::cosim::PlatePlant;
+    use host_sim::plate::PlantFile;
+
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../host-sim/plants/realistic.toml");
+    let plant = || {
+        let file = PlantFile::from_path(&path).expect("realistic.toml loads");
+        let contact = host_sim::Contact::kinetic(1.0, 1e-4).expect("a valid contact");
+        PlatePlant::new(
+            &file,
+            &contact,
+            feeder_shared::DacCalibration::DEFAULT,
+            feeder_emulator::plant::TICK_HZ,
+        )
+        .expect("realistic.toml has an encoder")
+    };
+    let hits: Vec<_> = (0..2)
+        .map(|_| {
+            let PlantRun { run, plant, .. } =
+                feeder_emulator::run_with_plant(&elf(), &["cycles=100"], TIMEOUT, plant())
+                    .unwrap_or_else(|error| panic!("the cosim run: {error}"));
+            assert!(run.status.success(), "the firmware failed:\n{}", run.log);
+            plant
+                .end_stop()
+                .expect("the open-loop plate hits an end stop")
+        })
+        .collect();
+    println!("end stop: {:?}", hits[0]);
+    assert_eq!(hits[0], hits[1]);
+    assert_eq!(hits[0].position_m.abs(), 0.005);
+    assert!(
+        hits[0].time_s > 0.05 && hits[0].time_s < 0.5,
+        "{:?}",
+        hits[0]
+    );
+}

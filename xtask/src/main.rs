@@ -78,6 +78,13 @@ struct SoakArgs {
 #[derive(Args)]
 #[command(after_help = scenario_help())]
 struct RunArgs {
+    /// Drive a real plate from this plant file (host-sim/plants/) instead: the QEMU `cosim`
+    /// image in lockstep with `host-sim cosim`, which reports the plate's motion.
+    #[arg(long, value_name = "FILE")]
+    plant: Option<PathBuf>,
+    /// With --plant: the firmware's command as planned, with no correction (its only mode).
+    #[arg(long, requires = "plant")]
+    open_loop: bool,
     /// Settings of the emulated run's scripted operator (keys below).
     #[arg(value_name = "KEY=VALUE", value_parser = scenario_word)]
     scenario: Vec<String>,
@@ -189,6 +196,9 @@ fn host_sim() -> Command {
 /// edge and simulates the part on the actual edge times. Scenario settings (`key=value`) come
 /// first, `hil` flags after `--`.
 fn run(args: &RunArgs) -> Result {
+    if let Some(plant) = &args.plant {
+        return run_plant(plant, args);
+    }
     let (scenario, hil_flags) = (&args.scenario, &args.hil_flags);
     tools::ensure_linker()?;
     tools::ensure_emulation()?;
@@ -222,6 +232,27 @@ fn run(args: &RunArgs) -> Result {
         return Err("the firmware-in-the-loop check failed".into());
     }
     Ok(())
+}
+
+/// The `cosim` image under QEMU driving the plate of `plant` in lockstep (`host-sim cosim`); its
+/// decoded log goes to target/cosim-run.log, for `host-sim hil --input`.
+fn run_plant(plant: &Path, args: &RunArgs) -> Result {
+    tools::ensure_linker()?;
+    tools::ensure_emulation()?;
+    let elf = qemu::build_firmware(qemu::Image::Cosim)?;
+    exec(cargo().args(["build", "--release", "--locked", "--package", "host-sim"]))?;
+    let mut cosim = host_sim();
+    cosim
+        .args(["cosim", "--elf"])
+        .arg(&elf)
+        .arg("--plant")
+        .arg(std::path::absolute(plant).map_err(|error| error.to_string())?)
+        .arg("--log")
+        .arg(root().join("target").join("cosim-run.log"));
+    if args.open_loop {
+        cosim.arg("--open-loop");
+    }
+    exec(cosim.args(&args.hil_flags).args(&args.scenario))
 }
 
 fn test() -> Result {

@@ -5,6 +5,7 @@
 
 mod args;
 mod closed_loop;
+mod cosim;
 mod drift;
 mod hil;
 mod output;
@@ -53,6 +54,8 @@ enum Command {
     /// The shared closed loop on a real plate: the drive it identifies, how well it centres the
     /// plate and its feed rate beside the ideal plate's, with a verdict.
     ClosedLoop(closed_loop::ClosedLoopArgs),
+    /// The emulated firmware (the QEMU `cosim` image) driving a real plate in lockstep.
+    Cosim(cosim::CosimArgs),
 }
 
 fn main() -> ExitCode {
@@ -74,6 +77,7 @@ fn main() -> ExitCode {
         Command::Trace(args) => trace::run(&args),
         Command::Hil(args) => hil::run(&args),
         Command::Drift(args) => drift::run(&args),
+        Command::Cosim(args) => cosim::run(&args),
         // A run that fails its criteria is not a refusal: its report is out, and exit code 1
         // says so.
         Command::ClosedLoop(args) => match closed_loop::run(&args) {

@@ -1,0 +1,94 @@
+//! The real plate behind the firmware's lockstep link, fed by hand: DAC codes read back as
+//! accelerations, held from their ticks, and encoder counts at the sample ticks.
+
+use feeder_emulator::plant::Plant;
+use feeder_shared::DacCalibration;
+use host_sim::cosim::PlatePlant;
+use host_sim::plant::Contact;
+use host_sim::plate::{PlantFile, PlateParams};
+use host_sim::sensors::{EncoderConfig, SensorsConfig};
+use host_sim::SimError;
+
+const TICK_HZ: u32 = 1_000_000;
+
+fn plant(plate: PlateParams) -> PlantFile {
+    PlantFile {
+        plate,
+        sensors: SensorsConfig {
+            encoder: Some(EncoderConfig {
+                resolution_m: 1e-6,
+                index_m: None,
+            }),
+            ..SensorsConfig::default()
+        },
+    }
+}
+
+fn contact() -> Contact {
+    Contact::kinetic(0.3, 1e-4).unwrap()
+}
+
+#[test]
+fn a_held_level_moves_the_ideal_plate_as_the_code_says() {
+    let dac = DacCalibration::DEFAULT;
+    let mut plate =
+        PlatePlant::new(&plant(PlateParams::default()), &contact(), dac, TICK_HZ).unwrap();
+    // 800 counts above zero is 100 m/s² for 1 ms, then zero for 1 ms: 50 µm, then 100 µm more.
+    plate.level(0, 2048 + 800);
+    plate.level(1000, 2048);
+    assert_eq!(plate.sample(1000), 50);
+    assert_eq!(plate.sample(2000), 150);
+    let samples = plate.samples();
+    assert_eq!(samples.len(), 2);
+    assert!((samples[1].position_m - 150e-6).abs() < 1e-15);
+    assert!((samples[1].time_s - 2e-3).abs() < 1e-15);
+}
+
+#[test]
+fn the_zero_code_lets_an_offset_plate_drift_by_half_e_t_squared() {
+    let params = PlateParams {
+        zero_offset_fraction: 0.005,
+        ..PlateParams::default()
+    };
+    let e_mps2 = 0.005 * params.full_scale_accel_mps2;
+    let mut plate =
+        PlatePlant::new(&plant(params), &contact(), DacCalibration::DEFAULT, TICK_HZ).unwrap();
+    plate.level(0, 2048);
+    for k in 1..=20_u64 {
+        let t_s = k as f64 * 1e-3;
+        let expected = (0.5 * e_mps2 * t_s * t_s / 1e-6).floor() as i32;
+        let count = plate.sample(k * 1000);
+        assert!((count - expected).abs() <= 1, "{t_s}: {count} {expected}");
+    }
+}
+
+#[test]
+fn the_plate_stops_at_its_end_stop_and_says_when() {
+    let params = PlateParams {
+        end_stop_m: Some(1e-3),
+        ..PlateParams::default()
+    };
+    let mut plate =
+        PlatePlant::new(&plant(params), &contact(), DacCalibration::DEFAULT, TICK_HZ).unwrap();
+    // 10 m/s² (80 counts) reaches 1 mm after √(2·1e-3/10) = 14.14 ms.
+    plate.level(0, 2048 + 80);
+    plate.sample(20_000);
+    let stop = plate.end_stop().unwrap();
+    assert!(
+        (stop.time_s - (2e-3_f64 / 10.0).sqrt()).abs() < 1e-12,
+        "{stop:?}"
+    );
+    assert_eq!(plate.sample(30_000), 1000);
+}
+
+#[test]
+fn a_plant_without_an_encoder_is_refused() {
+    let file = PlantFile {
+        plate: PlateParams::default(),
+        sensors: SensorsConfig::default(),
+    };
+    assert!(matches!(
+        PlatePlant::new(&file, &contact(), DacCalibration::DEFAULT, TICK_HZ),
+        Err(SimError::MissingSensor { sensor: "encoder" })
+    ));
+}
