@@ -252,7 +252,7 @@ fn run_plant(plant: &Path, args: &RunArgs) -> Result {
     if args.open_loop {
         cosim.arg("--open-loop");
     }
-    exec(cosim.args(&args.hil_flags).args(&args.scenario))
+    exec(cosim.args(&args.hil_flags).arg("--").args(&args.scenario))
 }
 
 fn test() -> Result {

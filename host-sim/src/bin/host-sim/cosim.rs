@@ -22,8 +22,8 @@ const LIMIT: Duration = Duration::from_secs(3600);
 /// The flags of `host-sim cosim`.
 #[derive(Args)]
 pub struct CosimArgs {
-    /// The `cosim` firmware image (built with `--features cosim`).
-    #[arg(long, value_name = "ELF")]
+    /// The `cosim` firmware image, an ELF built with `--features cosim`.
+    #[arg(long, value_name = "FILE")]
     elf: PathBuf,
     /// The plate as a TOML plant file with a `[sensors.encoder]` table.
     #[arg(long, value_name = "FILE")]
@@ -39,8 +39,9 @@ pub struct CosimArgs {
     contact: ContactArgs,
     #[command(flatten)]
     output: OutputArgs,
-    /// Settings of the emulated run's scripted operator (`cargo xtask run --help` lists them).
-    #[arg(value_name = "KEY=VALUE")]
+    /// Settings of the emulated run's scripted operator, after `--` (`cargo xtask run --help`
+    /// lists them).
+    #[arg(last = true, value_name = "KEY=VALUE", allow_hyphen_values = true)]
     scenario: Vec<String>,
 }
 
