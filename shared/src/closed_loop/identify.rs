@@ -13,7 +13,7 @@
 
 use libm::{fabs, sqrt};
 
-use super::shape::CommandSegment;
+use super::shape::{sign, CommandSegment};
 
 /// A plate position read at a time since the probe started.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -199,15 +199,6 @@ fn friction_rows(latches: &[Latch], mut each: impl FnMut(usize, [f64; 2])) {
     let velocity = |i: usize| {
         let (a, b) = (latches[i.saturating_sub(1)], latches[(i + 1).min(n - 1)]);
         (b.position_m - a.position_m) / (b.t_s - a.t_s)
-    };
-    let sign = |v: f64| {
-        if v > 0.0 {
-            1.0
-        } else if v < 0.0 {
-            -1.0
-        } else {
-            0.0
-        }
     };
     let (mut c1, mut c, mut x) = (0.0, 0.0, 0.0);
     let integrate = |sign: f64, s: f64, c1: &mut f64, c: &mut f64| {

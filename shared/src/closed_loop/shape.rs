@@ -1,6 +1,17 @@
 //! What the plan says one cycle does to the plate, from rest: its period, where its velocity
 //! turns (the far end of the stroke), its stroke and its mean position.
 
+/// `1`, `−1` or `0` as `v` is positive, negative or zero (`f64::signum` gives `1` for zero).
+pub(crate) fn sign(v: f64) -> f64 {
+    if v > 0.0 {
+        1.0
+    } else if v < 0.0 {
+        -1.0
+    } else {
+        0.0
+    }
+}
+
 /// One commanded segment of a cycle.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -55,15 +66,6 @@ impl CycleShape {
                 let s = crossing_s;
                 turn = Some((t + s, x + v * s + a * s * s / 2.0));
             }
-            let sign = |v: f64| {
-                if v > 0.0 {
-                    1.0
-                } else if v < 0.0 {
-                    -1.0
-                } else {
-                    0.0
-                }
-            };
             signed_s += if crossing_s < d {
                 sign(v) * crossing_s + sign(a) * (d - crossing_s)
             } else {
