@@ -112,7 +112,7 @@ pub fn run_closed_loop(
     let identified = probe(&mut stepper, encoder_config, waveform, options)?;
     let mut cycle_loop = CycleLoop::new(&identified, options.limits);
     let mut scheduler = Scheduler::new(plan, options.ramp_cycles);
-    let first = scheduled_shapes(&scheduler, true);
+    let first = scheduled_shapes(&cycle_loop, &scheduler, true);
     // Cycles in a row the plate has started centred while the loop centres it.
     let mut centred = 0;
     let mut records = Vec::new();
@@ -138,7 +138,7 @@ pub fn run_closed_loop(
         let shape = if idle {
             CycleShape::idle(commanded[0].duration_s)
         } else {
-            CycleShape::new(&commanded).ok_or(SimError::BadRange {
+            cycle_loop.plan(&commanded).ok_or(SimError::BadRange {
                 what: "a planned cycle must turn back",
             })?
         };
@@ -168,7 +168,7 @@ pub fn run_closed_loop(
             }
         }
         let (now, upcoming) = match (centring, starting) {
-            (false, _) => (shape, scheduled_shapes(&scheduler, false)),
+            (false, _) => (shape, scheduled_shapes(&cycle_loop, &scheduler, false)),
             (true, true) => (aim, first),
             (true, false) => (aim, [aim; 2]),
         };
@@ -288,7 +288,7 @@ fn probe(
 
 /// The plans of the scheduler's next two cycles, from a copy of it (`start`ed first when it has
 /// not been yet).
-fn scheduled_shapes(scheduler: &Scheduler, start: bool) -> [CycleShape; 2] {
+fn scheduled_shapes(cycle_loop: &CycleLoop, scheduler: &Scheduler, start: bool) -> [CycleShape; 2] {
     let mut ahead = scheduler.clone();
     if start {
         ahead.start();
@@ -299,7 +299,7 @@ fn scheduled_shapes(scheduler: &Scheduler, start: bool) -> [CycleShape; 2] {
         if idle {
             idle_shape
         } else {
-            CycleShape::new(&commanded).unwrap_or(idle_shape)
+            cycle_loop.plan(&commanded).unwrap_or(idle_shape)
         }
     };
     [shape(), shape()]

@@ -66,7 +66,7 @@ fn the_realistic_plate_is_identified_centred_and_feeds_as_the_ideal_one() {
         .fold(0.0, f64::max);
     assert!(worst_m < 20e-6, "{worst_m}");
     println!("worst mean position {} m", run.worst_mean_position_m);
-    assert!(run.worst_mean_position_m < 150e-6);
+    assert!(run.worst_mean_position_m < 50e-6);
     let ideal = ideal_feed_rate_mps(0.586);
     let difference = run.feed_rate_mps / ideal - 1.0;
     println!(

@@ -85,6 +85,41 @@ fn a_cycles_shape_matches_its_numerical_integration() {
     }
 }
 
+/// `+a` for `t₁` then nothing, against friction `c < a`: the plate speeds up at `a − c`, coasts
+/// down at `c`, stops after `(a − c)·t₁/c` more and stays (a net command of 0 does not break
+/// it away).
+#[test]
+fn a_cycle_under_friction_stops_where_the_friction_has_taken_its_speed() {
+    let (a, c, t1, rest) = (10.0, 2.0, 0.004, 0.03);
+    let segments = [
+        CommandSegment {
+            duration_s: t1,
+            accel_mps2: a,
+        },
+        CommandSegment {
+            duration_s: rest,
+            accel_mps2: 0.0,
+        },
+        CommandSegment {
+            duration_s: 0.001,
+            accel_mps2: -a,
+        },
+    ];
+    let shape = CycleShape::under_friction(&segments, c, 0.0).unwrap();
+    let coast_s = (a - c) * t1 / c;
+    assert!((shape.turn_s - (t1 + coast_s)).abs() < 1e-15);
+    let stroke_m = (a - c) * t1 * t1 / 2.0 + (a - c) * t1 * coast_s / 2.0;
+    assert!((shape.stroke_m - stroke_m).abs() < 1e-15);
+    // It moves forward until the stop, backward through the last millisecond.
+    let moving_s = (t1 + coast_s) - 0.001;
+    assert!((shape.velocity_sign_mean - moving_s / shape.period_s).abs() < 1e-12);
+    // Without friction it is the plan.
+    assert_eq!(
+        CycleShape::under_friction(&segments, 0.0, 0.0),
+        CycleShape::new(&segments)
+    );
+}
+
 #[test]
 fn a_cycle_that_never_turns_back_has_no_shape() {
     let forward = [CommandSegment {

@@ -17,19 +17,19 @@
 //! prediction at 0.3 (`ũ = −0.245·x − 0.5775·w − d̂`). The target is each cycle's mean
 //! position at the centre: a start at `−mean − w/2`, known two cycles ahead, so a soft start or
 //! a new plan moves the target and the loop follows it at its speed. On the per-cycle linear
-//! model the loop is stable for a drive gain from 0.4 to 1.35 times the identified one
+//! model the loop is stable for a drive gain from 0.45 to 1.25 times the identified one
 //! (`shared/tests/closed_loop.rs`), far wider than the identification's error.
 
 use libm::fabs;
 
 use super::identify::Identified;
-use super::shape::CycleShape;
+use super::shape::{CommandSegment, CycleShape};
 
 /// `ũ = −A·x_p − B·w_p − d̂` with the predicted `x_p`, `w_p` (both poles at 0.3).
 const POSITION_GAIN: f64 = 0.245;
 const VELOCITY_GAIN: f64 = 0.5775;
 /// The disturbance estimate moves by this fraction of its difference from each measurement.
-const DISTURBANCE_GAIN: f64 = 0.3;
+const DISTURBANCE_GAIN: f64 = 0.5;
 /// The amplitude trim moves by this fraction of the relative stroke error each cycle.
 const AMPLITUDE_GAIN: f64 = 0.3;
 
@@ -175,6 +175,23 @@ impl CycleLoop {
             disturbance_m: 0.0,
             trims: feedforward,
         }
+    }
+
+    /// The plan of a cycle of `segments` as the loop aims at it: its shape, with the mean sign of
+    /// the velocity the identified slide friction leaves under the friction's feedforward (a
+    /// low-amplitude cycle may stop where the plan coasts), which that feedforward uses.
+    pub fn plan(&self, segments: &[CommandSegment]) -> Option<CycleShape> {
+        let friction = self.friction_mps2;
+        let planned = CycleShape::new(segments)?;
+        let mut sign_mean = planned.velocity_sign_mean;
+        for _ in 0..2 {
+            sign_mean = CycleShape::under_friction(segments, friction, friction * sign_mean)
+                .map_or(sign_mean, |shape| shape.velocity_sign_mean);
+        }
+        Some(CycleShape {
+            velocity_sign_mean: sign_mean,
+            ..planned
+        })
     }
 
     /// The trims for the cycle that starts now (decided at the previous boundary).

@@ -51,30 +51,48 @@ impl CycleShape {
     /// The shape of `segments` (the velocity must leave zero upwards, as the paper's cycle does);
     /// `None` if it never turns.
     pub fn new(segments: &[CommandSegment]) -> Option<Self> {
-        let (mut t, mut v, mut x, mut area) = (0.0_f64, 0.0_f64, 0.0_f64, 0.0_f64);
-        let mut signed_s = 0.0;
+        Self::under_friction(segments, 0.0, 0.0)
+    }
+
+    /// The shape of `segments` with `bias_mps2` added to every level, on a slide whose Coulomb
+    /// friction decelerates the plate by `coulomb_mps2` while it moves and holds it while the net
+    /// command is no more than that. Integrated exactly piece by piece: a piece ends where the
+    /// velocity reaches zero.
+    pub fn under_friction(
+        segments: &[CommandSegment],
+        coulomb_mps2: f64,
+        bias_mps2: f64,
+    ) -> Option<Self> {
+        let (mut t, mut v, mut x, mut area, mut signed_s) = (0.0_f64, 0.0_f64, 0.0, 0.0, 0.0);
         let mut turn: Option<(f64, f64)> = None;
         for segment in segments {
-            let (d, a) = (segment.duration_s, segment.accel_mps2);
-            // The velocity `v + a·s` changes sign at most once in a segment.
-            let crossing_s = if a != 0.0 && v * a < 0.0 {
-                -v / a
-            } else {
-                f64::INFINITY
-            };
-            if turn.is_none() && v > 0.0 && a < 0.0 && crossing_s <= d {
-                let s = crossing_s;
-                turn = Some((t + s, x + v * s + a * s * s / 2.0));
+            let net = segment.accel_mps2 + bias_mps2;
+            let mut rest_s = segment.duration_s;
+            while rest_s > 0.0 {
+                let direction = if v != 0.0 {
+                    sign(v)
+                } else if net.abs() > coulomb_mps2 {
+                    sign(net)
+                } else {
+                    0.0
+                };
+                let a = net - coulomb_mps2 * direction;
+                let a = if direction == 0.0 { 0.0 } else { a };
+                let stop_s = if v * a < 0.0 { -v / a } else { f64::INFINITY };
+                let s = stop_s.min(rest_s);
+                area += x * s + v * s * s / 2.0 + a * s * s * s / 6.0;
+                signed_s += direction * s;
+                x += v * s + a * s * s / 2.0;
+                v += a * s;
+                t += s;
+                rest_s -= s;
+                if stop_s <= s {
+                    if turn.is_none() && direction > 0.0 {
+                        turn = Some((t, x));
+                    }
+                    v = 0.0;
+                }
             }
-            signed_s += if crossing_s < d {
-                sign(v) * crossing_s + sign(a) * (d - crossing_s)
-            } else {
-                sign(v + a * d / 2.0) * d
-            };
-            area += x * d + v * d * d / 2.0 + a * d * d * d / 6.0;
-            x += v * d + a * d * d / 2.0;
-            v += a * d;
-            t += d;
         }
         let (turn_s, stroke_m) = turn?;
         (t > 0.0).then(|| CycleShape {
