@@ -255,9 +255,9 @@ impl Model {
     /// (`v = 0`) before it are passed to `turn` with their position.
     ///
     /// Steps go down the regime's ladder where a functional cannot be shown to stay positive
-    /// over a step ([`stays_positive`]) and back up where they can; a functional shown positive
+    /// over a step (`stays_positive`) and back up where they can; a functional shown positive
     /// up to a time is not checked again before it. On the finest step each functional still in
-    /// doubt is checked for a zero ([`crossing`]) on its Taylor series.
+    /// doubt is checked for a zero (`crossing`) on its Taylor series.
     pub fn next_event(
         &self,
         regime: &Regime,

@@ -160,7 +160,7 @@ impl Regime {
 
     /// `e^{A·t}·z` for `0 ≤ t ≤ h_J` by the series.
     pub fn advance_short(&self, t_s: f64, z: &State) -> State {
-        linear::exp_apply_short_with_norm(&self.a, self.norm, t_s, z)
+        linear::exp_apply_short(&self.a, self.norm, t_s, z)
     }
 
     /// `e^{A·h_j}·z`.

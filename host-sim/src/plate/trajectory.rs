@@ -28,11 +28,6 @@ impl Trajectory {
         Trajectory { pieces }
     }
 
-    /// The time span covered, if any.
-    pub fn span_s(&self) -> Option<(f64, f64)> {
-        Some((self.pieces.first()?.start_s, self.pieces.last()?.end_s))
-    }
-
     /// The state and `A` at `t_s` (`None` for an empty trajectory).
     fn state(&self, t_s: f64) -> Option<(State, &Matrix)> {
         let index = self
