@@ -1,4 +1,4 @@
-//! The closed loop on a real plate: identification of the drive at start-up ([`identify`]), the
+//! The closed loop on a real plate: identification of the drive at start-up ([`mod@identify`]), the
 //! cycle-rate loop that keeps the plate centred and its stroke right ([`cycle_loop`]) from the
 //! planned motion of a cycle ([`shape`]), and track control with a part sensor ([`track`]).
 
