@@ -18,6 +18,8 @@ use crate::sensors::{Encoder, EncoderConfig};
 const CENTRED_M: f64 = 25e-6;
 /// … for this many idle cycles in a row, and the feeder starts.
 const CENTRED_CYCLES: u32 = 3;
+/// Positions latched per cycle for its mean, the start's included.
+const MEAN_LATCHES: usize = 16;
 /// Centring that takes longer than this (from the probe's start) fails.
 const CENTRING_TIMEOUT_S: f64 = 5.0;
 
@@ -117,8 +119,9 @@ pub fn run_closed_loop(
     let mut centred = 0;
     let mut records = Vec::new();
     let mut trims = cycle_loop.trims();
-    // The last full-amplitude cycle's start and turning positions and its plan, for its stroke.
-    let mut last: Option<(f64, f64, CycleShape)> = None;
+    // The last cycle's start and turning positions, its plan, its positions through the cycle
+    // and whether it ran at full amplitude, for its stroke and its mean.
+    let mut last: Option<(f64, f64, CycleShape, Vec<f64>, bool)> = None;
     let mut worst_mean_position_m = 0.0_f64;
     let mut cycle = 0;
     while cycle < options.cycles {
@@ -175,8 +178,14 @@ pub fn run_closed_loop(
         let next = cycle_loop
             .update(
                 start_m,
-                last.filter(|_| !centring)
-                    .map(|(s, t, plan)| Stroke::latched(s, t, start_m, &plan)),
+                // Stroke and mean are only held at full amplitude: friction shortens a soft
+                // start's strokes, and moves its means, more than the full one's.
+                last.as_ref()
+                    .filter(|last| !centring && last.4)
+                    .map(|(s, t, plan, _, _)| Stroke::latched(*s, *t, start_m, plan)),
+                last.as_ref()
+                    .filter(|last| !centring && last.4)
+                    .map(|(_, _, _, positions_m, _)| trapezoid_mean_m(positions_m, start_m)),
                 &now,
                 [&upcoming[0], &upcoming[1]],
             )
@@ -187,32 +196,50 @@ pub fn run_closed_loop(
         if starting {
             scheduler.start();
         }
+        // The encoder is latched at the turning tick and at MEAN_LATCHES − 1 evenly spaced ticks
+        // inside the cycle, for its stroke and its mean position.
+        let cycle_s: f64 = commanded.iter().map(|s| s.duration_s).sum();
+        let mut instants: Vec<(f64, bool)> = (1..MEAN_LATCHES)
+            .map(|i| (i as f64 * cycle_s / MEAN_LATCHES as f64, false))
+            .collect();
+        if !idle {
+            instants.push((shape.turn_s, true));
+        }
+        instants.sort_by(|a, b| a.0.total_cmp(&b.0));
         let mut turn_m = None;
+        let mut positions_m = vec![start_m];
         let mut offset_s = 0.0;
+        let mut next_instant = 0;
         for segment in &commanded {
             let accel_mps2 = trims.apply(segment.accel_mps2);
-            let mut pieces = vec![segment.duration_s];
-            let turn_s = shape.turn_s - offset_s;
-            if !idle && turn_s > 0.0 && turn_s < segment.duration_s {
-                pieces = vec![turn_s, segment.duration_s - turn_s];
-            }
-            for (k, duration_s) in pieces.iter().enumerate() {
-                if k == 1 {
-                    turn_m = Some(latch(&stepper, encoder_config)?);
+            let end_s = offset_s + segment.duration_s;
+            let mut at_s = offset_s;
+            while next_instant < instants.len() && instants[next_instant].0 < end_s {
+                let (t_s, is_turn) = instants[next_instant];
+                if t_s > at_s {
+                    stepper.segment(&PlateSegment {
+                        duration_s: t_s - at_s,
+                        accel_mps2,
+                        starts_cycle: false,
+                    })?;
+                    at_s = t_s;
                 }
-                stepper.segment(&PlateSegment {
-                    duration_s: *duration_s,
-                    accel_mps2,
-                    starts_cycle: false,
-                })?;
+                let x_m = latch(&stepper, encoder_config)?;
+                if is_turn {
+                    turn_m = Some(x_m);
+                } else {
+                    positions_m.push(x_m);
+                }
+                next_instant += 1;
             }
-            offset_s += segment.duration_s;
+            stepper.segment(&PlateSegment {
+                duration_s: end_s - at_s,
+                accel_mps2,
+                starts_cycle: false,
+            })?;
+            offset_s = end_s;
         }
-        // The stroke is only held at full amplitude: friction shortens a soft start's strokes
-        // more than the full one's.
-        last = turn_m
-            .filter(|_| full)
-            .map(|turn_m| (start_m, turn_m, shape));
+        last = turn_m.map(|turn_m| (start_m, turn_m, shape, positions_m, full));
         let period_s = stepper.time_s() - start_s;
         let mean_position_m = (stepper.position_integral_ms() - integral_start) / period_s;
         if !idle && !centring && stepper.end_stop().is_none() {
@@ -303,6 +330,13 @@ fn scheduled_shapes(cycle_loop: &CycleLoop, scheduler: &Scheduler, start: bool) 
         }
     };
     [shape(), shape()]
+}
+
+/// The mean of a cycle's positions latched at evenly spaced ticks from its start, closed by
+/// `end_m` at the next start (trapezoids).
+fn trapezoid_mean_m(positions_m: &[f64], end_m: f64) -> f64 {
+    let inner: f64 = positions_m[1..].iter().sum();
+    (inner + (positions_m[0] + end_m) / 2.0) / positions_m.len() as f64
 }
 
 /// One cycle of the waveform at the probe's fraction of its levels.

@@ -164,7 +164,8 @@ fn a_plant_without_an_encoder_or_with_a_reversed_one_is_refused() {
 /// Not yet held: an offset and a gain mismatch that push the same way (0.97/1.03 with −0.5 %)
 /// leave the probe with the plate 4.5 mm out, where the loop gives up, its first correction
 /// running a cycle later; and 3 N of slide friction rounds the cycle enough to move its mean
-/// 108 µm from the plan's, which the loop, centring the plan's mean, does not see.
+/// 108 µm from the plan's through the soft start, until the measured means of the first 75
+/// full-amplitude cycles have moved the target.
 /// The loop identifies each, never lets the plate reach a stop and, after the soft start, holds
 /// every cycle's mean within 50 µm of the centre.
 #[test]

@@ -399,7 +399,9 @@ fn linear_run(gain: f64, disturbance_mps2: f64, x0_m: f64, cycles: usize) -> Vec
     let mut starts = Vec::new();
     for _ in 0..cycles {
         starts.push(x);
-        let next = cycle_loop.update(x, None, &idle, [&idle, &idle]).unwrap();
+        let next = cycle_loop
+            .update(x, None, None, &idle, [&idle, &idle])
+            .unwrap();
         let a = gain * trims.bias_mps2 + disturbance_mps2;
         x += v * period_s + a * period_s * period_s / 2.0;
         v += a * period_s;
@@ -460,19 +462,21 @@ fn the_loop_gives_up_beyond_its_limits_and_on_a_sensor_fault() {
     let idle = CycleShape::idle(0.02);
     let mut far = CycleLoop::new(&unit_drive(), limits);
     assert_eq!(
-        far.update(3e-3, None, &idle, [&idle, &idle]),
+        far.update(3e-3, None, None, &idle, [&idle, &idle]),
         Err(LoopError::Position { error_m: 3e-3 })
     );
     let mut sensor = CycleLoop::new(&unit_drive(), limits);
     assert_eq!(
-        sensor.update(f64::NAN, None, &idle, [&idle, &idle]),
+        sensor.update(f64::NAN, None, None, &idle, [&idle, &idle]),
         Err(LoopError::Sensor)
     );
     // A plate running away at 1 m/s needs more than 1 m/s² to stop within a cycle or two.
     let mut runaway = CycleLoop::new(&unit_drive(), limits);
-    runaway.update(0.0, None, &idle, [&idle, &idle]).unwrap();
+    runaway
+        .update(0.0, None, None, &idle, [&idle, &idle])
+        .unwrap();
     assert!(matches!(
-        runaway.update(1.9e-3, None, &idle, [&idle, &idle]),
+        runaway.update(1.9e-3, None, None, &idle, [&idle, &idle]),
         Err(LoopError::Correction { .. })
     ));
     // A stroke 30 % short asks for more amplitude than 10 %.
@@ -484,7 +488,7 @@ fn the_loop_gives_up_beyond_its_limits_and_on_a_sensor_fault() {
         planned_m: shape.stroke_m,
     };
     assert!(matches!(
-        weak.update(-shape.mean_m, Some(stroke), &shape, [&shape, &shape]),
+        weak.update(-shape.mean_m, Some(stroke), None, &shape, [&shape, &shape]),
         Err(LoopError::Amplitude { .. })
     ));
 }

@@ -16,7 +16,10 @@
 //! reconstructs `w_k`, predicts the state at `k + 1`, cancels `d̂` and places both poles of the
 //! prediction at 0.3 (`ũ = −0.245·x − 0.5775·w − d̂`). The target is each cycle's mean
 //! position at the centre: a start at `−mean − w/2`, known two cycles ahead, so a soft start or
-//! a new plan moves the target and the loop follows it at its speed. On the per-cycle linear
+//! a new plan moves the target and the loop follows it at its speed. The plan's mean is not
+//! quite the plate's (the current loop and friction round every segment): the mean measured from
+//! positions latched through each full-amplitude cycle moves the target by 0.05 of its error a
+//! cycle. On the per-cycle linear
 //! model the loop is stable for a drive gain from 0.45 to 1.25 times the identified one
 //! (`shared/tests/closed_loop.rs`), far wider than the identification's error.
 
@@ -30,6 +33,8 @@ const POSITION_GAIN: f64 = 0.245;
 const VELOCITY_GAIN: f64 = 0.5775;
 /// The disturbance estimate moves by this fraction of its difference from each measurement.
 const DISTURBANCE_GAIN: f64 = 0.5;
+/// The mean's offset moves by this fraction of each measured mean.
+const MEAN_GAIN: f64 = 0.05;
 /// The amplitude trim moves by this fraction of the relative stroke error each cycle.
 const AMPLITUDE_GAIN: f64 = 0.3;
 
@@ -151,6 +156,8 @@ pub struct CycleLoop {
     earlier_x_m: Option<f64>,
     /// The disturbance `d̂` estimated so far, in units of `ũ`.
     disturbance_m: f64,
+    /// How far the plate's measured mean has stood from the plan's: the targets move by it.
+    mean_offset_m: f64,
     trims: Trims,
 }
 
@@ -173,6 +180,7 @@ impl CycleLoop {
             previous_x_m: None,
             earlier_x_m: None,
             disturbance_m: 0.0,
+            mean_offset_m: 0.0,
             trims: feedforward,
         }
     }
@@ -200,20 +208,22 @@ impl CycleLoop {
     }
 
     /// At a cycle boundary: `start_m` latched at the start tick of the cycle beginning now,
-    /// whose plan is `shape`, the stroke of the cycle that just ended (`None` if it did not run
-    /// the plan, as an idle one), and the planned mean displacements of the next two cycles
-    /// (`next_means_m`); the trims returned are for the first of them. The loop centres each
+    /// whose plan is `shape`, the stroke and the mean position (from positions latched through
+    /// it) of the cycle that just ended (`None` where not measured), and the planned mean displacements of the next two cycles
+    /// (`next`); the trims returned are for the first of them. The loop centres each
     /// cycle's mean position: its start target is `−mean`, so a target that moves (a soft start,
     /// a new plan) is known two cycles ahead and followed at the speed it moves.
     pub fn update(
         &mut self,
         start_m: f64,
         stroke: Option<Stroke>,
+        measured_mean_m: Option<f64>,
         shape: &CycleShape,
         next: [&CycleShape; 2],
     ) -> Result<Trims, LoopError> {
         let stroke_valid = stroke.is_none_or(|s| s.measured_m.is_finite());
-        if !start_m.is_finite() || !stroke_valid {
+        if !start_m.is_finite() || !stroke_valid || measured_mean_m.is_some_and(|m| !m.is_finite())
+        {
             return Err(LoopError::Sensor);
         }
         let error_m = start_m + shape.mean_m;
@@ -246,7 +256,10 @@ impl CycleLoop {
             disturbance_m += DISTURBANCE_GAIN * (measured - disturbance_m);
         }
         let w = start_m - previous_x_m + self.previous + disturbance_m;
-        let [next_target_m, after_target_m] = next.map(|shape| -shape.mean_m);
+        // The plan's mean is not quite the plate's: friction and the current loop round every
+        // segment. Where the plate's mean is measured, the target moves against its error.
+        let mean_offset_m = self.mean_offset_m + MEAN_GAIN * measured_mean_m.unwrap_or(0.0);
+        let [next_target_m, after_target_m] = next.map(|shape| -shape.mean_m - mean_offset_m);
         let target_w = after_target_m - next_target_m;
         // A cycle that starts at `x` with `w` has its mean at `x + mean + w/2 + (ũ + d)/3`.
         let input = self.running + disturbance_m;
@@ -259,6 +272,7 @@ impl CycleLoop {
             return Err(LoopError::Correction { correction_mps2 });
         }
         self.amplitude = amplitude;
+        self.mean_offset_m = mean_offset_m;
         self.earlier_x_m = Some(previous_x_m);
         self.previous_x_m = Some(start_m);
         self.disturbance_m = disturbance_m;
