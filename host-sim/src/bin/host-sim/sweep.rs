@@ -212,19 +212,7 @@ fn plot_plate_sweep(
             color: index,
         });
     }
-    let title = format!(
-        "Feed rate vs duty on a real plate in open loop at {} Hz, μ = {}",
-        args.frequency.freq_hz, args.contact.friction.mu
-    );
-    plot::chart(
-        path,
-        Labels {
-            title: &title,
-            x: "duty d",
-            y: "feed rate (mm/s)",
-        },
-        &series,
-    )
+    feed_rate_chart(path, "on a real plate in open loop ", args, &series)
 }
 
 fn print_table(points: &[SweepPoint]) {
@@ -288,8 +276,19 @@ fn plot_sweep(path: &Path, args: &SweepArgs, points: &[SweepPoint]) -> Result<()
             color: index,
         });
     }
+    feed_rate_chart(path, "", args, &series)
+}
+
+/// The chart of feed rate (mm/s) against duty, titled with the sweep's frequency and μ and
+/// `what` (empty, or ending in a space).
+fn feed_rate_chart(
+    path: &Path,
+    what: &str,
+    args: &SweepArgs,
+    series: &[Series],
+) -> Result<(), SimError> {
     let title = format!(
-        "Feed rate vs duty at {} Hz, μ = {}",
+        "Feed rate vs duty {what}at {} Hz, μ = {}",
         args.frequency.freq_hz, args.contact.friction.mu
     );
     plot::chart(
@@ -299,6 +298,6 @@ fn plot_sweep(path: &Path, args: &SweepArgs, points: &[SweepPoint]) -> Result<()
             x: "duty d",
             y: "feed rate (mm/s)",
         },
-        &series,
+        series,
     )
 }
