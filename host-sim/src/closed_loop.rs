@@ -11,7 +11,7 @@ use feeder_shared::{Scheduler, SegmentKind, TickPlan, Waveform};
 use crate::error::SimError;
 use crate::plant::{Contact, PlateSegment};
 use crate::plate::{EndStop, PlantFile, Stepper};
-use crate::segments::exact_cycle;
+use crate::segments::{exact_cycle, in_seconds};
 use crate::sensors::{Encoder, EncoderConfig};
 
 /// The plate counts as centred within this of its centre at a cycle start …
@@ -365,9 +365,12 @@ fn next_cycle(scheduler: &mut Scheduler) -> (Vec<CommandSegment>, bool, bool) {
     let plan = scheduler.plan();
     let commanded = segments
         .iter()
-        .map(|s| CommandSegment {
-            duration_s: plan.ticks_to_s(u64::from(s.ticks)),
-            accel_mps2: s.accel_mps2(),
+        .map(|s| {
+            let segment = in_seconds(plan, s);
+            CommandSegment {
+                duration_s: segment.duration_s,
+                accel_mps2: segment.accel_mps2,
+            }
         })
         .collect();
     (commanded, idle, full)

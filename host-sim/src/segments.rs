@@ -1,7 +1,7 @@
 //! The plate's segments, taken only from the shared crate: one cycle of the waveform's exact
 //! real-valued times (Eq. 1–5), or the scheduler's integer-tick plan divided by its clock.
 
-use feeder_shared::{Scheduler, SegmentKind, TickPlan, Waveform};
+use feeder_shared::{Scheduler, Segment, SegmentKind, TickPlan, Waveform};
 
 use crate::plant::PlateSegment;
 
@@ -14,17 +14,19 @@ pub fn exact_cycle(waveform: &Waveform) -> [PlateSegment; 4] {
     })
 }
 
-/// The shared scheduler's segments for `plan`, started at once at full amplitude, in seconds
-/// (ticks ÷ clock). Endless.
+/// A scheduler's `segment` of `plan` in seconds (ticks ÷ clock).
+pub fn in_seconds(plan: &TickPlan, segment: &Segment) -> PlateSegment {
+    PlateSegment {
+        duration_s: plan.ticks_to_s(u64::from(segment.ticks)),
+        accel_mps2: segment.accel_mps2(),
+        starts_cycle: segment.starts_cycle(),
+    }
+}
+
+/// The shared scheduler's segments for `plan`, started at once at full amplitude, in seconds.
+/// Endless.
 pub fn scheduler_segments(plan: TickPlan) -> impl Iterator<Item = PlateSegment> {
     let mut scheduler = Scheduler::new(plan, 1);
     scheduler.start();
-    std::iter::repeat_with(move || {
-        let segment = scheduler.next_segment();
-        PlateSegment {
-            duration_s: plan.ticks_to_s(u64::from(segment.ticks)),
-            accel_mps2: segment.accel_mps2(),
-            starts_cycle: segment.starts_cycle(),
-        }
-    })
+    std::iter::repeat_with(move || in_seconds(&plan, &scheduler.next_segment()))
 }
