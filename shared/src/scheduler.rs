@@ -86,6 +86,8 @@ pub struct Scheduler {
     run_requested: bool,
     /// A controlled stop is requested: the next boundary idles without a ramp.
     quick_stop: bool,
+    /// While running, cycles stay at this step instead of ramping (the closed loop's probe).
+    held_step: Option<u16>,
     step: u16,
     phase: Phase,
     cycle: u64,
@@ -107,6 +109,7 @@ impl Scheduler {
             pending_ramp_steps: None,
             run_requested: false,
             quick_stop: false,
+            held_step: None,
             step: 0,
             phase: Phase::Stopped,
             cycle: 0,
@@ -134,6 +137,19 @@ impl Scheduler {
     pub fn quick_stop(&mut self) {
         self.run_requested = false;
         self.quick_stop = true;
+    }
+
+    /// Hold the amplitude at `step / ramp_cycles` (at least one step, at most all) from the next
+    /// cycle boundary while motion is requested: a start goes there at once, without the soft
+    /// start, and a running plan drops to it. The closed loop probes the drive and centres the
+    /// plate on held cycles.
+    pub fn hold_step(&mut self, step: u16) {
+        self.held_step = Some(step);
+    }
+
+    /// End a hold: from the next cycle boundary the soft start goes on from the held step.
+    pub fn release_hold(&mut self) {
+        self.held_step = None;
     }
 
     /// Replace the plan at the next cycle boundary. The clock must be the running one.
@@ -237,7 +253,10 @@ impl Scheduler {
             self.quick_stop = false;
             0
         } else if self.run_requested {
-            self.step.saturating_add(1).min(self.ramp_steps)
+            match self.held_step {
+                Some(held) => held.clamp(1, self.ramp_steps),
+                None => self.step.saturating_add(1).min(self.ramp_steps),
+            }
         } else {
             self.step.saturating_sub(1)
         };

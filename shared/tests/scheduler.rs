@@ -366,3 +366,62 @@ fn the_longest_ramp_set_at_full_amplitude_keeps_full_amplitude() {
         }
     }
 }
+
+proptest! {
+    /// A held start runs every cycle at the held step from the first on, each ending at rest
+    /// within the drift bound; released, the soft start goes on one step a cycle from there.
+    #[test]
+    fn a_held_start_stays_at_its_step_and_a_release_ramps_on_from_it(
+        ramp_cycles in 2u16..30,
+        held in 0u16..40,
+        held_cycles in 1u64..20,
+        duty in 0.52f64..0.9,
+    ) {
+        let plan = plan(50.0, duty, 0.0025, 1_000_000);
+        let mut scheduler = Scheduler::new(plan, ramp_cycles);
+        scheduler.hold_step(held);
+        scheduler.start();
+        let expected = held.clamp(1, ramp_cycles);
+        let unit_m = plan.residual_unit_m() / f64::from(ramp_cycles);
+        let mut plate = Plate::default();
+        for _ in 0..held_cycles {
+            for _ in 0..4 {
+                let segment = scheduler.next_segment();
+                prop_assert_eq!(segment.amplitude.step, expected);
+                plate.apply(&segment);
+            }
+            prop_assert_eq!(plate.velocity, 0);
+            let position_m = plate.twice_position as f64 / 2.0 * unit_m;
+            prop_assert!(position_m.abs() <= plan.drift_bound_m * (1.0 + 1e-9));
+        }
+        scheduler.release_hold();
+        let mut step = expected;
+        while step < ramp_cycles {
+            step += 1;
+            let first = scheduler.next_segment();
+            prop_assert_eq!(first.amplitude.step, step);
+            prop_assert_eq!(
+                first.phase,
+                if step == ramp_cycles { Phase::Running } else { Phase::Starting }
+            );
+            for _ in 0..3 {
+                scheduler.next_segment();
+            }
+        }
+    }
+}
+
+#[test]
+fn a_hold_set_while_running_drops_to_its_step_at_the_next_boundary() {
+    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 10);
+    scheduler.start();
+    for _ in 0..(12 * 4 + 1) {
+        scheduler.next_segment();
+    }
+    scheduler.hold_step(3);
+    for _ in 0..3 {
+        assert_eq!(scheduler.next_segment().amplitude.step, 10);
+    }
+    let first = scheduler.next_segment();
+    assert_eq!((first.amplitude.step, first.phase), (3, Phase::Starting));
+}
