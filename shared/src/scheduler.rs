@@ -139,10 +139,10 @@ impl Scheduler {
         self.quick_stop = true;
     }
 
-    /// Hold the amplitude at `step / ramp_cycles` (at least one step, at most all) from the next
-    /// cycle boundary while motion is requested: a start goes there at once, without the soft
-    /// start, and a running plan drops to it. The closed loop probes the drive and centres the
-    /// plate on held cycles.
+    /// Hold the amplitude at `step / ramp_cycles` (at most all) from the next cycle boundary
+    /// while motion is requested: a start goes there at once, without the soft start, and a
+    /// running plan drops to it; step 0 idles. The closed loop probes the drive and centres the
+    /// plate on held cycles, and idles on a hold at 0 while it identifies the drive.
     pub fn hold_step(&mut self, step: u16) {
         self.held_step = Some(step);
     }
@@ -254,7 +254,7 @@ impl Scheduler {
             0
         } else if self.run_requested {
             match self.held_step {
-                Some(held) => held.clamp(1, self.ramp_steps),
+                Some(held) => held.min(self.ramp_steps),
                 None => self.step.saturating_add(1).min(self.ramp_steps),
             }
         } else {

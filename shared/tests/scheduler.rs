@@ -373,7 +373,7 @@ proptest! {
     #[test]
     fn a_held_start_stays_at_its_step_and_a_release_ramps_on_from_it(
         ramp_cycles in 2u16..30,
-        held in 0u16..40,
+        held in 1u16..40,
         held_cycles in 1u64..20,
         duty in 0.52f64..0.9,
     ) {
@@ -381,7 +381,7 @@ proptest! {
         let mut scheduler = Scheduler::new(plan, ramp_cycles);
         scheduler.hold_step(held);
         scheduler.start();
-        let expected = held.clamp(1, ramp_cycles);
+        let expected = held.min(ramp_cycles);
         let unit_m = plan.residual_unit_m() / f64::from(ramp_cycles);
         let mut plate = Plate::default();
         for _ in 0..held_cycles {
@@ -424,4 +424,26 @@ fn a_hold_set_while_running_drops_to_its_step_at_the_next_boundary() {
     }
     let first = scheduler.next_segment();
     assert_eq!((first.amplitude.step, first.phase), (3, Phase::Starting));
+}
+
+#[test]
+fn a_hold_at_zero_idles_while_motion_is_requested_and_a_new_hold_resumes_at_once() {
+    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 10);
+    scheduler.hold_step(4);
+    scheduler.start();
+    for _ in 0..(2 * 4) {
+        assert_eq!(scheduler.next_segment().amplitude.step, 4);
+    }
+    scheduler.hold_step(0);
+    for _ in 0..3 {
+        let idle = scheduler.next_segment();
+        assert_eq!((idle.kind, idle.phase), (SegmentKind::Idle, Phase::Stopped));
+    }
+    assert!(scheduler.run_requested());
+    scheduler.hold_step(4);
+    let first = scheduler.next_segment();
+    assert_eq!(
+        (first.kind, first.amplitude.step),
+        (SegmentKind::Accelerate, 4)
+    );
 }
