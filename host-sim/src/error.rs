@@ -3,7 +3,7 @@
 
 use core::fmt;
 
-use feeder_shared::closed_loop::{IdentifyError, LoopError};
+use feeder_shared::closed_loop::{CourseError, IdentifyError};
 use feeder_shared::number::Significant;
 use feeder_shared::{Error, Quantity};
 
@@ -60,8 +60,8 @@ pub enum SimError {
     MissingSensor { sensor: &'static str },
     /// The drive's identification at start-up refused to let the feeder run.
     Identification(IdentifyError),
-    /// The closed loop gave up at this time.
-    Loop { time_s: f64, error: LoopError },
+    /// The closed loop's course stopped at this time.
+    Loop { time_s: f64, error: CourseError },
 }
 
 impl fmt::Display for SimError {

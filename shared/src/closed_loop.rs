@@ -1,12 +1,14 @@
-//! The closed loop on a real plate: identification of the drive at start-up ([`mod@identify`]), the
-//! cycle-rate loop that keeps the plate centred and its stroke right ([`cycle_loop`]) from the
+//! The closed loop on a real plate: the course from the first start to feeding ([`course`]),
+//! identification of the drive at start-up ([`mod@identify`]), the cycle-rate loop that keeps the plate centred and its stroke right ([`cycle_loop`]) from the
 //! planned motion of a cycle ([`shape`]), and track control with a part sensor ([`track`]).
 
+pub mod course;
 pub mod cycle_loop;
 pub mod identify;
 pub mod shape;
 pub mod track;
 
+pub use course::{Course, CourseConfig, CourseError, Decision, PositionSample, Probe, Stage};
 pub use cycle_loop::{CycleLoop, LoopError, LoopLimits, Stroke, Trims};
 pub use identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};
 pub use shape::{CommandSegment, CycleShape};

@@ -1,4 +1,4 @@
-//! The cycle-rate loop: at every cycle boundary, from the plate positions latched at the
+//! The cycle-rate loop: at every cycle boundary, from the plate positions sampled at the
 //! cycle's start tick and at its turning tick, the trims of the next cycle's levels.
 //!
 //! The command of the next cycle is `+a·s₊·m + b`, `b` and `−a·s₋·m + b` for the `+`, zero and
@@ -183,6 +183,33 @@ impl CycleLoop {
             mean_offset_m: 0.0,
             trims: feedforward,
         }
+    }
+
+    /// The trims that undo the drive alone: its gains and offset.
+    pub fn feedforward(&self) -> Trims {
+        self.feedforward
+    }
+
+    /// Goes on with another drive (the identified one after the nominal): its gains, offset
+    /// and friction fed forward from the next update on. The disturbance estimate, which held
+    /// what the old feedforward left, starts again from zero.
+    pub fn set_drive(&mut self, identified: &Identified) {
+        let other = CycleLoop::new(identified, self.limits);
+        self.feedforward = other.feedforward;
+        self.friction_mps2 = other.friction_mps2;
+        self.disturbance_m = 0.0;
+    }
+
+    /// Forgets the cycle starts seen so far: the next [`CycleLoop::update`] takes its position
+    /// only, as the first one does. For the cycle after an idle period, which ran the
+    /// feedforward instead of the last correction decided.
+    pub fn restart(&mut self) {
+        self.running = 0.0;
+        self.previous = 0.0;
+        self.earlier = 0.0;
+        self.previous_x_m = None;
+        self.earlier_x_m = None;
+        self.trims = self.feedforward;
     }
 
     /// The plan of a cycle of `segments` as the loop aims at it: its shape, with the mean sign of

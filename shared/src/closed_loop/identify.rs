@@ -43,6 +43,19 @@ pub struct Identified {
     pub residual_m: f64,
 }
 
+impl Identified {
+    /// The drive as planned: gains 1, no offset, no lag, no friction.
+    pub const NOMINAL: Identified = Identified {
+        gain_positive: 1.0,
+        gain_negative: 1.0,
+        offset_mps2: 0.0,
+        lag_s: 0.0,
+        coulomb_mps2: 0.0,
+        viscous_per_s: 0.0,
+        residual_m: 0.0,
+    };
+}
+
 /// The ranges an identification must fall in for the feeder to run.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -296,9 +309,12 @@ pub fn identify(
     }
     let length_s: f64 = probe.iter().map(|s| s.duration_s).sum();
     let ordered = latches.windows(2).all(|w| w[0].t_s < w[1].t_s);
+    // The probe's length is a sum of segment lengths, a latch's time a quotient of ticks: they
+    // may differ in the last bits.
+    let end_s = length_s * (1.0 + 4.0 * f64::EPSILON);
     let inside = latches
         .iter()
-        .all(|l| l.t_s >= 0.0 && l.t_s <= length_s && l.position_m.is_finite());
+        .all(|l| l.t_s >= 0.0 && l.t_s <= end_s && l.position_m.is_finite());
     if latches.len() < 2 * UNKNOWNS || latches.len() > MAX_LATCHES || !ordered || !inside {
         return Err(IdentifyError::Latches);
     }

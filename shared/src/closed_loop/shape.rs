@@ -20,6 +20,16 @@ pub struct CommandSegment {
     pub accel_mps2: f64,
 }
 
+impl CommandSegment {
+    /// A scheduler's `segment` of `plan` in seconds (ticks ÷ clock).
+    pub fn of(segment: &crate::scheduler::Segment, plan: &crate::plan::TickPlan) -> Self {
+        CommandSegment {
+            duration_s: plan.ticks_to_s(u64::from(segment.ticks)),
+            accel_mps2: segment.accel_mps2(),
+        }
+    }
+}
+
 /// A cycle's planned motion from rest at its start, integrated exactly segment by segment.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -265,13 +265,7 @@ pub fn run(args: &ClosedLoopArgs) -> Result<bool, SimError> {
         None => None,
     };
     let started = Instant::now();
-    let run = run_closed_loop(
-        &plant,
-        &point.contact,
-        &point.waveform,
-        plan(&point)?,
-        &options,
-    )?;
+    let run = run_closed_loop(&plant, &point.contact, plan(&point)?, &options)?;
     let final_point = change.map_or(point, |(_, new_point)| new_point);
     let ideal_feed_rate_mps = final_point.steady().feed_rate_mps;
     let wall_time_s = started.elapsed().as_secs_f64();
