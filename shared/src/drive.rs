@@ -198,6 +198,17 @@ impl DacCalibration {
         f64::from(code - i32::from(self.zero_code)) / self.counts_per_mps2
     }
 
+    /// The code commanding `accel_mps2` of either sign, or why it is not in the output's linear
+    /// range: one level of a cycle the closed loop has trimmed.
+    pub fn code(&self, accel_mps2: f64) -> Result<u16, DriveError> {
+        let magnitude = self.levels(libm::fabs(accel_mps2))?.amplitude_counts;
+        Ok(if accel_mps2 < 0.0 {
+            self.zero_code - magnitude
+        } else {
+            self.zero_code + magnitude
+        })
+    }
+
     /// The codes of a plan with peak acceleration `peak_accel_mps2`, or why they do not fit in
     /// the output's linear range.
     pub fn levels(&self, peak_accel_mps2: f64) -> Result<DacLevels, DriveError> {
@@ -274,6 +285,22 @@ impl PwmCalibration {
     pub const DEFAULT: Self = Self {
         full_duty_accel_mps2: 250.0,
     };
+
+    /// The duty and direction commanding `accel_mps2` of either sign on a PWM timer whose
+    /// period is `period_counts` counts: one level of a cycle the closed loop has trimmed.
+    pub fn command(&self, accel_mps2: f64, period_counts: u16) -> Result<PwmCommand, DriveError> {
+        let duty_counts = self
+            .levels(libm::fabs(accel_mps2), period_counts)?
+            .peak_duty_counts;
+        Ok(PwmCommand {
+            duty_counts,
+            direction: if accel_mps2 < 0.0 {
+                Direction::Reverse
+            } else {
+                Direction::Forward
+            },
+        })
+    }
 
     /// The duties of a plan with peak acceleration `peak_accel_mps2` on a PWM timer whose period
     /// is `period_counts` counts (100 % duty), or why it does not fit.

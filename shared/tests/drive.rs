@@ -274,3 +274,39 @@ fn scale_counts_edge_cases() {
     assert_eq!(scale_counts(u16::MAX, amp(1, u16::MAX)), 1);
     assert_eq!(scale_counts(3, amp(1, 2)), 2);
 }
+
+/// A trimmed level's code is the plan's code for the same acceleration, of either sign; a level
+/// beyond the linear range or not a number is refused as a plan's would be.
+#[test]
+fn a_single_level_converts_as_a_plans_level_does() {
+    let dac = DacCalibration::DEFAULT;
+    for accel_mps2 in [0.0, 0.0625, 1.0, 37.3, 150.0, 224.75] {
+        let levels = dac.levels(accel_mps2).unwrap();
+        assert_eq!(dac.code(accel_mps2), Ok(levels.code(Level::Positive, FULL)));
+        assert_eq!(
+            dac.code(-accel_mps2),
+            Ok(levels.code(Level::Negative, FULL))
+        );
+    }
+    assert_eq!(dac.code(0.0), Ok(2048));
+    assert_eq!(dac.code(-1.0), Ok(2040));
+    assert!(matches!(
+        dac.code(-230.0),
+        Err(DriveError::BeyondLinearRange { .. })
+    ));
+    assert!(matches!(
+        dac.code(f64::NAN),
+        Err(DriveError::InvalidAccel { .. })
+    ));
+    let pwm = PwmCalibration::DEFAULT;
+    let command = pwm.command(-125.0, 1000).unwrap();
+    assert_eq!(
+        (command.duty_counts, command.direction),
+        (500, Direction::Reverse)
+    );
+    assert_eq!(
+        pwm.command(12.5, 1000).unwrap().direction,
+        Direction::Forward
+    );
+    assert!(pwm.command(300.0, 1000).is_err());
+}
