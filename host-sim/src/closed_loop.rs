@@ -9,7 +9,7 @@ use feeder_shared::closed_loop::{
     Course, CourseConfig, CourseError, Decision, Identified, LoopLimits, PositionSample, Stage,
     Trims,
 };
-use feeder_shared::{Scheduler, Segment, SegmentKind, TickPlan};
+use feeder_shared::{DacCalibration, Scheduler, Segment, SegmentKind, TickPlan};
 
 use crate::error::SimError;
 use crate::plant::{Contact, PlateSegment};
@@ -34,14 +34,17 @@ pub struct ClosedLoopOptions {
     /// The last cycles over which the feed rate is averaged.
     pub average_cycles: u64,
     pub limits: LoopLimits,
+    /// The output's DAC: every level is commanded in its codes.
+    pub dac: DacCalibration,
 }
 
 impl ClosedLoopOptions {
     /// `cycles` of motion with a 25-cycle soft start, after the course's defaults
     /// ([`CourseConfig::new`]): a 3-cycle probe at 30 % of the levels, the encoder sampled every
-    /// 0.25 ms.
+    /// 0.25 ms, the levels in the codes of the default DAC (as the firmware's).
     pub fn new(cycles: u64) -> Self {
-        let course = CourseConfig::new(1e-6);
+        let dac = DacCalibration::DEFAULT;
+        let course = CourseConfig::new(1e-6, 1.0 / dac.counts_per_mps2);
         ClosedLoopOptions {
             cycles,
             ramp_cycles: 25,
@@ -51,6 +54,7 @@ impl ClosedLoopOptions {
             plan_change: None,
             average_cycles: 50.min(cycles),
             limits: course.loop_limits,
+            dac,
         }
     }
 }
@@ -105,6 +109,7 @@ pub fn run_closed_loop(
         .ok_or(SimError::MissingSensor { sensor: "encoder" })?;
     let mut plate = SampledPlate {
         stepper: Stepper::new(&plant.plate, contact)?,
+        dac: options.dac,
         encoder,
         clock_hz: plan.clock_hz,
         tick: 0,
@@ -115,19 +120,21 @@ pub fn run_closed_loop(
         probe_cycles: options.probe_cycles,
         probe_fraction: options.probe_fraction,
         loop_limits: options.limits,
-        ..CourseConfig::new(encoder.resolution_m)
+        ..CourseConfig::new(encoder.resolution_m, 1.0 / options.dac.counts_per_mps2)
     };
     let mut scheduler = Scheduler::new(plan, options.ramp_cycles);
     let mut course = Course::new(config, scheduler.ramp_cycles());
     scheduler.hold_step(course.probe_step());
-    scheduler.start();
     let mut identified = None;
     let mut records: Vec<CycleRecord> = Vec::new();
     let mut worst_mean_position_m = 0.0_f64;
     // The decision made at the last boundary, applied at the next segment begun.
     let mut pending: Option<Decision> = None;
     let mut decided: Option<Decision> = None;
+    // The feeder comes up idle, the drive enabled at zero command, and is started at once: the
+    // probe begins one idle period later.
     let mut queued = scheduler.next_segment();
+    scheduler.start();
     let mut queued_trims = Trims::NONE;
     let mut trims = Trims::NONE;
     let mut feeding_cycles = 0;
@@ -235,10 +242,11 @@ impl OpenCycle {
     }
 }
 
-/// The plate on the scheduler's ticks, its encoder sampled at every multiple of `sample_ticks`
-/// and at each cycle start, as the firmware's sensor samples it.
+/// The plate on the scheduler's ticks, driven through a DAC and its encoder sampled at every
+/// multiple of `sample_ticks` and at each cycle start, as the firmware's output and sensor do.
 struct SampledPlate {
     stepper: Stepper,
+    dac: DacCalibration,
     encoder: EncoderConfig,
     clock_hz: u32,
     tick: u64,
@@ -254,7 +262,14 @@ impl SampledPlate {
 
     /// Plays `segment` at the trimmed level, sampling on the way.
     fn play(&mut self, segment: &Segment, trims: &Trims) -> Result<(), SimError> {
-        let accel_mps2 = trims.apply(segment.accel_mps2());
+        let code = self
+            .dac
+            .code(trims.apply(segment.accel_mps2()))
+            .map_err(|error| SimError::TrimmedLevel {
+                time_s: self.time_s(),
+                error,
+            })?;
+        let accel_mps2 = self.dac.accel_mps2(i32::from(code));
         let end_tick = self.tick + u64::from(segment.ticks);
         loop {
             let next_sample = (self.tick / self.sample_ticks + 1) * self.sample_ticks;

@@ -5,6 +5,7 @@ use core::fmt;
 
 use feeder_shared::closed_loop::{CourseError, IdentifyError};
 use feeder_shared::number::Significant;
+use feeder_shared::DriveError;
 use feeder_shared::{Error, Quantity};
 
 #[derive(Debug, Clone, PartialEq)]
@@ -62,6 +63,8 @@ pub enum SimError {
     Identification(IdentifyError),
     /// The closed loop's course stopped at this time.
     Loop { time_s: f64, error: CourseError },
+    /// A level the closed loop trimmed does not fit the output's DAC.
+    TrimmedLevel { time_s: f64, error: DriveError },
 }
 
 impl fmt::Display for SimError {
@@ -149,6 +152,11 @@ impl fmt::Display for SimError {
                  table"
             ),
             SimError::Identification(error) => write!(f, "identification refused: {error}"),
+            SimError::TrimmedLevel { time_s, error } => write!(
+                f,
+                "the closed loop stopped at t = {} s: a trimmed level does not fit the DAC: {error}",
+                Significant(*time_s)
+            ),
             SimError::Loop { time_s, error } => write!(
                 f,
                 "the closed loop stopped at t = {} s: {error}",

@@ -147,6 +147,11 @@ impl Scheduler {
         self.held_step = Some(step);
     }
 
+    /// The step held, in steps of the ramp in force (a new ramp length scales it), if any.
+    pub fn held_step(&self) -> Option<u16> {
+        self.held_step
+    }
+
     /// End a hold: from the next cycle boundary the soft start goes on from the held step.
     pub fn release_hold(&mut self) {
         self.held_step = None;
@@ -245,6 +250,15 @@ impl Scheduler {
                 } else {
                     0
                 };
+                // A hold keeps its fraction of the amplitude.
+                self.held_step = self.held_step.map(|held| {
+                    let scaled = (u32::from(held) * u32::from(steps) + old_steps / 2) / old_steps;
+                    if held > 0 {
+                        scaled.max(1) as u16
+                    } else {
+                        0
+                    }
+                });
                 self.ramp_steps = steps;
             }
             self.residual = round(residual_m / self.residual_unit_m()) as i64;

@@ -19,6 +19,9 @@ pub enum Fault {
     WatchdogReset,
     /// The configured waveform or output calibration was refused.
     InvalidSettings,
+    /// The closed loop stopped: the drive's identification was refused, the plate could not be
+    /// held, the position sensor failed, or the loop's decision came too late for its cycle.
+    ClosedLoop,
 }
 
 /// How a fault brings the motor to a safe state (the stop categories of IEC 60204-1).
@@ -35,11 +38,12 @@ pub enum StopCategory {
 
 impl Fault {
     /// The stop this fault calls for: a missed edge has lost the output timing, a watchdog reset
-    /// finds the output already off; refused settings leave the output working.
+    /// finds the output already off; refused settings and a closed loop that stopped leave the
+    /// output working.
     pub const fn stop_category(self) -> StopCategory {
         match self {
             Fault::EdgeMissed | Fault::WatchdogReset => StopCategory::Immediate,
-            Fault::InvalidSettings => StopCategory::Controlled,
+            Fault::InvalidSettings | Fault::ClosedLoop => StopCategory::Controlled,
         }
     }
 
@@ -48,6 +52,7 @@ impl Fault {
             Fault::EdgeMissed => "edge-missed",
             Fault::WatchdogReset => "watchdog-reset",
             Fault::InvalidSettings => "invalid-settings",
+            Fault::ClosedLoop => "closed-loop",
         }
     }
 }

@@ -447,3 +447,20 @@ fn a_hold_at_zero_idles_while_motion_is_requested_and_a_new_hold_resumes_at_once
         (SegmentKind::Accelerate, 4)
     );
 }
+
+/// A new ramp length keeps a hold's fraction of the amplitude: 8 of 25 steps becomes 3 of 8
+/// (0.32 rounds to 0.375), not 8 of 8.
+#[test]
+fn a_new_ramp_length_scales_the_held_step() {
+    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 25);
+    scheduler.hold_step(8);
+    scheduler.start();
+    assert_eq!(scheduler.next_segment().amplitude.step, 8);
+    scheduler.set_ramp_cycles(8);
+    for _ in 0..3 {
+        scheduler.next_segment();
+    }
+    let first = scheduler.next_segment();
+    assert_eq!((first.amplitude.step, first.amplitude.steps), (3, 8));
+    assert_eq!(scheduler.held_step(), Some(3));
+}

@@ -60,15 +60,18 @@ pub struct CourseConfig {
     /// Centring that takes more held cycles than this fails.
     pub centring_cycles_max: u32,
     pub loop_limits: LoopLimits,
+    /// The output's smallest step of a level (a DAC count), 0 for a continuous one
+    /// ([`CycleLoop::with_level_step`]).
+    pub level_step_mps2: f64,
 }
 
 impl CourseConfig {
-    /// 3 probe cycles at 30 % of the levels; centred within 25 µm for 3 cycles, in at most 250
+    /// 4 probe cycles at 30 % of the levels; centred within 25 µm for 3 cycles, in at most 250
     /// cycles; the loop may add up to 10 m/s², trim the stroke by ±20 % and gives up 4 mm from
-    /// centre.
-    pub fn new(resolution_m: f64) -> Self {
+    /// centre; levels in steps of `level_step_mps2`.
+    pub fn new(resolution_m: f64, level_step_mps2: f64) -> Self {
         CourseConfig {
-            probe_cycles: 3,
+            probe_cycles: 4,
             probe_fraction: 0.3,
             resolution_m,
             centred_m: 25e-6,
@@ -79,6 +82,7 @@ impl CourseConfig {
                 amplitude_max: 0.2,
                 position_error_max_m: 4e-3,
             },
+            level_step_mps2,
         }
     }
 
@@ -264,9 +268,10 @@ impl Course {
             config,
             stage: Stage::Waiting,
             probe: None,
-            probe_cycles: 0,
+            probe_cycles: 4,
             identified: None,
-            cycle_loop: CycleLoop::new(&Identified::NOMINAL, config.loop_limits),
+            cycle_loop: CycleLoop::new(&Identified::NOMINAL, config.loop_limits)
+                .with_level_step(config.level_step_mps2),
             decided: Trims::NONE,
             centred: 0,
             centring_cycles: 0,
@@ -375,7 +380,7 @@ impl Course {
             Some(last) if !last.idle => self.decided,
             _ => self.feedforward(),
         };
-        let held = !idle && begun.amplitude.step == self.probe_step;
+        let held = !idle && ahead.held_step() == Some(begun.amplitude.step);
         let mut decision = Decision {
             cycle: begun.cycle + 1,
             trims: self.feedforward(),

@@ -38,6 +38,18 @@ const MEAN_GAIN: f64 = 0.05;
 /// The amplitude trim moves by this fraction of the relative stroke error each cycle.
 const AMPLITUDE_GAIN: f64 = 0.3;
 
+/// What a cycle's trims add to the plate by its end, in the loop's units: position `x`, and
+/// `w = T·v`. A bias `δ` adds `x = δ·T²/2` and `w = δ·T²`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Input {
+    x_m: f64,
+    w_m: f64,
+}
+
+impl Input {
+    const NONE: Input = Input { x_m: 0.0, w_m: 0.0 };
+}
+
 /// The levels of one cycle relative to the plan's.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -147,10 +159,11 @@ pub struct CycleLoop {
     friction_mps2: f64,
     limits: LoopLimits,
     amplitude: f64,
-    /// `ũ` of the cycle running now and of the one before, and the previous start position.
-    running: f64,
-    previous: f64,
-    earlier: f64,
+    /// What the trims of the cycle running now, of the one before and of the one before that
+    /// add to the plate (in the loop's units), and the previous start position.
+    running: Input,
+    previous: Input,
+    earlier: Input,
     previous_x_m: Option<f64>,
     /// The start before the previous one.
     earlier_x_m: Option<f64>,
@@ -158,6 +171,9 @@ pub struct CycleLoop {
     disturbance_m: f64,
     /// How far the plate's measured mean has stood from the plan's: the targets move by it.
     mean_offset_m: f64,
+    /// The output's smallest step of a level (0: continuous): the bias is rounded to it, and
+    /// the correction the loop counts is the one the rounded bias applies.
+    level_step_mps2: f64,
     trims: Trims,
 }
 
@@ -174,20 +190,108 @@ impl CycleLoop {
             friction_mps2: identified.coulomb_mps2,
             limits,
             amplitude: 1.0,
-            running: 0.0,
-            previous: 0.0,
-            earlier: 0.0,
+            running: Input::NONE,
+            previous: Input::NONE,
+            earlier: Input::NONE,
             previous_x_m: None,
             earlier_x_m: None,
             disturbance_m: 0.0,
             mean_offset_m: 0.0,
+            level_step_mps2: 0.0,
             trims: feedforward,
+        }
+    }
+
+    /// A loop for an output whose levels move in steps of `level_step_mps2` (a DAC's counts):
+    /// the bias is rounded to a whole step, so that every level of a cycle carries the same
+    /// bias error, and the loop counts the correction the rounded bias applies.
+    pub fn with_level_step(self, level_step_mps2: f64) -> Self {
+        CycleLoop {
+            level_step_mps2: if level_step_mps2.is_finite() && level_step_mps2 > 0.0 {
+                level_step_mps2
+            } else {
+                0.0
+            },
+            ..self
+        }
+    }
+
+    /// The trims of a cycle of `shape` with its `±a` levels scaled by `positive` and `negative`
+    /// and `bias_mps2` added, each level rounded to the output's step, down or up, whichever
+    /// way leaves the plate least off by the cycle's end; with what that rounding adds. The
+    /// three levels' choices together move the plate several times finer than one step.
+    fn rounded_trims(
+        &self,
+        shape: &CycleShape,
+        positive: f64,
+        negative: f64,
+        bias_mps2: f64,
+    ) -> (Trims, Input) {
+        let exact = Trims {
+            positive,
+            negative,
+            bias_mps2,
+        };
+        let step = self.level_step_mps2;
+        if step <= 0.0 || shape.period_s <= 0.0 {
+            return (exact, Input::NONE);
+        }
+        let levels = [
+            shape.positive_mps2 * positive + bias_mps2,
+            bias_mps2,
+            -shape.negative_mps2 * negative + bias_mps2,
+        ];
+        let floors = levels.map(|level| libm::floor(level / step) * step);
+        let mut best = (f64::INFINITY, levels, Input::NONE);
+        for choice in 0..8 {
+            let mut rounded = floors;
+            let mut added = Input::NONE;
+            for k in 0..3 {
+                if choice >> k & 1 == 1 {
+                    rounded[k] += step;
+                }
+                let error = rounded[k] - levels[k];
+                let [velocity_s, position_s2] = shape.level_effects[k];
+                added.x_m += error * position_s2;
+                added.w_m += error * velocity_s * shape.period_s;
+            }
+            let size = added.x_m * added.x_m + added.w_m * added.w_m;
+            if size < best.0 {
+                best = (size, rounded, added);
+            }
+        }
+        let ([plus, zero, minus], added) = (best.1, best.2);
+        let trims = Trims {
+            positive: if shape.positive_mps2 > 0.0 {
+                (plus - zero) / shape.positive_mps2
+            } else {
+                positive
+            },
+            negative: if shape.negative_mps2 > 0.0 {
+                (zero - minus) / shape.negative_mps2
+            } else {
+                negative
+            },
+            bias_mps2: zero,
+        };
+        (trims, added)
+    }
+
+    /// `bias_mps2` to the output's step.
+    fn rounded(&self, bias_mps2: f64) -> f64 {
+        if self.level_step_mps2 > 0.0 {
+            libm::round(bias_mps2 / self.level_step_mps2) * self.level_step_mps2
+        } else {
+            bias_mps2
         }
     }
 
     /// The trims that undo the drive alone: its gains and offset.
     pub fn feedforward(&self) -> Trims {
-        self.feedforward
+        Trims {
+            bias_mps2: self.rounded(self.feedforward.bias_mps2),
+            ..self.feedforward
+        }
     }
 
     /// Goes on with another drive (the identified one after the nominal): its gains, offset
@@ -204,12 +308,12 @@ impl CycleLoop {
     /// only, as the first one does. For the cycle after an idle period, which ran the
     /// feedforward instead of the last correction decided.
     pub fn restart(&mut self) {
-        self.running = 0.0;
-        self.previous = 0.0;
-        self.earlier = 0.0;
+        self.running = Input::NONE;
+        self.previous = Input::NONE;
+        self.earlier = Input::NONE;
         self.previous_x_m = None;
         self.earlier_x_m = None;
-        self.trims = self.feedforward;
+        self.trims = self.feedforward();
     }
 
     /// The plan of a cycle of `segments` as the loop aims at it: its shape, with the mean sign of
@@ -279,25 +383,35 @@ impl CycleLoop {
         let mut disturbance_m = self.disturbance_m;
         if let Some(earlier_x_m) = self.earlier_x_m {
             let measured =
-                (start_m - 2.0 * previous_x_m + earlier_x_m - self.previous - self.earlier) / 2.0;
+                (start_m - 2.0 * previous_x_m + earlier_x_m - self.earlier.w_m - self.previous.x_m
+                    + self.earlier.x_m)
+                    / 2.0;
             disturbance_m += DISTURBANCE_GAIN * (measured - disturbance_m);
         }
-        let w = start_m - previous_x_m + self.previous + disturbance_m;
+        let w = start_m - previous_x_m + self.previous.w_m - self.previous.x_m + disturbance_m;
         // The plan's mean is not quite the plate's: friction and the current loop round every
         // segment. Where the plate's mean is measured, the target moves against its error.
         let mean_offset_m = self.mean_offset_m + MEAN_GAIN * measured_mean_m.unwrap_or(0.0);
         let [next_target_m, after_target_m] = next.map(|shape| -shape.mean_m - mean_offset_m);
         let target_w = after_target_m - next_target_m;
         // A cycle that starts at `x` with `w` has its mean at `x + mean + w/2 + (ũ + d)/3`.
-        let input = self.running + disturbance_m;
-        let predicted_x = start_m + w + input - (next_target_m - target_w / 2.0);
-        let predicted_w = w + 2.0 * input - target_w;
+        let predicted_x =
+            start_m + w + self.running.x_m + disturbance_m - (next_target_m - target_w / 2.0);
+        let predicted_w = w + self.running.w_m + 2.0 * disturbance_m - target_w;
         let correction = -POSITION_GAIN * predicted_x - VELOCITY_GAIN * predicted_w - disturbance_m;
         let half_period_squared = next[0].period_s * next[0].period_s / 2.0;
         let correction_mps2 = correction / half_period_squared;
         if fabs(correction_mps2) > self.limits.correction_max_mps2 {
             return Err(LoopError::Correction { correction_mps2 });
         }
+        let held_mps2 =
+            self.feedforward.bias_mps2 + self.friction_mps2 * next[0].velocity_sign_mean;
+        let (trims, rounding) = self.rounded_trims(
+            next[0],
+            self.feedforward.positive * amplitude,
+            self.feedforward.negative * amplitude,
+            held_mps2 + correction_mps2,
+        );
         self.amplitude = amplitude;
         self.mean_offset_m = mean_offset_m;
         self.earlier_x_m = Some(previous_x_m);
@@ -305,14 +419,11 @@ impl CycleLoop {
         self.disturbance_m = disturbance_m;
         self.earlier = self.previous;
         self.previous = self.running;
-        self.running = correction;
-        self.trims = Trims {
-            positive: self.feedforward.positive * amplitude,
-            negative: self.feedforward.negative * amplitude,
-            bias_mps2: self.feedforward.bias_mps2
-                + self.friction_mps2 * next[0].velocity_sign_mean
-                + correction_mps2,
+        self.running = Input {
+            x_m: correction + rounding.x_m,
+            w_m: 2.0 * correction + rounding.w_m,
         };
+        self.trims = trims;
         Ok(self.trims)
     }
 }

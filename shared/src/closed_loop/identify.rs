@@ -5,7 +5,8 @@
 //! from the probe's start the plate moves as
 //! `x(t) = x₀ + v₀·t + e·E(t) + g₊·P(t) + g₋·N(t) − (F_c/M)·C(t) − (b/M)·X(t)`:
 //! `P`, `N` and `E` the double integrals of the lagged positive part of the command, its negative
-//! part and of 1 (the zero offset `e` goes through the lag too), `C` the double integral of the
+//! part and of 1 (the zero offset `e` goes through the lag too, settled before the probe: the
+//! drive is on at zero command first), `C` the double integral of the
 //! sign of the plate's velocity (slide friction `F_c`) and `X` the integral of its displacement
 //! (viscous friction `b`), both taken from the latched positions. For a given `τ` the seven
 //! unknowns enter linearly and are fitted by least squares; `τ` is the one that leaves the least
@@ -157,20 +158,43 @@ struct Lagged {
     twice: f64,
 }
 
-impl Lagged {
-    /// After `s` of input `c`.
-    fn advance(self, c: f64, s: f64, lag_s: f64) -> Lagged {
-        let d = self.y - c;
+/// What a first-order lag of `τ` does over `s`: the decay of the distance to the input, and
+/// the first and second integrals of the approach. One exponential for every lagged signal
+/// over the same stretch.
+#[derive(Clone, Copy)]
+struct LagStep {
+    s: f64,
+    decay: f64,
+    rise: f64,
+    rise_twice: f64,
+}
+
+impl LagStep {
+    fn new(s: f64, lag_s: f64) -> Self {
         let (decay, rise, rise_twice) = if lag_s > 0.0 {
             let e = libm::exp(-s / lag_s);
             (e, lag_s * (1.0 - e), lag_s * (s - lag_s * (1.0 - e)))
         } else {
             (0.0, 0.0, 0.0)
         };
+        LagStep {
+            s,
+            decay,
+            rise,
+            rise_twice,
+        }
+    }
+}
+
+impl Lagged {
+    /// After `step` of input `c`.
+    fn advance(self, c: f64, step: &LagStep) -> Lagged {
+        let d = self.y - c;
+        let s = step.s;
         Lagged {
-            y: c + d * decay,
-            once: self.once + c * s + d * rise,
-            twice: self.twice + self.once * s + c * s * s / 2.0 + d * rise_twice,
+            y: c + d * step.decay,
+            once: self.once + c * s + d * step.rise,
+            twice: self.twice + self.once * s + c * s * s / 2.0 + d * step.rise_twice,
         }
     }
 }
@@ -184,21 +208,28 @@ fn lagged_rows(
 ) {
     let mut index = 0;
     let mut start_s = 0.0;
-    let mut at_start = [Lagged::default(); 3];
+    // The drive is on, at zero command, before the probe: the current loop has long settled on
+    // the offset, while the command's parts start from zero.
+    let risen = Lagged {
+        y: 1.0,
+        ..Lagged::default()
+    };
+    let mut at_start = [Lagged::default(), Lagged::default(), risen];
     let inputs = |u: f64| [u.max(0.0), u.min(0.0), 1.0];
     for (i, latch) in latches.iter().enumerate() {
         while index + 1 < probe.len() && latch.t_s > start_s + probe[index].duration_s {
             let segment = probe[index];
             let u = inputs(segment.accel_mps2);
+            let step = LagStep::new(segment.duration_s, lag_s);
             for (l, c) in at_start.iter_mut().zip(u) {
-                *l = l.advance(c, segment.duration_s, lag_s);
+                *l = l.advance(c, &step);
             }
             start_s += segment.duration_s;
             index += 1;
         }
         let u = inputs(probe[index].accel_mps2);
-        let s = latch.t_s - start_s;
-        let [p, n, e] = [0, 1, 2].map(|k| at_start[k].advance(u[k], s, lag_s).twice);
+        let step = LagStep::new(latch.t_s - start_s, lag_s);
+        let [p, n, e] = [0, 1, 2].map(|k| at_start[k].advance(u[k], &step).twice);
         each(i, [p, n, e]);
     }
 }
@@ -236,12 +267,16 @@ fn friction_rows(latches: &[Latch], mut each: impl FnMut(usize, [f64; 2])) {
     }
 }
 
-/// The least-squares fit for one lag, with its residual sum of squares.
-fn fit(probe: &[CommandSegment], latches: &[Latch], lag_s: f64) -> Option<([f64; UNKNOWNS], f64)> {
+/// The least-squares fit for one lag, with its residual sum of squares; `friction` holds the
+/// friction regressors of the latches, which do not depend on the lag.
+fn fit(
+    probe: &[CommandSegment],
+    latches: &[Latch],
+    friction: &[[f64; 2]; MAX_LATCHES],
+    lag_s: f64,
+) -> Option<([f64; UNKNOWNS], f64)> {
     let mut lagged = [[0.0; 3]; MAX_LATCHES];
     lagged_rows(probe, latches, lag_s, |i, r| lagged[i] = r);
-    let mut friction = [[0.0; 2]; MAX_LATCHES];
-    friction_rows(latches, |i, r| friction[i] = r);
     let row = |i: usize| -> [f64; UNKNOWNS] {
         let [p, n, e] = lagged[i];
         let [c, x] = friction[i];
@@ -268,9 +303,15 @@ fn fit(probe: &[CommandSegment], latches: &[Latch], lag_s: f64) -> Option<([f64;
         }
         for a in 0..UNKNOWNS {
             right[a] += r[a] * latch.position_m;
-            for b in 0..UNKNOWNS {
+            for b in a..UNKNOWNS {
                 normal[a][b] += r[a] * r[b];
             }
+        }
+    }
+    let upper = normal;
+    for (a, row) in normal.iter_mut().enumerate() {
+        for (b, entry) in row.iter_mut().enumerate().take(a) {
+            *entry = upper[b][a];
         }
     }
     let mut theta = cholesky_solve(normal, right)?;
@@ -326,7 +367,10 @@ pub fn identify(
     if excursion_m.is_nan() || excursion_m < limits.min_excursion_m {
         return Err(IdentifyError::NoMotion { excursion_m });
     }
-    let residual = |lag_s: f64| fit(probe, latches, lag_s).map_or(f64::INFINITY, |(_, r)| r);
+    let mut friction = [[0.0; 2]; MAX_LATCHES];
+    friction_rows(latches, |i, r| friction[i] = r);
+    let residual =
+        |lag_s: f64| fit(probe, latches, &friction, lag_s).map_or(f64::INFINITY, |(_, r)| r);
     let golden = 0.5 * (sqrt(5.0) - 1.0);
     let (mut lo, mut hi) = (0.0, LAG_MAX_S);
     let (mut a, mut b) = (hi - golden * (hi - lo), lo + golden * (hi - lo));
@@ -347,7 +391,7 @@ pub fn identify(
         }
     }
     let lag_s = if fa <= fb { a } else { b };
-    let (theta, squares) = fit(probe, latches, lag_s).ok_or(IdentifyError::Singular)?;
+    let (theta, squares) = fit(probe, latches, &friction, lag_s).ok_or(IdentifyError::Singular)?;
     let [_, _, offset_mps2, gain_positive, gain_negative, friction, viscous] = theta;
     let identified = Identified {
         gain_positive,

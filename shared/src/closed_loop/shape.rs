@@ -44,6 +44,13 @@ pub struct CycleShape {
     /// Mean over the cycle of the sign of the velocity: slide friction `F_c` changes the
     /// plate's velocity by `−(F_c/M)·T·velocity_sign_mean` a cycle.
     pub velocity_sign_mean: f64,
+    /// The planned `+a` and `−a` levels' magnitudes.
+    pub positive_mps2: f64,
+    pub negative_mps2: f64,
+    /// What a small error `e` in the `+`, zero and `−` level does by the cycle's end: the
+    /// velocity `e·[k][0]` and the position `e·[k][1]` (the time each is commanded, and its
+    /// first moment about the end).
+    pub level_effects: [[f64; 2]; 3],
 }
 
 impl CycleShape {
@@ -55,6 +62,9 @@ impl CycleShape {
             stroke_m: 0.0,
             mean_m: 0.0,
             velocity_sign_mean: 0.0,
+            positive_mps2: 0.0,
+            negative_mps2: 0.0,
+            level_effects: [[0.0; 2], [period_s, period_s * period_s / 2.0], [0.0; 2]],
         }
     }
 
@@ -105,12 +115,33 @@ impl CycleShape {
             }
         }
         let (turn_s, stroke_m) = turn?;
+        let (mut positive_mps2, mut negative_mps2) = (0.0_f64, 0.0_f64);
+        let mut level_effects = [[0.0; 2]; 3];
+        let mut begins_s = 0.0;
+        for segment in segments {
+            let level = if segment.accel_mps2 > 0.0 {
+                positive_mps2 = positive_mps2.max(segment.accel_mps2);
+                0
+            } else if segment.accel_mps2 < 0.0 {
+                negative_mps2 = negative_mps2.max(-segment.accel_mps2);
+                2
+            } else {
+                1
+            };
+            let d = segment.duration_s;
+            level_effects[level][0] += d;
+            level_effects[level][1] += d * (t - begins_s - d / 2.0);
+            begins_s += d;
+        }
         (t > 0.0).then(|| CycleShape {
             period_s: t,
             turn_s,
             stroke_m,
             mean_m: area / t,
             velocity_sign_mean: signed_s / t,
+            positive_mps2,
+            negative_mps2,
+            level_effects,
         })
     }
 }
