@@ -3,11 +3,12 @@
 //! [`Plant`] until the firmware ends.
 //!
 //! The firmware writes a [`Message`] for every level its output applies and, at the start of
-//! every cycle, a sample request, then waits for the answer; QEMU runs no instruction while it
-//! waits, so under `-icount` the firmware sees no time pass however long the plant computes.
-//! The wire format is defined in the firmware (`firmware/src/board/qemu/plant_link.rs`) and
-//! mirrored here: fixed-size little-endian records, firmware → host `tick: u64, kind: u32,
-//! value: i32` (16 bytes), host → firmware `tick: u64, count: i32` (12 bytes).
+//! every cycle, a sample request, then waits for the answer; with an encoder it also takes the
+//! samples of each cycle (a stream request). QEMU runs no instruction while it waits, so under
+//! `-icount` the firmware sees no time pass however long the plant computes. The wire format is
+//! defined in the firmware (`firmware/src/board/qemu/plant_link.rs`) and mirrored here:
+//! fixed-size little-endian records, firmware → host `tick: u64, kind: u32, value: i32`
+//! (16 bytes), host → firmware `tick: u64, count: i32` (12 bytes).
 
 use std::fs::{File, OpenOptions};
 use std::io::{self, ErrorKind, Read, Write};
@@ -37,6 +38,10 @@ pub const SAMPLE_BYTES: usize = 12;
 const KIND_LEVEL: u32 = 1;
 /// The `kind` of a sample request.
 const KIND_SAMPLE: u32 = 2;
+/// The `kind` of the encoder's configuration.
+const KIND_CONFIG: u32 = 3;
+/// The `kind` of a stream request.
+const KIND_STREAM: u32 = 4;
 
 /// How long [`PlantThread::join`] keeps releasing a thread that waits for QEMU to open the
 /// FIFOs after QEMU has ended.
@@ -49,6 +54,14 @@ pub enum Message {
     Level { tick: u64, code: i32 },
     /// The firmware waits for the plant's sample at `tick`.
     SampleRequest { tick: u64 },
+    /// The encoder is sampled at every multiple of `interval_ticks` and counts `resolution_nm`.
+    Config {
+        interval_ticks: u64,
+        resolution_nm: i32,
+    },
+    /// The firmware takes the samples up to `tick`: a header (`tick`, how many follow), then
+    /// those.
+    StreamRequest { tick: u64 },
 }
 
 impl Message {
@@ -60,6 +73,11 @@ impl Message {
         match kind {
             KIND_LEVEL => Some(Message::Level { tick, code: value }),
             KIND_SAMPLE => Some(Message::SampleRequest { tick }),
+            KIND_CONFIG => Some(Message::Config {
+                interval_ticks: tick,
+                resolution_nm: value,
+            }),
+            KIND_STREAM => Some(Message::StreamRequest { tick }),
             _ => None,
         }
     }
@@ -69,6 +87,11 @@ impl Message {
         let (tick, kind, value) = match *self {
             Message::Level { tick, code } => (tick, KIND_LEVEL, code),
             Message::SampleRequest { tick } => (tick, KIND_SAMPLE, 0),
+            Message::Config {
+                interval_ticks,
+                resolution_nm,
+            } => (interval_ticks, KIND_CONFIG, resolution_nm),
+            Message::StreamRequest { tick } => (tick, KIND_STREAM, 0),
         };
         let mut bytes = [0; MESSAGE_BYTES];
         bytes[..8].copy_from_slice(&tick.to_le_bytes());
@@ -93,6 +116,12 @@ pub trait Plant {
     fn level(&mut self, tick: u64, code: i32);
     /// The encoder count at `tick`.
     fn sample(&mut self, tick: u64) -> i32;
+    /// The firmware samples the encoder at every multiple of `interval_ticks` and reads
+    /// `resolution_nm` per count; an error says why this plant cannot serve that.
+    fn configure(&mut self, interval_ticks: u64, resolution_nm: i32) -> Result<(), String>;
+    /// The samples not yet taken up to `tick` (every interval sample and every sample answered),
+    /// in time order, as `(tick, count)`.
+    fn stream(&mut self, tick: u64) -> Vec<(u64, i32)>;
 }
 
 /// The plant of the link's proof: the sample is the running sum of the level codes received,
@@ -109,6 +138,15 @@ impl Plant for EchoPlant {
 
     fn sample(&mut self, _tick: u64) -> i32 {
         self.sum as i32
+    }
+
+    fn configure(&mut self, _interval_ticks: u64, _resolution_nm: i32) -> Result<(), String> {
+        Ok(())
+    }
+
+    /// The sum so far, once.
+    fn stream(&mut self, tick: u64) -> Vec<(u64, i32)> {
+        vec![(tick, self.sum as i32)]
     }
 }
 
@@ -225,6 +263,19 @@ impl PlantLink {
                     self.answer(tick, count)?;
                     counts.samples += 1;
                 }
+                Message::Config {
+                    interval_ticks,
+                    resolution_nm,
+                } => plant
+                    .configure(interval_ticks, resolution_nm)
+                    .map_err(|reason| io::Error::new(ErrorKind::InvalidInput, reason))?,
+                Message::StreamRequest { tick } => {
+                    let samples = plant.stream(tick);
+                    self.answer(tick, samples.len() as i32)?;
+                    for (tick, count) in samples {
+                        self.answer(tick, count)?;
+                    }
+                }
             }
         }
         Ok(counts)
@@ -290,6 +341,11 @@ mod tests {
                 code: -5,
             },
             Message::SampleRequest { tick: 40_000 },
+            Message::Config {
+                interval_ticks: 250,
+                resolution_nm: 1000,
+            },
+            Message::StreamRequest { tick: 60_000 },
         ] {
             assert_eq!(Message::decode(&message.encode()), Some(message));
         }

@@ -1,7 +1,7 @@
 //! The output stage as the application sees it: a timer that starts each segment in hardware,
 //! with the next segment preloaded by software while the current one plays.
 
-use feeder_shared::{DriveError, Segment, TickClock};
+use feeder_shared::{DriveError, Level, Segment, TickClock};
 
 /// A segment could not be prepared before its edge: the output timing is lost.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
@@ -17,6 +17,49 @@ pub struct SegmentStart {
     pub slack_ticks: Option<u32>,
 }
 
+/// The levels of one cycle as the closed loop trims them: what each of its segments commands
+/// instead of the plan's level.
+#[derive(Debug, Clone, Copy, PartialEq, defmt::Format)]
+pub struct TrimmedCycle {
+    pub cycle: u64,
+    pub positive_mps2: f64,
+    pub zero_mps2: f64,
+    pub negative_mps2: f64,
+}
+
+/// A trimmed cycle's levels in a stage's own units (DAC codes, PWM commands), converted once.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrimmedLevels<T> {
+    cycle: u64,
+    positive: T,
+    zero: T,
+    negative: T,
+}
+
+impl<T: Copy> TrimmedLevels<T> {
+    /// `trimmed`'s levels converted by `convert`, or its first refusal.
+    pub fn convert(
+        trimmed: &TrimmedCycle,
+        convert: impl Fn(f64) -> Result<T, DriveError>,
+    ) -> Result<Self, DriveError> {
+        Ok(TrimmedLevels {
+            cycle: trimmed.cycle,
+            positive: convert(trimmed.positive_mps2)?,
+            zero: convert(trimmed.zero_mps2)?,
+            negative: convert(trimmed.negative_mps2)?,
+        })
+    }
+
+    /// What `segment` outputs if it belongs to the trimmed cycle.
+    pub fn of(&self, segment: &Segment) -> Option<T> {
+        (segment.cycle == self.cycle).then_some(match segment.level {
+            Level::Positive => self.positive,
+            Level::Zero => self.zero,
+            Level::Negative => self.negative,
+        })
+    }
+}
+
 /// A hardware-timed output of segments.
 ///
 /// The stage holds two segments: the one playing and the one preloaded. At the end of the
@@ -26,10 +69,18 @@ pub trait SegmentOutput {
     /// The clock that times the segments; the scheduler plans in its ticks.
     fn clock(&self) -> TickClock;
 
+    /// The smallest step of a level (one DAC count, one PWM count), in m/s².
+    fn level_step_mps2(&self) -> f64;
+
     /// Recomputes the output levels for plans with this peak acceleration. Segments already
     /// playing or preloaded keep their values. On error the stage outputs zero until a valid
     /// acceleration is set.
     fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError>;
+
+    /// Outputs `trimmed`'s levels for the segments of its cycle preloaded from now on, instead of
+    /// the plan's; every other cycle keeps the plan's. Converts the three levels at once, before
+    /// the cycle's first preload; on error the cycle keeps the plan's levels.
+    fn trim(&mut self, trimmed: &TrimmedCycle) -> Result<(), DriveError>;
 
     /// Applies `segment` at once and restarts the timer with its length; nothing is preloaded.
     fn restart(&mut self, segment: &Segment);

@@ -6,6 +6,7 @@
 use embassy_executor::SendSpawner;
 use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_hal_async::digital::Wait;
+use feeder_shared::closed_loop::PositionSample;
 use feeder_shared::TickClock;
 
 use crate::output::SegmentOutput;
@@ -23,6 +24,8 @@ pub trait Parts {
     type Watchdog: Watchdog;
     /// Who operates the feeder besides the button.
     type Operator: Operator;
+    /// The plate's position sensor; a board without one ([`NoSensor`]) runs open loop.
+    type Sensor: PositionSensor;
 }
 
 /// Everything the application needs from the board.
@@ -33,10 +36,14 @@ pub struct Board<P: Parts> {
     pub button: P::Button,
     pub watchdog: P::Watchdog,
     pub operator: P::Operator,
+    pub sensor: P::Sensor,
     /// The last reset was the watchdog's.
     pub after_watchdog_reset: bool,
     /// Spawner of the executor that runs the control loop above the other tasks.
     pub control_spawner: SendSpawner,
+    /// Spawner of the executor below every other: long computations (the drive's
+    /// identification) that must not hold the closed loop up.
+    pub background_spawner: SendSpawner,
 }
 
 /// A watchdog that the monitor feeds while the application makes progress.
@@ -54,6 +61,35 @@ pub trait Watchdog {
 pub trait Operator {
     /// Spawns the operator's task on `spawner`; it plans every waveform on the output's `clock`.
     fn spawn(self, spawner: SendSpawner, clock: TickClock);
+}
+
+/// The plate's position, sampled by hardware on the output's clock: at a fixed interval and at
+/// every cycle's start tick (a capture at the tick the output begins the cycle).
+pub trait PositionSensor: Send {
+    /// False for a board without a sensor: the closed loop is not run at all.
+    const PRESENT: bool;
+    /// Metres per count.
+    const RESOLUTION_M: f64;
+    /// Moves the positions sampled up to and including `tick` (the output's actual tick, a
+    /// cycle start the output has begun) into `out`, oldest first, the one at `tick` last, and
+    /// returns how many; those that do not fit are dropped, the oldest first.
+    fn take_until(&mut self, tick: u64, out: &mut [PositionSample]) -> usize;
+}
+
+/// A board without a position sensor.
+#[allow(
+    dead_code,
+    reason = "every board but the co-simulated one with an encoder names it"
+)]
+pub struct NoSensor;
+
+impl PositionSensor for NoSensor {
+    const PRESENT: bool = false;
+    const RESOLUTION_M: f64 = 0.0;
+
+    fn take_until(&mut self, _tick: u64, _out: &mut [PositionSample]) -> usize {
+        0
+    }
 }
 
 /// One 32-bit store of a board's safe state, made by the HardFault entry before it touches the

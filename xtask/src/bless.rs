@@ -1,6 +1,7 @@
 //! `cargo xtask bless`: makes every expected output anew and says which changed. The QEMU logs
 //! come from the scripted image started by `feeder-emulator`, as the QEMU tests start it; the
-//! figures' CSVs from the `host-sim` CLI; the command-line snapshots from their `trycmd` runners.
+//! closed-loop co-simulation's log from its test; the figures' CSVs from the `host-sim` CLI; the
+//! command-line snapshots from their `trycmd` runners.
 
 use std::collections::BTreeMap;
 use std::fs;
@@ -46,6 +47,7 @@ pub fn bless() -> Result {
         .collect();
     let before = contents(&watched)?;
     qemu_logs()?;
+    closed_loop_log()?;
     figures()?;
     for (package, _) in snapshot_packages() {
         exec(
@@ -106,6 +108,32 @@ fn qemu_logs() -> Result {
         write(&scenario.with_extension("log"), run.log.as_bytes())?;
     }
     Ok(())
+}
+
+/// The closed-loop co-simulation's golden log, written by its own test (which runs the
+/// closed-loop image against `realistic.toml` with the words in `cosim-closed-loop.words`).
+fn closed_loop_log() -> Result {
+    tools::ensure_linker()?;
+    tools::ensure_emulation()?;
+    let elf = qemu::build_firmware(Image::ClosedLoop)?;
+    exec(
+        cargo()
+            .args([
+                "test",
+                "--locked",
+                "--package",
+                "feeder-tests",
+                "--test",
+                "cosim",
+            ])
+            .args([
+                "--",
+                "--ignored",
+                "the_closed_loop_log_matches_the_golden_file",
+            ])
+            .env("FEEDER_CLOSED_LOOP_ELF", &elf)
+            .env("FEEDER_BLESS", "overwrite"),
+    )
 }
 
 /// The figures' CSVs, written by the `host-sim` CLI (its report on standard output is left out).

@@ -78,11 +78,13 @@ struct SoakArgs {
 #[derive(Args)]
 #[command(after_help = scenario_help())]
 struct RunArgs {
-    /// Drive a real plate from this plant file (host-sim/plants/) instead: the QEMU `cosim`
-    /// image in lockstep with `host-sim cosim`, which reports the plate's motion.
+    /// Drive a real plate from this plant file (host-sim/plants/) instead: the QEMU image with
+    /// the plant's encoder, running the closed loop, in lockstep with `host-sim cosim`, which
+    /// reports the plate's motion and ends with `closed loop: PASSED` or `FAILED (…)`.
     #[arg(long, value_name = "FILE")]
     plant: Option<PathBuf>,
-    /// With --plant: the firmware's command as planned, with no correction (its only mode).
+    /// With --plant: the image without an encoder, whose command runs as planned, with no
+    /// correction; the report shows where the plate went.
     #[arg(long, requires = "plant")]
     open_loop: bool,
     /// Settings of the emulated run's scripted operator (keys below).
@@ -234,12 +236,17 @@ fn run(args: &RunArgs) -> Result {
     Ok(())
 }
 
-/// The `cosim` image under QEMU driving the plate of `plant` in lockstep (`host-sim cosim`); its
-/// decoded log goes to target/cosim-run.log, for `host-sim hil --input`.
+/// The closed-loop image (or with `--open-loop` the `cosim` image) under QEMU driving the plate
+/// of `plant` in lockstep (`host-sim cosim`); its decoded log goes to target/cosim-run.log, for
+/// `host-sim hil --input`.
 fn run_plant(plant: &Path, args: &RunArgs) -> Result {
     tools::ensure_linker()?;
     tools::ensure_emulation()?;
-    let elf = qemu::build_firmware(qemu::Image::Cosim)?;
+    let image = match args.open_loop {
+        true => qemu::Image::Cosim,
+        false => qemu::Image::ClosedLoop,
+    };
+    let elf = qemu::build_firmware(image)?;
     exec(cargo().args(["build", "--release", "--locked", "--package", "host-sim"]))?;
     let mut cosim = host_sim();
     cosim
@@ -281,7 +288,12 @@ fn test() -> Result {
     let scripted = qemu::build_firmware(qemu::Image::Scripted)?;
     exec(&mut ignored_tests("feeder-tests", "qemu", &scripted))?;
     let cosim = qemu::build_firmware(qemu::Image::Cosim)?;
-    exec(ignored_tests("feeder-tests", "cosim", &cosim).env("FEEDER_COSIM_ELF", &cosim))?;
+    let closed_loop = qemu::build_firmware(qemu::Image::ClosedLoop)?;
+    exec(
+        ignored_tests("feeder-tests", "cosim", &cosim)
+            .env("FEEDER_COSIM_ELF", &cosim)
+            .env("FEEDER_CLOSED_LOOP_ELF", &closed_loop),
+    )?;
     let console = qemu::build_firmware(qemu::Image::Console)?;
     exec(&mut ignored_tests("feeder-ctl", "qemu_session", &console))?;
     let seed = std::env::var_os("FEEDER_SOAK_SEED")

@@ -6,12 +6,15 @@ use std::path::PathBuf;
 use crate::{exec, firmware_cargo, firmware_dir, Result, THUMB_TARGET};
 
 /// The QEMU firmware with the scripted operator, with the serial console instead, or with the
-/// scripted operator and the lockstep link to a plant on the host.
+/// scripted operator and the lockstep link to a plant on the host, without or with the plant's
+/// encoder (open or closed loop).
 #[derive(Clone, Copy)]
 pub enum Image {
     Scripted,
     Console,
     Cosim,
+    /// The co-simulated image with the plant's encoder: the closed loop.
+    ClosedLoop,
 }
 
 /// Builds a QEMU firmware image (in its own target directory, beside the board image) and
@@ -21,6 +24,7 @@ pub fn build_firmware(image: Image) -> Result<PathBuf> {
         Image::Scripted => ("qemu", "board-qemu"),
         Image::Console => ("qemu-console", "board-qemu,console"),
         Image::Cosim => ("qemu-cosim", "cosim"),
+        Image::ClosedLoop => ("qemu-closed-loop", "encoder"),
     };
     let target_dir = firmware_dir().join("target").join(directory);
     exec(

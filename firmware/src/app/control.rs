@@ -7,15 +7,17 @@ use core::sync::atomic::Ordering;
 use defmt::{error, info, warn};
 use embassy_time::Timer;
 use embedded_hal::digital::OutputPin;
+use feeder_shared::closed_loop::Trims;
 use feeder_shared::{
     Fault, MotionRequest, Phase, RunState, Scheduler, Segment, SegmentKind, StopCategory,
     Supervisor, SupervisorEvent, TickPlan,
 };
 
 use super::monitor::{cycles, COST, HEARTBEAT};
+use super::regulate::{self, Boundary, Ruling, BOUNDARY, RULING};
 use crate::config;
 use crate::mailbox::{ReadyPlan, NEXT_PLAN, REQUESTS};
-use crate::output::SegmentOutput;
+use crate::output::{SegmentOutput, TrimmedCycle};
 use crate::status::{self, Status};
 use crate::trace;
 
@@ -30,10 +32,20 @@ pub struct ControlLoop<O, E> {
     cycle: u64,
     /// The status as last published.
     published: Status,
+    /// The closed loop runs (the board has a position sensor).
+    closed_loop: bool,
+    /// The closed loop's trims last decided, for their cycle, and its feedforward for a cycle
+    /// whose trims were not decided.
+    decided: Option<(u64, Trims)>,
+    feedforward: Trims,
+    /// The segment playing belongs to an idle period.
+    idle: bool,
 }
 
 impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
-    pub fn new(output: O, driver_enable: E, after_watchdog_reset: bool) -> Self {
+    /// The control loop; with `closed_loop` it runs the course of the closed loop
+    /// (`super::regulate`).
+    pub fn new(output: O, driver_enable: E, after_watchdog_reset: bool, closed_loop: bool) -> Self {
         Self {
             output,
             driver_enable,
@@ -41,6 +53,10 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             phase: Phase::Stopped,
             cycle: 0,
             published: Status::POWER_UP,
+            closed_loop,
+            decided: None,
+            feedforward: Trims::NONE,
+            idle: true,
         }
     }
 
@@ -85,6 +101,10 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     /// One preload per edge; the status is published after it, while the segment plays.
     async fn run_plan(mut self, plan: TickPlan) -> ! {
         let mut scheduler = Scheduler::new(plan, config::RAMP_CYCLES);
+        if self.closed_loop {
+            // The course probes and centres on held cycles from the first start.
+            scheduler.hold_step(regulate::probe_step());
+        }
         let mut queued = self.resync(&mut scheduler);
         loop {
             self.publish();
@@ -96,6 +116,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             }
             self.begin(&queued, &mut scheduler);
             queued = scheduler.next_segment();
+            self.trim(&queued, &mut scheduler);
             if let Err(fault) = self.prepare(&queued) {
                 queued = self.fail(fault, queued, &mut scheduler);
                 continue;
@@ -113,6 +134,60 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             }
         }
         self.output.preload(segment).map_err(|_| Fault::EdgeMissed)
+    }
+
+    /// With the closed loop, gives the output the trimmed levels of the cycle `segment` begins:
+    /// the ones decided for it or, after an idle period, the feedforward. A running cycle whose
+    /// trims are not there is one the loop did not decide in time: it runs the feedforward and
+    /// the closed loop's fault stops the feeder at its end.
+    fn trim(&mut self, segment: &Segment, scheduler: &mut Scheduler) {
+        if !self.closed_loop || segment.kind != SegmentKind::Accelerate {
+            return;
+        }
+        let trims = match self.decided {
+            Some((cycle, trims)) if cycle == segment.cycle => trims,
+            _ if self.idle => self.feedforward,
+            _ => {
+                error!(
+                    "closed loop: no trims for cycle {=u64} in time",
+                    segment.cycle
+                );
+                self.handle(SupervisorEvent::Fault(Fault::ClosedLoop), Some(scheduler));
+                self.feedforward
+            }
+        };
+        let planned_mps2 = segment.peak_accel_mps2 * segment.amplitude.fraction();
+        let trimmed = TrimmedCycle {
+            cycle: segment.cycle,
+            positive_mps2: trims.apply(planned_mps2),
+            zero_mps2: trims.bias_mps2,
+            negative_mps2: trims.apply(-planned_mps2),
+        };
+        if let Err(err) = self.output.trim(&trimmed) {
+            error!("closed loop: trimmed levels refused: {}", err);
+            self.handle(SupervisorEvent::Fault(Fault::ClosedLoop), Some(scheduler));
+        }
+    }
+
+    /// Takes the closed loop's newest ruling: the trims of a cycle to come, the end of the
+    /// hold, or a stop.
+    fn take_ruling(&mut self, scheduler: &mut Scheduler) {
+        match RULING.lock(Cell::take) {
+            Some(Ruling::Trim {
+                decision,
+                feedforward,
+            }) => {
+                if decision.release {
+                    scheduler.release_hold();
+                }
+                self.decided = Some((decision.cycle, decision.trims));
+                self.feedforward = feedforward;
+            }
+            Some(Ruling::Stop) => {
+                self.handle(SupervisorEvent::Fault(Fault::ClosedLoop), Some(scheduler));
+            }
+            None => {}
+        }
     }
 
     /// Restarts the output with the scheduler's next segment and preloads the one after it.
@@ -160,6 +235,17 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         trace::segment(playing, self.output.started(playing));
         if playing.starts_cycle() {
             self.cycle = playing.cycle;
+            self.idle = playing.kind == SegmentKind::Idle;
+            if self.closed_loop {
+                BOUNDARY.signal(Boundary {
+                    begun: *playing,
+                    ahead: scheduler.clone(),
+                    start_tick: self.output.started(playing).tick,
+                });
+            }
+        }
+        if self.closed_loop {
+            self.take_ruling(scheduler);
         }
         if playing.phase != self.phase {
             info!("cycle {=u64}: {}", playing.cycle, playing.phase);

@@ -4,31 +4,45 @@
 mod control;
 mod monitor;
 mod panel;
+mod regulate;
 
 use defmt::unwrap;
 use embassy_executor::SendSpawner;
 
 use crate::board;
 use crate::output::SegmentOutput;
-use crate::ports::{Board, Operator, Parts};
+use crate::ports::{Board, Operator, Parts, PositionSensor};
 use control::ControlLoop;
 
 type Output = <board::Hardware as Parts>::Output;
 type DriverEnable = <board::Hardware as Parts>::DriverEnable;
+type Sensor = <board::Hardware as Parts>::Sensor;
 
 /// Spawns the tasks: the control loop on the board's control executor, above the others; the
 /// button, the LED, the monitor and the operator on `spawner` (the monitor where the board's
-/// watchdog needs it).
+/// watchdog needs it); with a position sensor, the closed loop on `spawner` and the drive's
+/// identification on the background executor.
 pub fn start(spawner: SendSpawner, board: Board<board::Hardware>) {
     monitor::enable_cycle_counter();
     board::announce();
     let clock = board.output.clock();
+    let level_step_mps2 = board.output.level_step_mps2();
     let control = ControlLoop::new(
         board.output,
         board.driver_enable,
         board.after_watchdog_reset,
+        Sensor::PRESENT,
     );
     board.control_spawner.spawn(unwrap!(control_task(control)));
+    if Sensor::PRESENT {
+        spawner.spawn(unwrap!(regulate::regulate_task(
+            board.sensor,
+            level_step_mps2
+        )));
+        board
+            .background_spawner
+            .spawn(unwrap!(regulate::identify_task()));
+    }
     spawner.spawn(unwrap!(panel::button_task(board.button)));
     spawner.spawn(unwrap!(panel::led_task(board.led)));
     monitor::spawn(spawner, board.control_spawner, board.watchdog);

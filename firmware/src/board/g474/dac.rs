@@ -10,7 +10,7 @@ use feeder_shared::{DacLevels, DriveError, Segment, TickClock};
 use super::segment_timer::{SegmentTimer, UpdateInterrupt, CR1_STOPPED, EGR_UPDATE, MIN_SEGMENT_S};
 use super::setup::DRIVER_DISABLE;
 use crate::config;
-use crate::output::{EdgeMissed, SegmentOutput, SegmentStart};
+use crate::output::{EdgeMissed, SegmentOutput, SegmentStart, TrimmedCycle, TrimmedLevels};
 use crate::ports::RegisterWrite;
 
 /// DAC1_DHR12R1: channel 1's 12-bit right-aligned holding register.
@@ -29,6 +29,8 @@ pub struct DacStage {
     dac: DacChannel<'static, Blocking>,
     timer: SegmentTimer<TIM2>,
     levels: Option<DacLevels>,
+    /// The closed loop's levels of the cycle it trimmed last.
+    trimmed: Option<TrimmedLevels<u16>>,
     /// Preload slack of the preloaded segment and of the playing one (`None`: restarted).
     queued_slack_ticks: Option<u32>,
     playing_slack_ticks: Option<u32>,
@@ -98,15 +100,21 @@ impl DacStage {
             dac,
             timer: SegmentTimer::new(timer, edge_counter, TriggerSource::ITR1, Irqs),
             levels: None,
+            trimmed: None,
             queued_slack_ticks: None,
             playing_slack_ticks: None,
         }
     }
 
+    /// The code of `segment`: its trimmed cycle's, or the plan's, at the zero code while the
+    /// plan's levels are refused.
     fn code(&self, segment: &Segment) -> u16 {
-        match self.levels {
-            Some(levels) => levels.code(segment.level, segment.amplitude),
-            None => config::DAC.zero_code,
+        match (&self.trimmed, &self.levels) {
+            (Some(trimmed), Some(levels)) => trimmed
+                .of(segment)
+                .unwrap_or_else(|| levels.code(segment.level, segment.amplitude)),
+            (None, Some(levels)) => levels.code(segment.level, segment.amplitude),
+            (_, None) => config::DAC.zero_code,
         }
     }
 }
@@ -116,9 +124,20 @@ impl SegmentOutput for DacStage {
         TickClock::new(self.timer.timer().get_clock_frequency().0).with_min_segment_s(MIN_SEGMENT_S)
     }
 
+    fn level_step_mps2(&self) -> f64 {
+        1.0 / config::DAC.counts_per_mps2
+    }
+
     fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
         self.levels = None;
         self.levels = Some(config::DAC.levels(peak_accel_mps2)?);
+        Ok(())
+    }
+
+    fn trim(&mut self, trimmed: &TrimmedCycle) -> Result<(), DriveError> {
+        self.trimmed = Some(TrimmedLevels::convert(trimmed, |accel_mps2| {
+            config::DAC.code(accel_mps2)
+        })?);
         Ok(())
     }
 

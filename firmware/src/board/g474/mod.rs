@@ -69,6 +69,8 @@ impl Parts for Hardware {
     type Button = ExtiInput<'static, Async>;
     type Watchdog = watchdog::OutputWatchdog;
     type Operator = operator::Operator;
+    /// No encoder or accelerometer input yet: the board runs open loop.
+    type Sensor = ports::NoSensor;
 }
 
 /// The stores that make the output safe, in order (see [`Stage::SAFE_STATE_WRITES`]).
@@ -78,11 +80,13 @@ pub static SAFE_STATE_WRITES: [RegisterWrite; Stage::SAFE_STATE_WRITES.len()] =
 /// Brings the board up with the output at zero and the driver disabled, hands it to `app`, which
 /// spawns its tasks, and runs the thread-mode executor.
 pub fn run(app: fn(SendSpawner, Board<Hardware>)) -> ! {
-    let board = setup::init();
     let mut executor = Executor::new();
     // SAFETY: `run` never returns, so its frame, and the executor in it, lives for good.
     let executor: &'static mut Executor = unsafe { &mut *core::ptr::addr_of_mut!(executor) };
-    executor.run(|spawner| app(spawner.make_send(), board))
+    executor.run(|spawner| {
+        let spawner = spawner.make_send();
+        app(spawner, setup::init(spawner))
+    })
 }
 
 /// Logs the image's output stage.

@@ -10,12 +10,12 @@ use embassy_stm32::timer::low_level::{OutputCompareMode, Timer, TriggerSource};
 use embassy_stm32::timer::simple_pwm::PwmPin;
 use embassy_stm32::timer::{Ch1, Ch2, Channel};
 use embassy_stm32::{bind_interrupts, pac, Peri};
-use feeder_shared::{Direction, DriveError, PwmLevels, Segment, TickClock};
+use feeder_shared::{Direction, DriveError, PwmCommand, PwmLevels, Segment, TickClock};
 
 use super::segment_timer::{SegmentTimer, UpdateInterrupt, CR1_STOPPED, MIN_SEGMENT_S};
 use super::setup::DRIVER_DISABLE;
 use crate::config;
-use crate::output::{EdgeMissed, SegmentOutput, SegmentStart};
+use crate::output::{EdgeMissed, SegmentOutput, SegmentStart, TrimmedCycle, TrimmedLevels};
 use crate::ports::RegisterWrite;
 
 /// TIM1's control register 1, interrupt enable and break and dead-time registers.
@@ -51,6 +51,8 @@ pub struct PwmStage {
     period_counts: u16,
     clock: TickClock,
     levels: Option<PwmLevels>,
+    /// The closed loop's levels of the cycle it trimmed last.
+    trimmed: Option<TrimmedLevels<PwmCommand>>,
 }
 
 impl PwmStage {
@@ -131,17 +133,20 @@ impl PwmStage {
                 .with_max_segment_ticks(1 << 16)
                 .with_min_segment_s(MIN_SEGMENT_S),
             levels: None,
+            trimmed: None,
         }
     }
 
     /// What `segment` sets: zero while the levels are refused.
     fn compares(&self, segment: &Segment) -> Compares {
-        let (duty, direction) = match self.levels {
-            Some(levels) => {
+        let trimmed = self.trimmed.and_then(|trimmed| trimmed.of(segment));
+        let (duty, direction) = match (trimmed, self.levels) {
+            (Some(command), Some(_)) => (command.duty_counts, command.direction),
+            (None, Some(levels)) => {
                 let command = levels.command(segment.level, segment.amplitude);
                 (command.duty_counts, command.direction)
             }
-            None => (0, Direction::Forward),
+            (_, None) => (0, Direction::Forward),
         };
         Compares {
             duty,
@@ -177,9 +182,21 @@ impl SegmentOutput for PwmStage {
         self.clock
     }
 
+    fn level_step_mps2(&self) -> f64 {
+        config::PWM.full_duty_accel_mps2 / f64::from(self.period_counts)
+    }
+
     fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
         self.levels = None;
         self.levels = Some(config::PWM.levels(peak_accel_mps2, self.period_counts)?);
+        Ok(())
+    }
+
+    fn trim(&mut self, trimmed: &TrimmedCycle) -> Result<(), DriveError> {
+        let period_counts = self.period_counts;
+        self.trimmed = Some(TrimmedLevels::convert(trimmed, |accel_mps2| {
+            config::PWM.command(accel_mps2, period_counts)
+        })?);
         Ok(())
     }
 

@@ -1,7 +1,7 @@
 //! Bring-up: clocks, pins, the output stage, the watchdog, the interrupt priorities and the
 //! control executor.
 
-use embassy_executor::InterruptExecutor;
+use embassy_executor::{InterruptExecutor, SendSpawner};
 use embassy_stm32::exti::{self, ExtiInput};
 use embassy_stm32::gpio::{self, Level, Pull, Speed};
 use embassy_stm32::interrupt::typelevel::{self, Handler};
@@ -10,7 +10,7 @@ use embassy_stm32::{bind_interrupts, pac, rcc, Config};
 
 use super::watchdog::OutputWatchdog;
 use super::{operator, Hardware, Stage};
-use crate::ports::{Board, RegisterWrite};
+use crate::ports::{self, Board, RegisterWrite};
 
 /// Core clock ([`clocks`]).
 pub const CORE_HZ: f64 = 170e6;
@@ -47,8 +47,9 @@ impl Handler<typelevel::UART4> for ControlExecutor {
     }
 }
 
-/// Brings the board up with the output at zero and the driver disabled.
-pub fn init() -> Board<Hardware> {
+/// Brings the board up with the output at zero and the driver disabled; `thread_spawner` is
+/// the thread-mode executor's.
+pub fn init(thread_spawner: SendSpawner) -> Board<Hardware> {
     let after_watchdog_reset = pac::RCC.csr().read().iwdgrstf();
     pac::RCC.csr().modify(|w| w.set_rmvf(true));
 
@@ -71,8 +72,12 @@ pub fn init() -> Board<Hardware> {
         button,
         watchdog,
         operator: operator::Operator::new(p.LPUART1, p.PA2, p.PA3, p.FLASH),
+        sensor: ports::NoSensor,
         after_watchdog_reset,
         control_spawner,
+        // Thread mode is this board's lowest level; nothing of the closed loop runs without a
+        // sensor.
+        background_spawner: thread_spawner,
     }
 }
 

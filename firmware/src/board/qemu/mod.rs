@@ -12,7 +12,8 @@
 //!   instead, with recipes kept in RAM: the feeder waits, stopped, for commands and the emulation
 //!   runs until QEMU is ended. The script's image contains no console, so its run (and its `EVT`
 //!   stream) does not depend on the console's code.
-//! * Executors: all tasks run on two interrupt executors and thread mode spins (the operator's
+//! * Executors: all tasks run on three interrupt executors (the control loop above the other
+//!   tasks above the background's long computations) and thread mode spins (the operator's
 //!   `idle`, where a script also provokes its thread-mode faults). QEMU executes `wfe` as a no-op,
 //!   so embassy's thread executor would spin instead of letting `-icount` skip idle time.
 //! * Output registers: the stage's model keeps its state in three words of the machine's FPGA
@@ -32,6 +33,8 @@
 //!   is the host's end.
 
 mod edge_work;
+#[cfg(feature = "encoder")]
+mod encoder;
 mod exit;
 #[cfg(not(feature = "console"))]
 #[path = "script/mod.rs"]
@@ -68,6 +71,23 @@ impl Parts for Hardware {
     type Button = pins::NoButton;
     type Watchdog = pins::NoWatchdog;
     type Operator = operator::Operator;
+    type Sensor = Sensor;
+}
+
+/// The plate's encoder: the plant's on the host (feature `encoder`), none otherwise.
+#[cfg(feature = "encoder")]
+type Sensor = encoder::PlantEncoder;
+#[cfg(not(feature = "encoder"))]
+type Sensor = ports::NoSensor;
+
+/// The sensor, attached once the board is up (and the plant link open).
+#[cfg(feature = "encoder")]
+fn attach_sensor() -> Sensor {
+    encoder::PlantEncoder::attach()
+}
+#[cfg(not(feature = "encoder"))]
+fn attach_sensor() -> Sensor {
+    ports::NoSensor
 }
 
 /// The DAC code on the emulated output (the G474's DAC1 output), written by the stage's model at
@@ -108,7 +128,7 @@ pub fn announce() {
     defmt::info!("feeder firmware up on QEMU mps2-an386: output reported as events, stopped");
 }
 
-/// External interrupts of mps2-an386 used here. 30 and 31 belong to GPIO pins nobody enables.
+/// External interrupts of mps2-an386 used here. 29 to 31 belong to GPIO pins nobody enables.
 #[derive(Clone, Copy)]
 #[repr(u16)]
 enum Irq {
@@ -118,6 +138,7 @@ enum Irq {
     Uart0Tx = 1,
     Timer0 = 8,
     Timer1 = 9,
+    BackgroundExecutor = 29,
     ControlExecutor = 30,
     TaskExecutor = 31,
 }
@@ -140,6 +161,7 @@ unsafe fn DefaultHandler(irqn: i16) {
         8 => time_driver::on_alarm(),
         9 => time_driver::on_clock_wrap(),
         // SAFETY: each executor was started on its interrupt in `setup::init`.
+        29 => unsafe { setup::BACKGROUND_EXECUTOR.on_interrupt() },
         30 => unsafe { setup::CONTROL_EXECUTOR.on_interrupt() },
         31 => unsafe { setup::TASK_EXECUTOR.on_interrupt() },
         _ => {

@@ -5,12 +5,10 @@ use embassy_time::{Instant, Timer};
 use feeder_shared::{DacLevels, DriveError, Segment, TickClock};
 
 use super::edge_work::{overrun_if_provoked, record_edge_work};
-#[cfg(feature = "cosim")]
-use super::plant_link::PlantLink;
 use super::time_driver::{self, CYCLES_PER_TICK};
 use super::{exit, register_read, register_write, OUTPUT_CODE, OUTPUT_RUN};
 use crate::config;
-use crate::output::{EdgeMissed, SegmentOutput, SegmentStart};
+use crate::output::{EdgeMissed, SegmentOutput, SegmentStart, TrimmedCycle, TrimmedLevels};
 use crate::trace;
 
 /// Virtual time per instruction under `-icount shift=4`: 2⁴ ns.
@@ -44,13 +42,12 @@ pub struct ReportingOutput {
     queued: Option<(Segment, u32, u32)>,
     /// The codes of the plan's levels; `None` (a refused acceleration): zero.
     levels: Option<DacLevels>,
+    /// The codes of the cycle the closed loop trimmed last.
+    trimmed: Option<TrimmedLevels<u16>>,
     /// Timer cycle of the edge that began the playing segment, until the next preload.
     edge_cycles: Option<u64>,
     /// The missed edge's replay, until the halt reports it.
     replay: Option<Replay>,
-    /// The plant on the host that each applied level goes to and each cycle's sample comes from.
-    #[cfg(feature = "cosim")]
-    plant: PlantLink,
 }
 
 /// At a missed edge the timer played `segment` again from `actual_tick`; `slack_ticks` is the
@@ -70,42 +67,43 @@ impl ReportingOutput {
             playing: None,
             queued: None,
             levels: None,
+            trimmed: None,
             edge_cycles: None,
             replay: None,
-            #[cfg(feature = "cosim")]
-            plant: super::plant_link::open_or_end(),
         }
     }
 
     /// Sends the level the output applies at `actual_tick` to the plant and, if `segment`
-    /// begins a cycle, takes the plant's sample at that tick and logs it. A failed link ends the
+    /// begins a cycle, takes the plant's capture at that tick and logs it. A failed link ends the
     /// run with the output at zero and the driver disabled.
     #[cfg(feature = "cosim")]
     fn exchange(&mut self, segment: &Segment, actual_tick: u64, code: u32) {
-        let sampled =
-            self.plant
-                .send_level(actual_tick, code)
-                .and_then(|()| match segment.starts_cycle() {
-                    true => self.plant.sample(actual_tick).map(Some),
-                    false => Ok(None),
-                });
-        match sampled {
-            Ok(Some(count)) => defmt::info!(
+        let captured = super::plant_link::with(|plant| {
+            plant.send_level(actual_tick, code)?;
+            match segment.starts_cycle() {
+                true => plant.sample(actual_tick).map(Some),
+                false => Ok(None),
+            }
+        });
+        if let Some(count) = captured {
+            defmt::info!(
                 "plant: cycle {=u64} tick={=u64} count={=i32}",
                 segment.cycle,
                 actual_tick,
                 count
-            ),
-            Ok(None) => {}
-            Err(error) => super::plant_link::lost(error),
+            );
         }
     }
 
-    /// The DAC code of `segment`, at the zero code while the levels are refused.
+    /// The DAC code of `segment`: its trimmed cycle's, or the plan's, at the zero code while
+    /// the plan's levels are refused.
     fn code(&self, segment: &Segment) -> u32 {
-        let code = match &self.levels {
-            Some(levels) => levels.code(segment.level, segment.amplitude),
-            None => config::DAC.zero_code,
+        let code = match (&self.trimmed, &self.levels) {
+            (Some(trimmed), Some(levels)) => trimmed
+                .of(segment)
+                .unwrap_or_else(|| levels.code(segment.level, segment.amplitude)),
+            (None, Some(levels)) => levels.code(segment.level, segment.amplitude),
+            (_, None) => config::DAC.zero_code,
         };
         u32::from(code)
     }
@@ -126,10 +124,21 @@ impl SegmentOutput for ReportingOutput {
         TickClock::new(embassy_time::TICK_HZ as u32).with_min_segment_s(MIN_SEGMENT_S)
     }
 
+    fn level_step_mps2(&self) -> f64 {
+        1.0 / config::DAC.counts_per_mps2
+    }
+
     fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
         // The same levels the board's DAC stage computes.
         self.levels = None;
         self.levels = Some(config::DAC.levels(peak_accel_mps2)?);
+        Ok(())
+    }
+
+    fn trim(&mut self, trimmed: &TrimmedCycle) -> Result<(), DriveError> {
+        self.trimmed = Some(TrimmedLevels::convert(trimmed, |accel_mps2| {
+            config::DAC.code(accel_mps2)
+        })?);
         Ok(())
     }
 

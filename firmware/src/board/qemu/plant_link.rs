@@ -25,14 +25,29 @@
 //! | [`Sample`], host → firmware | 12 | `tick: u64`, `count: i32` |
 //!
 //! `tick` is the output's actual tick (µs of the plan's clock, counted from the output's first
-//! restart: the `actual` of the `EVT seg` lines). `kind` [`KIND_LEVEL`]: from `tick` on the
-//! output holds the DAC code `value`. `kind` [`KIND_SAMPLE`]: the firmware waits for the
-//! plant's sample at `tick` (`value` 0); the host answers with exactly one [`Sample`] carrying
-//! the same `tick` and the encoder count. The output sends a level at every segment it applies
-//! and, at every segment that begins a cycle (or idle period), asks for a sample right after it.
+//! restart: the `actual` of the `EVT seg` lines). By `kind`:
+//!
+//! * `KIND_CONFIG` (in `encoder`, as the next), first after the open: the encoder is sampled
+//!   every `tick` ticks (at every multiple of it) and counts `value` nanometres.
+//! * [`KIND_LEVEL`]: from `tick` on the output holds the DAC code `value`.
+//! * [`KIND_SAMPLE`]: the firmware waits for the plant's capture at `tick` (`value` 0); the
+//!   host answers with exactly one [`Sample`] carrying the same `tick` and the encoder count.
+//! * `KIND_STREAM`: the firmware takes the samples up to `tick`, a capture it has had: the
+//!   host answers with a [`Sample`] carrying `tick` and, as its count, how many follow, then
+//!   those: every interval sample not yet taken with a tick up to `tick`, and every capture, in
+//!   time order.
+//!
+//! The output sends a level at every segment it applies and, at every segment that begins a
+//! cycle (or idle period), asks for the capture right after it. The closed loop takes the
+//! stream once a cycle, below the edge path; each exchange holds a critical section, so the
+//! output's messages never come between a request and its answer.
+
+use core::cell::RefCell;
 
 use cortex_m_semihosting::nr::open::{R_BINARY, W_TRUNC_BINARY};
 use cortex_m_semihosting::syscall;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
 
 /// Bytes of a [`Message`] on the wire.
 pub const MESSAGE_BYTES: usize = 16;
@@ -40,7 +55,7 @@ pub const MESSAGE_BYTES: usize = 16;
 pub const SAMPLE_BYTES: usize = 12;
 /// [`Message::kind`]: the output holds the DAC code `value` from `tick` on.
 pub const KIND_LEVEL: u32 = 1;
-/// [`Message::kind`]: the firmware waits for the sample at `tick`.
+/// [`Message::kind`]: the firmware waits for the capture at `tick`.
 pub const KIND_SAMPLE: u32 = 2;
 
 /// A record from the firmware to the host.
@@ -180,6 +195,13 @@ impl PlantLink {
         )
     }
 
+    /// Reads one [`Sample`].
+    pub fn receive_sample(&mut self) -> Result<Sample, LinkError> {
+        let mut bytes = [0; SAMPLE_BYTES];
+        self.receive(&mut bytes)?;
+        Ok(Sample::decode(&bytes))
+    }
+
     /// Asks the plant for its sample at `tick` and waits for it: the encoder count.
     pub fn sample(&mut self, tick: u64) -> Result<i32, LinkError> {
         self.send(
@@ -190,9 +212,7 @@ impl PlantLink {
             }
             .encode(),
         )?;
-        let mut bytes = [0; SAMPLE_BYTES];
-        self.receive(&mut bytes)?;
-        let sample = Sample::decode(&bytes);
+        let sample = self.receive_sample()?;
         if sample.tick != tick {
             return Err(LinkError::OutOfStep {
                 asked: tick,
@@ -214,9 +234,26 @@ fn open(channel: Channel, mode: usize) -> Result<usize, LinkError> {
     Ok(handle)
 }
 
+/// The link, shared by the output stage (levels and captures, at its edges) and the position
+/// sensor (the stream, below the edge path).
+static LINK: Mutex<CriticalSectionRawMutex, RefCell<Option<PlantLink>>> =
+    Mutex::new(RefCell::new(None));
+
 /// Opens the link when the board comes up; without it the run ends (see [`lost`]).
-pub fn open_or_end() -> PlantLink {
-    PlantLink::open().unwrap_or_else(|error| lost(error))
+pub fn open_or_end() {
+    match PlantLink::open() {
+        Ok(link) => LINK.lock(|cell| *cell.borrow_mut() = Some(link)),
+        Err(error) => lost(error),
+    }
+}
+
+/// Runs `exchange` on the link in a critical section; a failed exchange ends the run.
+pub fn with<T>(exchange: impl FnOnce(&mut PlantLink) -> Result<T, LinkError>) -> T {
+    let result = LINK.lock(|cell| match cell.borrow_mut().as_mut() {
+        Some(link) => exchange(link),
+        None => Err(LinkError::Closed { received: 0 }),
+    });
+    result.unwrap_or_else(|error| lost(error))
 }
 
 /// The plant is gone: ends the run as a fault does, with the output at zero and the driver

@@ -1,5 +1,6 @@
-//! Bring-up: the MPU guard below RAM, the output registers at rest, the time driver and the two
-//! interrupt executors (timers above the control loop above the other tasks).
+//! Bring-up: the MPU guard below RAM, the output registers at rest, the time driver and the three
+//! interrupt executors (timers above the control loop above the other tasks above the
+//! background).
 
 use cortex_m::peripheral::NVIC;
 use embassy_executor::{InterruptExecutor, SendSpawner};
@@ -15,9 +16,12 @@ use crate::ports::Board;
 
 /// Priority of the executor that runs every task but the control loop.
 pub const TASK_PRIORITY: u8 = 0x80;
+/// Priority of the background executor, below every task.
+const BACKGROUND_PRIORITY: u8 = 0xC0;
 
 pub static CONTROL_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 pub static TASK_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
+pub static BACKGROUND_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 
 /// Brings the emulated board up. Returns the spawner for the application's tasks but the control
 /// loop, and the board.
@@ -34,8 +38,12 @@ pub fn init() -> (SendSpawner, Board<Hardware>) {
     }
     set_priority(Irq::ControlExecutor, 0x40);
     set_priority(Irq::TaskExecutor, TASK_PRIORITY);
+    set_priority(Irq::BackgroundExecutor, BACKGROUND_PRIORITY);
     let control_spawner = CONTROL_EXECUTOR.start(Irq::ControlExecutor);
     let task_spawner = TASK_EXECUTOR.start(Irq::TaskExecutor);
+    let background_spawner = BACKGROUND_EXECUTOR.start(Irq::BackgroundExecutor);
+    #[cfg(feature = "cosim")]
+    super::plant_link::open_or_end();
     let board = Board {
         output: ReportingOutput::new(),
         driver_enable: EnableRegister,
@@ -43,9 +51,11 @@ pub fn init() -> (SendSpawner, Board<Hardware>) {
         button: NoButton,
         watchdog: NoWatchdog,
         operator: operator::Operator::new(),
+        sensor: super::attach_sensor(),
         // QEMU starts fresh every run.
         after_watchdog_reset: false,
         control_spawner,
+        background_spawner,
     };
     (task_spawner, board)
 }

@@ -1,6 +1,8 @@
 //! `host-sim cosim`: the emulated firmware (the QEMU `cosim` image) driving a real plate in
 //! lockstep: every level its output applies moves the plate from its tick on, and at every cycle
-//! start the firmware reads the plate's encoder.
+//! start the firmware reads the plate's encoder. The image with the plant's encoder (`--features
+//! encoder`) runs the closed loop, judged at the end (`closed loop: PASSED` or `FAILED (…)`);
+//! without it (`--open-loop`) the command runs as planned.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -8,7 +10,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use feeder_emulator::plant::TICK_HZ;
 use feeder_shared::DacCalibration;
-use host_sim::cosim::{PlatePlant, PlateSample};
+use host_sim::cosim::{judge, LoopLog, LoopVerdict, PlatePlant, PlateSample};
 use host_sim::plate::{EndStop, PlantFile};
 use host_sim::SimError;
 use serde::Serialize;
@@ -22,14 +24,15 @@ const LIMIT: Duration = Duration::from_secs(3600);
 /// The flags of `host-sim cosim`.
 #[derive(Args)]
 pub struct CosimArgs {
-    /// The `cosim` firmware image, an ELF built with `--features cosim`.
+    /// The firmware image: an ELF built with `--features encoder` (the closed loop) or, with
+    /// `--open-loop`, `--features cosim`.
     #[arg(long, value_name = "FILE")]
     elf: PathBuf,
     /// The plate as a TOML plant file with a `[sensors.encoder]` table.
     #[arg(long, value_name = "FILE")]
     plant: PathBuf,
-    /// The command exactly as the firmware plans it, with no correction (the emulated
-    /// firmware's only mode; `host-sim closed-loop` runs the shared loop on the host).
+    /// The image has no encoder: its command runs as planned, with no correction; the report
+    /// shows where the plate went.
     #[arg(long)]
     open_loop: bool,
     /// Also write the firmware's decoded event log to this file (for `host-sim hil --input`).
@@ -59,18 +62,19 @@ struct CosimReport {
     end_stop_after_s: Option<f64>,
     end_stop: Option<EndStop>,
     firmware_exit_code: Option<i32>,
+    /// The closed loop: what the firmware logged of it, and the verdict.
+    closed_loop: Option<ClosedLoopReport>,
 }
 
-/// Runs `host-sim cosim`.
-pub fn run(args: &CosimArgs) -> Result<(), SimError> {
+#[derive(Serialize)]
+struct ClosedLoopReport {
+    log: LoopLog,
+    verdict: LoopVerdict,
+}
+
+/// Runs `host-sim cosim`; false when the closed loop failed its figures (the report is out).
+pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
     args.output.check()?;
-    if !args.open_loop {
-        return Err(SimError::Request(
-            "the emulated firmware runs its command as planned: give --open-loop (host-sim \
-             closed-loop runs the shared closed loop on the host)"
-                .into(),
-        ));
-    }
     let plant_file = PlantFile::from_path(&args.plant)?;
     let plant = PlatePlant::new(
         &plant_file,
@@ -93,9 +97,19 @@ pub fn run(args: &CosimArgs) -> Result<(), SimError> {
         return Err(error.clone());
     }
     let samples = plate.samples();
+    let closed_loop = match args.open_loop {
+        true => None,
+        false => {
+            let (log, verdict) = judge(&run.run.log, plate, &plant_file, &args.contact.contact()?)?;
+            Some(ClosedLoopReport { log, verdict })
+        }
+    };
+    let passed = closed_loop
+        .as_ref()
+        .is_none_or(|report| report.verdict.failures.is_empty());
     let report = CosimReport {
         plant: args.plant.clone(),
-        open_loop: true,
+        open_loop: args.open_loop,
         samples: samples.len(),
         simulated_s: samples
             .last()
@@ -105,6 +119,7 @@ pub fn run(args: &CosimArgs) -> Result<(), SimError> {
         end_stop_after_s: plate.end_stop().map(|stop| stop.time_s),
         end_stop: plate.end_stop(),
         firmware_exit_code: run.run.status.code(),
+        closed_loop,
     };
     emit(
         &args.output,
@@ -112,7 +127,8 @@ pub fn run(args: &CosimArgs) -> Result<(), SimError> {
         |_| Ok(()),
         &report,
         || print_report(&report, samples),
-    )
+    )?;
+    Ok(passed)
 }
 
 fn print_report(report: &CosimReport, samples: &[PlateSample]) {
@@ -138,17 +154,51 @@ fn print_report(report: &CosimReport, samples: &[PlateSample]) {
             .firmware_exit_code
             .map_or("none (killed)".to_string(), |code| code.to_string())
     );
-    match report.end_stop {
-        Some(stop) => say!(
-            "open loop: end stop at {:+.1} mm after {:.4} s, at {:.3} m/s",
-            stop.position_m * 1e3,
-            stop.time_s,
-            stop.velocity_mps
-        ),
-        None => say!(
-            "open loop: no end stop in {:.3} s (peak |x| {:.3} mm)",
-            report.simulated_s,
-            report.plate_peak_excursion_m * 1e3
-        ),
+    match &report.closed_loop {
+        Some(closed) => print_closed_loop(closed),
+        None => match report.end_stop {
+            Some(stop) => say!(
+                "open loop: end stop at {:+.1} mm after {:.4} s, at {:.3} m/s",
+                stop.position_m * 1e3,
+                stop.time_s,
+                stop.velocity_mps
+            ),
+            None => say!(
+                "open loop: no end stop in {:.3} s (peak |x| {:.3} mm)",
+                report.simulated_s,
+                report.plate_peak_excursion_m * 1e3
+            ),
+        },
     }
+}
+
+fn print_closed_loop(closed: &ClosedLoopReport) {
+    let verdict = &closed.verdict;
+    if let (Some([p, n, e]), Some([ep, en])) = (closed.log.identified, verdict.gain_errors) {
+        say!(
+            "drive             identified gains {p:.5} / {n:.5} ({:+.3} % / {:+.3} %), offset {e:.3} m/s²",
+            ep * 100.0,
+            en * 100.0
+        );
+    }
+    if let Some(cycle) = closed.log.feeding_cycle {
+        say!("course            soft start released at cycle {cycle}");
+    }
+    if let Some(worst) = verdict.worst_mean_position_m {
+        say!(
+            "mean position     worst |cycle mean| {:.1} µm from the release to the stop, {:.1} µm after the soft start",
+            worst * 1e6,
+            verdict.settled_mean_position_m.unwrap_or(0.0) * 1e6
+        );
+    }
+    if let Some(rate) = verdict.feed_rate_mps {
+        say!(
+            "feed rate         {:.2} mm/s over the last {} cycles before the stop, ideal plate {:.2} mm/s ({:+.2} %)",
+            rate * 1e3,
+            host_sim::cosim::FEED_RATE_CYCLES,
+            verdict.ideal_feed_rate_mps * 1e3,
+            (rate / verdict.ideal_feed_rate_mps - 1.0) * 100.0
+        );
+    }
+    say!("{}", verdict.line());
 }

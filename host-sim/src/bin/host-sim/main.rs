@@ -77,7 +77,11 @@ fn main() -> ExitCode {
         Command::Trace(args) => trace::run(&args),
         Command::Hil(args) => hil::run(&args),
         Command::Drift(args) => drift::run(&args),
-        Command::Cosim(args) => cosim::run(&args),
+        Command::Cosim(args) => match cosim::run(&args) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::FAILURE,
+            Err(error) => Err(error),
+        },
         // A run that fails its criteria is not a refusal: its report is out, and exit code 1
         // says so.
         Command::ClosedLoop(args) => match closed_loop::run(&args) {

@@ -1,0 +1,183 @@
+//! The closed loop, below the edge path (on a board with a position sensor): at every cycle
+//! boundary the shared course (`feeder_shared::closed_loop::Course`) takes the plate's positions
+//! and decides the next cycle's trims; the control loop takes the decision at its next edge and
+//! the output stage swaps the trimmed levels in at the cycle boundary. The drive's
+//! identification runs on the background executor, below this task, while the course holds the
+//! plate on the nominal drive.
+
+use core::cell::Cell;
+
+use defmt::{error, info, warn};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use embassy_sync::mutex::Mutex as AsyncMutex;
+use embassy_sync::signal::Signal;
+use feeder_shared::closed_loop::{
+    Course, CourseConfig, CourseError, Decision, Identified, IdentifyError, PositionSample, Probe,
+    Stage, Trims,
+};
+use feeder_shared::{Scheduler, Segment};
+
+use crate::config;
+use crate::ports::PositionSensor;
+
+/// The positions one boundary takes at most: a cycle at the lowest frequency sampled every
+/// 0.25 ms, with room to spare; older ones are dropped.
+const SAMPLES_MAX: usize = 128;
+
+/// A cycle (or idle period) the output has begun, as the control loop hands it over.
+pub struct Boundary {
+    /// Its first segment.
+    pub begun: Segment,
+    /// The scheduler right after it, for the plans of the cycles ahead.
+    pub ahead: Scheduler,
+    /// The output's actual tick at which it began: the sensor's capture.
+    pub start_tick: u64,
+}
+
+/// What the control loop takes from the closed loop.
+#[derive(Clone, Copy)]
+pub enum Ruling {
+    /// The trims of cycle `decision.cycle`, whether the hold ends, and the feedforward for a
+    /// cycle whose trims were not decided (the one after an idle period).
+    Trim {
+        decision: Decision,
+        feedforward: Trims,
+    },
+    /// The course stopped: the feeder must stop.
+    Stop,
+}
+
+/// The newest boundary; the task takes each one (a boundary it misses stops the course).
+pub static BOUNDARY: Signal<CriticalSectionRawMutex, Boundary> = Signal::new();
+
+/// The newest ruling, taken by the control loop at its next edge.
+pub static RULING: Mutex<CriticalSectionRawMutex, Cell<Option<Ruling>>> =
+    Mutex::new(Cell::new(None));
+
+/// The probe to identify, handed to the background task, and its result back.
+static PROBE: AsyncMutex<CriticalSectionRawMutex, Option<Probe>> = AsyncMutex::new(None);
+static PROBE_READY: Signal<CriticalSectionRawMutex, ()> = Signal::new();
+static IDENTIFIED: Signal<CriticalSectionRawMutex, Result<Identified, IdentifyError>> =
+    Signal::new();
+
+/// The course's probe step for the scheduler's hold: the control loop holds its scheduler there
+/// before the first start.
+pub fn probe_step() -> u16 {
+    course_config(0.0).probe_step(config::RAMP_CYCLES.max(1))
+}
+
+/// The course for an output whose levels move in steps of `level_step_mps2`.
+fn course_config(level_step_mps2: f64) -> CourseConfig {
+    CourseConfig::new(<Sensor as PositionSensor>::RESOLUTION_M, level_step_mps2)
+}
+
+type Sensor = <crate::board::Hardware as crate::ports::Parts>::Sensor;
+
+/// Runs the course at every boundary until it stops; the output's levels move in steps of
+/// `level_step_mps2`.
+#[embassy_executor::task]
+pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
+    let mut course = Course::new(course_config(level_step_mps2), config::RAMP_CYCLES.max(1));
+    let mut samples = [PositionSample {
+        tick: 0,
+        position_m: 0.0,
+    }; SAMPLES_MAX];
+    let mut last_cycle: Option<u64> = None;
+    loop {
+        let boundary = BOUNDARY.wait().await;
+        let stage = course.stage();
+        if let Some(result) = IDENTIFIED.try_take() {
+            report(&result);
+            if let Err(error) = course.set_identified(result) {
+                stop(error);
+                return;
+            }
+        }
+        if last_cycle.is_some_and(|last| boundary.begun.cycle != last + 1) {
+            warn!(
+                "closed loop: boundary of cycle {=u64} missed",
+                last_cycle.unwrap_or(0) + 1
+            );
+            stop(CourseError::Loop(
+                feeder_shared::closed_loop::LoopError::Sensor,
+            ));
+            return;
+        }
+        last_cycle = Some(boundary.begun.cycle);
+        let count = sensor.take_until(boundary.start_tick, &mut samples);
+        let Some((start, during)) = samples[..count].split_last() else {
+            stop(CourseError::Loop(
+                feeder_shared::closed_loop::LoopError::Sensor,
+            ));
+            return;
+        };
+        match course.boundary(&boundary.begun, &boundary.ahead, *start, during) {
+            Ok(decision) => {
+                if course.stage() != stage {
+                    info!(
+                        "closed loop: {} at cycle {=u64}",
+                        course.stage(),
+                        boundary.begun.cycle
+                    );
+                }
+                if decision.identify {
+                    if let Some(probe) = course.probe() {
+                        *PROBE.lock().await = Some(probe.clone());
+                        PROBE_READY.signal(());
+                    }
+                }
+                let feedforward = course.feedforward();
+                RULING.lock(|ruling| {
+                    ruling.set(Some(Ruling::Trim {
+                        decision,
+                        feedforward,
+                    }))
+                });
+            }
+            Err(error) => {
+                stop(error);
+                return;
+            }
+        }
+        if course.stage() == Stage::Failed {
+            return;
+        }
+    }
+}
+
+/// Identifies the drive from each probe handed over.
+#[embassy_executor::task]
+pub async fn identify_task() {
+    loop {
+        PROBE_READY.wait().await;
+        info!("identifying the drive");
+        let result = match PROBE.lock().await.as_ref() {
+            Some(probe) => probe.identify(),
+            None => continue,
+        };
+        IDENTIFIED.signal(result);
+    }
+}
+
+fn report(result: &Result<Identified, IdentifyError>) {
+    match result {
+        Ok(drive) => info!(
+            "drive identified: gain + {=f64}, gain − {=f64}, offset {=f64} m/s², lag {=f64} s, \
+             Coulomb {=f64} m/s², viscous {=f64} 1/s, residual {=f64} m",
+            drive.gain_positive,
+            drive.gain_negative,
+            drive.offset_mps2,
+            drive.lag_s,
+            drive.coulomb_mps2,
+            drive.viscous_per_s,
+            drive.residual_m
+        ),
+        Err(error) => error!("drive identification refused: {}", error),
+    }
+}
+
+fn stop(error: CourseError) {
+    error!("closed loop stopped: {}", error);
+    RULING.lock(|ruling| ruling.set(Some(Ruling::Stop)));
+}
