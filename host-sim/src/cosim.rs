@@ -41,6 +41,8 @@ pub struct PlatePlant {
     interval_ticks: Option<u64>,
     /// Samples the firmware has not taken yet: `(tick, count)`.
     pending: Vec<(u64, i32)>,
+    /// Every level the output applied: `(tick, acceleration)`.
+    levels: Vec<(u64, f64)>,
     samples: Vec<PlateSample>,
     error: Option<SimError>,
 }
@@ -66,6 +68,7 @@ impl PlatePlant {
             held: None,
             interval_ticks: None,
             pending: Vec::new(),
+            levels: Vec::new(),
             samples: Vec::new(),
             error: None,
         })
@@ -109,6 +112,11 @@ impl PlatePlant {
             })
     }
 
+    /// Every level the output applied, `(tick, acceleration)`, in order.
+    pub fn levels(&self) -> &[(u64, f64)] {
+        &self.levels
+    }
+
     /// Every sample answered, in order.
     pub fn samples(&self) -> &[PlateSample] {
         &self.samples
@@ -133,7 +141,9 @@ impl PlatePlant {
 impl Plant for PlatePlant {
     fn level(&mut self, tick: u64, code: i32) {
         self.advance(tick);
-        self.held = Some((tick, self.dac.accel_mps2(code)));
+        let accel_mps2 = self.dac.accel_mps2(code);
+        self.held = Some((tick, accel_mps2));
+        self.levels.push((tick, accel_mps2));
     }
 
     fn sample(&mut self, tick: u64) -> i32 {
@@ -245,21 +255,34 @@ pub struct CosimCycle {
     pub start_m: f64,
     pub mean_position_m: f64,
     pub part_velocity_mps: f64,
+    /// The highest, the second and the lowest level the output applied in the cycle: the
+    /// `+a`, zero and `−a` levels as the loop trimmed them (all one for an idle period).
+    pub positive_mps2: f64,
+    pub zero_mps2: f64,
+    pub negative_mps2: f64,
 }
 
-/// The cycles between consecutive captures.
-pub fn cycles(samples: &[PlateSample]) -> Vec<CosimCycle> {
+/// The cycles between consecutive captures, with the levels applied in each (`levels` as
+/// [`PlatePlant::levels`] gives them).
+pub fn cycles(samples: &[PlateSample], levels: &[(u64, f64)]) -> Vec<CosimCycle> {
     samples
         .windows(2)
         .map(|pair| {
             let (a, b) = (pair[0], pair[1]);
             let span_s = b.time_s - a.time_s;
+            let from = levels.partition_point(|&(tick, _)| tick < a.tick);
+            let to = levels.partition_point(|&(tick, _)| tick < b.tick);
+            let applied: Vec<f64> = levels[from..to].iter().map(|&(_, accel)| accel).collect();
+            let first = applied.first().copied().unwrap_or(0.0);
             CosimCycle {
                 start_tick: a.tick,
                 time_s: a.time_s,
                 start_m: a.position_m,
                 mean_position_m: (b.position_integral_ms - a.position_integral_ms) / span_s,
                 part_velocity_mps: (b.part_m - a.part_m) / span_s,
+                positive_mps2: applied.iter().copied().fold(first, f64::max),
+                zero_mps2: applied.get(1).copied().unwrap_or(first),
+                negative_mps2: applied.iter().copied().fold(first, f64::min),
             }
         })
         .collect()
@@ -285,7 +308,7 @@ impl LoopVerdict {
     /// run if none), `ideal_feed_rate_mps` the ideal plate's at the plan in force then.
     pub fn judge(
         log: &LoopLog,
-        samples: &[PlateSample],
+        cycles: &[CosimCycle],
         plant: &PlantFile,
         end_stop: Option<EndStop>,
         stop_tick: Option<u64>,
@@ -327,9 +350,8 @@ impl LoopVerdict {
                 .find(|(c, _)| *c == cycle)
                 .map(|(_, tick)| *tick)
         });
-        let all = cycles(samples);
         let window: Vec<&CosimCycle> = match feeding_tick {
-            Some(from) => all
+            Some(from) => cycles
                 .iter()
                 .filter(|c| c.start_tick >= from && stop_tick.is_none_or(|to| c.start_tick < to))
                 .collect(),
@@ -435,7 +457,7 @@ pub fn judge(
     let loop_log = LoopLog::read(log);
     let verdict = LoopVerdict::judge(
         &loop_log,
-        plate.samples(),
+        &cycles(plate.samples(), plate.levels()),
         plant,
         plate.end_stop(),
         stop_tick,

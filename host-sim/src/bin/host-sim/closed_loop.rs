@@ -156,7 +156,8 @@ struct ClosedLoopReport {
     cycles: u64,
     ramp_cycles: u16,
     duty_change: Option<DutyChange>,
-    /// Cycles the loop spent centring the plate before the soft start.
+    /// Cycles (and idle periods) of the course before the release of the soft start: the idle
+    /// period before the start, the probe, the identification and the centring.
     centring_cycles: usize,
     /// Simulated time from the probe's start to the run's end.
     simulated_s: f64,
@@ -455,8 +456,8 @@ fn print_report(report: &ClosedLoopReport, output: &OutputArgs) {
     }
     say!("plant             {}", report.plant.display());
     say!(
-        "run               {} cycles after {} centring cycles, soft start over {}; {:.2} s \
-         simulated",
+        "run               {} cycles after {} of probe, identification and centring, soft start \
+         over {}; {:.2} s simulated",
         report.cycles,
         report.centring_cycles,
         report.ramp_cycles,

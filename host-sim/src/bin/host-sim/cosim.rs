@@ -4,19 +4,22 @@
 //! encoder`) runs the closed loop, judged at the end (`closed loop: PASSED` or `FAILED (…)`);
 //! without it (`--open-loop`) the command runs as planned.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use clap::Args;
 use feeder_emulator::plant::TICK_HZ;
 use feeder_shared::DacCalibration;
-use host_sim::cosim::{judge, LoopLog, LoopVerdict, PlatePlant, PlateSample};
+use host_sim::cosim::{
+    cycles, judge, CosimCycle, LoopLog, LoopVerdict, PlatePlant, PlateSample, MEAN_POSITION_LIMIT_M,
+};
 use host_sim::plate::{EndStop, PlantFile};
 use host_sim::SimError;
 use serde::Serialize;
 
 use crate::args::{ContactArgs, OutputArgs};
 use crate::output::{emit, say};
+use crate::plot::{self, Mark, Panel, Series};
 
 /// The longest co-simulation before it is stopped.
 const LIMIT: Duration = Duration::from_secs(3600);
@@ -121,14 +124,92 @@ pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
         firmware_exit_code: run.run.status.code(),
         closed_loop,
     };
+    let cycles = cycles(samples, plate.levels());
     emit(
         &args.output,
-        samples,
-        |_| Ok(()),
+        &cycles,
+        |path| plot_run(path, &report, &cycles),
         &report,
         || print_report(&report, samples),
     )?;
     Ok(passed)
+}
+
+/// The plate's cycle mean position and the levels the firmware applied, cycle by cycle: the
+/// zero level (the loop's bias) and the `±a` levels.
+fn plot_run(path: &Path, report: &CosimReport, cycles: &[CosimCycle]) -> Result<(), SimError> {
+    let over_time = |value: fn(&CosimCycle) -> f64| -> Vec<(f64, f64)> {
+        cycles.iter().map(|c| (c.time_s, value(c))).collect()
+    };
+    let end_s = cycles.last().map_or(0.0, |c| c.time_s);
+    let limit_um = MEAN_POSITION_LIMIT_M * 1e6;
+    let line = |name: String, points: Vec<(f64, f64)>, mark: Mark, color: usize| Series {
+        name,
+        points,
+        mark,
+        color,
+    };
+    let mut position = vec![line(
+        "plate's mean position over each cycle".into(),
+        over_time(|c| c.mean_position_m * 1e6),
+        Mark::ThinLine,
+        0,
+    )];
+    if report.closed_loop.is_some() {
+        for sign in [1.0, -1.0] {
+            position.push(line(
+                format!("{:+.0} µm", sign * limit_um),
+                vec![(0.0, sign * limit_um), (end_s, sign * limit_um)],
+                Mark::DashedLine,
+                1,
+            ));
+        }
+    }
+    let panels = [
+        Panel {
+            y: "cycle mean position (µm)",
+            series: position,
+        },
+        Panel {
+            y: "zero level (m/s²)",
+            series: vec![line(
+                "the zero level as applied: the loop's bias".into(),
+                over_time(|c| c.zero_mps2),
+                Mark::ThinLine,
+                2,
+            )],
+        },
+        Panel {
+            y: "±a levels (m/s²)",
+            series: vec![
+                line(
+                    "+a as applied".into(),
+                    over_time(|c| c.positive_mps2),
+                    Mark::ThinLine,
+                    3,
+                ),
+                line(
+                    "−a as applied (magnitude)".into(),
+                    over_time(|c| -c.negative_mps2),
+                    Mark::ThinLine,
+                    4,
+                ),
+            ],
+        },
+    ];
+    let plant = report
+        .plant
+        .file_name()
+        .map_or(report.plant.display().to_string(), |name| {
+            name.to_string_lossy().into_owned()
+        });
+    let mode = if report.open_loop {
+        "open loop"
+    } else {
+        "closed loop"
+    };
+    let title = format!("Emulated firmware on {plant}, {mode}, in lockstep");
+    plot::stacked(path, &title, "time (s)", &panels)
 }
 
 fn print_report(report: &CosimReport, samples: &[PlateSample]) {
