@@ -268,7 +268,7 @@ impl Course {
             config,
             stage: Stage::Waiting,
             probe: None,
-            probe_cycles: 4,
+            probe_cycles: 0,
             identified: None,
             cycle_loop: CycleLoop::new(&Identified::NOMINAL, config.loop_limits)
                 .with_level_step(config.level_step_mps2),
