@@ -275,6 +275,22 @@ fn the_firmware_holds_the_realistic_plate_for_60_s_of_motion() {
     assert_eq!(plate.end_stop(), None);
     assert!(verdict.failures.is_empty(), "{}", verdict.line());
     assert!(verdict.settled_mean_position_m.is_some_and(|m| m < 30e-6));
+    // The closed loop adds to the edge path only bounded work: the capture's exchange and log,
+    // and handing the boundary over.
+    let work = log
+        .lines()
+        .find_map(|line| match host_sim::hil::parse_line(line) {
+            Ok(Some(host_sim::hil::Event::Work(work))) => Some(work),
+            _ => None,
+        })
+        .expect("the run reports its work per edge");
+    let worst = f64::from(work.max_cycles) / f64::from(work.clock_hz) * 1e9
+        / f64::from(feeder_emulator::NS_PER_INSTRUCTION);
+    println!("worst edge: {worst} instructions over {} edges", work.edges);
+    assert!(
+        worst <= feeder_tests::EDGE_WORK_BUDGET_INSTRUCTIONS,
+        "{worst}"
+    );
 }
 
 /// A short closed-loop run's log (every line but the per-segment `EVT seg` ones: the course's

@@ -12,6 +12,7 @@ use std::time::Duration;
 
 use feeder_emulator::{Run, NS_PER_INSTRUCTION};
 use feeder_shared::{Limits, SegmentKind, TickClock, TickPlan, Waveform, WaveformSpec};
+use feeder_tests::EDGE_WORK_BUDGET_INSTRUCTIONS;
 use host_sim::hil::{self, CheckReport, Checker, Edge, EdgeTimes, Event, SegmentEvent, Stream};
 use host_sim::plant::Contact;
 use host_sim::scenario::OperatingPoint;
@@ -64,13 +65,6 @@ fn short_scenario_log_matches_the_golden_file_byte_for_byte() {
         );
     }
 }
-
-/// The worst work per edge under QEMU, in instructions ([`NS_PER_INSTRUCTION`] each): from the
-/// edge, when the output switched, through the wake-up, the `EVT` trace and the supervision to
-/// the preload of the next segment. Measured: 10760 at most (the edge that takes the start
-/// request and the new plan, with its log lines), 4055–4073 on average, in 1000 cycles at
-/// 50 and at 100 Hz; about 2900 of each edge's instructions are the `EVT seg` line.
-const EDGE_WORK_BUDGET_INSTRUCTIONS: f64 = 16_000.0;
 
 /// Runs a scenario that must end successfully and checks its stream against the shared
 /// scheduler: the decoded stream, the checker's report, the edges and their clock.
