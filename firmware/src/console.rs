@@ -96,5 +96,6 @@ fn snapshot() -> Snapshot {
         phase: status.phase,
         uptime_ms: embassy_time::Instant::now().as_millis(),
         cycles: status.cycle,
+        closed_loop: status::closed_loop(),
     }
 }

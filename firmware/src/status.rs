@@ -5,6 +5,7 @@ use core::cell::Cell;
 
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
+use feeder_shared::closed_loop::LoopReport;
 use feeder_shared::{Led, Phase, RunState};
 
 /// The feeder as the control loop sees it.
@@ -41,4 +42,19 @@ pub fn publish(status: Status) {
 /// The status as last published.
 pub fn get() -> Status {
     STATUS.lock(Cell::get)
+}
+
+static CLOSED_LOOP: Mutex<CriticalSectionRawMutex, Cell<Option<LoopReport>>> =
+    Mutex::new(Cell::new(None));
+
+/// Replaces the closed loop's published report; the closed loop's alone.
+pub fn publish_loop(report: LoopReport) {
+    CLOSED_LOOP.lock(|published| published.set(Some(report)));
+}
+
+/// The closed loop's report as last published, for the console's `status`; `None` on a board
+/// that does not run one.
+#[cfg(feature = "console")]
+pub fn closed_loop() -> Option<LoopReport> {
+    CLOSED_LOOP.lock(Cell::get)
 }

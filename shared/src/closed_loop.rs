@@ -8,7 +8,9 @@ pub mod identify;
 pub mod shape;
 pub mod track;
 
-pub use course::{Course, CourseConfig, CourseError, Decision, PositionSample, Probe, Stage};
+pub use course::{
+    Course, CourseConfig, CourseError, Decision, LoopReport, PositionSample, Probe, Stage,
+};
 pub use cycle_loop::{CycleLoop, LoopError, LoopLimits, Stroke, Trims};
 pub use identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};
 pub use shape::{CommandSegment, CycleShape};

@@ -45,7 +45,7 @@ pub trait RecipeStore {
 }
 
 /// The feeder as the control loop last published it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Snapshot {
     /// The supervisor's state, with the latched fault's cause.
@@ -55,6 +55,8 @@ pub struct Snapshot {
     pub uptime_ms: u64,
     /// Cycles (including idle periods) begun since power-up.
     pub cycles: u64,
+    /// The closed loop, on a board that runs one.
+    pub closed_loop: Option<crate::closed_loop::LoopReport>,
 }
 
 /// What the control loop must do after a command. `Configure` carries the whole plan: it is
@@ -273,6 +275,7 @@ impl Controller {
             feed_rate_mps: self.applied.feed_rate_mps,
             uptime_ms: snapshot.uptime_ms,
             cycles: snapshot.cycles,
+            closed_loop: snapshot.closed_loop,
         }
     }
 }

@@ -18,8 +18,8 @@ use feeder_shared::closed_loop::{
 };
 use feeder_shared::{Scheduler, Segment};
 
-use crate::config;
 use crate::ports::PositionSensor;
+use crate::{config, status};
 
 /// The positions one boundary takes at most: a cycle at the lowest frequency sampled every
 /// 0.25 ms, with room to spare; older ones are dropped.
@@ -90,6 +90,7 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
         if let Some(result) = IDENTIFIED.try_take() {
             report(&result);
             if let Err(error) = course.set_identified(result) {
+                status::publish_loop(course.report());
                 stop(error);
                 return;
             }
@@ -136,6 +137,7 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
                 });
             }
             Err(error) => {
+                status::publish_loop(course.report());
                 stop(error);
                 return;
             }

@@ -111,6 +111,29 @@ pub enum Stage {
     Failed,
 }
 
+impl Stage {
+    /// The stage's name in replies and logs.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Stage::Waiting => "waiting",
+            Stage::Probing => "probing",
+            Stage::Identifying => "identifying",
+            Stage::Centring => "centring",
+            Stage::Feeding => "feeding",
+            Stage::Failed => "failed",
+        }
+    }
+}
+
+/// What the closed loop reports (the console's `status`): where the course is and, once
+/// identified, the drive.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LoopReport {
+    pub stage: Stage,
+    pub drive: Option<Identified>,
+}
+
 /// The course's decision at a boundary.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -281,6 +304,14 @@ impl Course {
 
     pub fn stage(&self) -> Stage {
         self.stage
+    }
+
+    /// The stage and the identified drive.
+    pub fn report(&self) -> LoopReport {
+        LoopReport {
+            stage: self.stage,
+            drive: self.identified,
+        }
     }
 
     /// The step the scheduler holds for the probe and the centring.

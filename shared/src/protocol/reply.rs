@@ -7,6 +7,7 @@ use heapless::String;
 use super::grammar::Param;
 use super::limits::REPLY_CAPACITY;
 use super::refusal::ReplyError;
+use crate::closed_loop::LoopReport;
 use crate::number::Fixed;
 use crate::recipe::{Loaded, RecipeSlot, RecordError, RECIPE_SLOTS};
 use crate::scheduler::Phase;
@@ -27,6 +28,8 @@ pub struct Status<F> {
     pub uptime_ms: u64,
     /// Cycles (including idle periods) begun since power-up.
     pub cycles: u64,
+    /// The closed loop, on a board that runs one.
+    pub closed_loop: Option<LoopReport>,
 }
 
 /// The reportable parameters.
@@ -135,7 +138,8 @@ impl Reply {
         Self::ok(format_args!("{}", HELP))
     }
 
-    /// The reply to `status`: `OK state=… freq_hz=… … uptime_s=… cycles=… fault=…`.
+    /// The reply to `status`: `OK state=… freq_hz=… … uptime_s=… cycles=… [loop=… [gain_pos=…
+    /// gain_neg=… offset_mps2=…]] fault=…`, the closed loop's fields on a board that runs one.
     pub fn status<F: fmt::Display>(status: &Status<F>) -> Self {
         let state = match (&status.fault, status.phase) {
             (Some(_), _) => "fault",
@@ -149,11 +153,28 @@ impl Reply {
         Params::of_status(status).write_all(&mut reply);
         let _ = write!(
             reply,
-            " uptime_s={}.{:03} cycles={} fault=",
+            " uptime_s={}.{:03} cycles={}",
             status.uptime_ms / 1000,
             status.uptime_ms % 1000,
             status.cycles
         );
+        if let Some(report) = &status.closed_loop {
+            let _ = write!(reply, " loop={}", report.stage.name());
+            if let Some(drive) = &report.drive {
+                let gain = |value| Fixed { value, decimals: 5 };
+                let _ = write!(
+                    reply,
+                    " gain_pos={} gain_neg={} offset_mps2={}",
+                    gain(drive.gain_positive),
+                    gain(drive.gain_negative),
+                    Fixed {
+                        value: drive.offset_mps2,
+                        decimals: 3
+                    }
+                );
+            }
+        }
+        let _ = write!(reply, " fault=");
         let _ = match &status.fault {
             Some(cause) => write!(reply, "{}", cause),
             None => reply.write_str("none"),

@@ -71,6 +71,7 @@ fn snapshot(state: RunState, phase: Phase, cycles: u64) -> Snapshot {
         phase,
         uptime_ms: 12_345,
         cycles,
+        closed_loop: None,
     }
 }
 

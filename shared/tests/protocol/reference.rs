@@ -16,6 +16,7 @@ fn the_reference_example_is_what_status_prints() {
         feed_rate_mps: applied.feed_rate_mps,
         uptime_ms: 12_345,
         cycles: 617,
+        closed_loop: None,
     });
     let example = format!("    {reply}\n");
     assert!(

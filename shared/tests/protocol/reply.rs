@@ -25,7 +25,48 @@ fn status(fault: Option<&str>) -> Status<&str> {
         feed_rate_mps: 0.0731234,
         uptime_ms: 12_345,
         cycles: 617,
+        closed_loop: None,
     }
+}
+
+/// On a board that runs the closed loop, `status` names the course's stage and, once the drive
+/// is identified, its gains (5 decimals) and offset (3), before the fault, which stays last.
+#[test]
+fn status_reports_the_closed_loop_before_the_fault() {
+    use feeder_shared::closed_loop::{Identified, LoopReport, Stage};
+    let probing = Reply::status(&Status {
+        closed_loop: Some(LoopReport {
+            stage: Stage::Probing,
+            drive: None,
+        }),
+        ..status(None)
+    });
+    assert!(
+        probing
+            .as_str()
+            .ends_with(" cycles=617 loop=probing fault=none"),
+        "{probing}"
+    );
+    let feeding = Reply::status(&Status {
+        closed_loop: Some(LoopReport {
+            stage: Stage::Feeding,
+            drive: Some(Identified {
+                gain_positive: 1.018_404,
+                gain_negative: 0.980_236,
+                offset_mps2: -1.0296,
+                ..Identified::NOMINAL
+            }),
+        }),
+        ..status(Some("closed-loop"))
+    });
+    assert!(
+        feeding.as_str().ends_with(
+            " cycles=617 loop=feeding gain_pos=1.0184 gain_neg=0.98024 offset_mps2=-1.03 \
+             fault=closed-loop"
+        ),
+        "{feeding}"
+    );
+    assert!(feeding.as_str().len() <= REPLY_CAPACITY);
 }
 
 #[test]

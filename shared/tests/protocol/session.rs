@@ -95,6 +95,7 @@ impl Controller {
             feed_rate_mps: self.applied.feed_rate_mps,
             uptime_ms: 0,
             cycles: 0,
+            closed_loop: None,
         }
     }
 
