@@ -37,6 +37,14 @@ pub const EDGE_WORK_INSTRUCTIONS: f64 = 10_800.0;
 /// this are refused by `shared` (`SegmentBelowFloor`), so a validated waveform cannot miss an edge.
 pub const EDGE_WORK_MARGIN: f64 = 3.0;
 
+/// Track control (`ports::PartSensor`): the barrier blocked for 0.5 s without a break means the
+/// track is full and the feeder pauses; clear for 1 s, the track has room and it feeds again.
+pub const TRACK: feeder_shared::closed_loop::TrackConfig =
+    feeder_shared::closed_loop::TrackConfig {
+        full_after_s: 0.5,
+        empty_after_s: 1.0,
+    };
+
 /// Cycles over which soft start and soft stop ramp the amplitude (0.5 s at 50 Hz).
 pub const RAMP_CYCLES: u16 = 25;
 

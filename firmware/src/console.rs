@@ -97,5 +97,6 @@ fn snapshot() -> Snapshot {
         uptime_ms: embassy_time::Instant::now().as_millis(),
         cycles: status.cycle,
         closed_loop: status::closed_loop(),
+        track: status::track(),
     }
 }

@@ -26,6 +26,8 @@ pub trait Parts {
     type Operator: Operator;
     /// The plate's position sensor; a board without one ([`NoSensor`]) runs open loop.
     type Sensor: PositionSensor;
+    /// The track's part sensor; a board without one ([`NoPartSensor`]) has no track control.
+    type PartSensor: PartSensor;
 }
 
 /// Everything the application needs from the board.
@@ -37,6 +39,7 @@ pub struct Board<P: Parts> {
     pub watchdog: P::Watchdog,
     pub operator: P::Operator,
     pub sensor: P::Sensor,
+    pub part_sensor: P::PartSensor,
     /// The last reset was the watchdog's.
     pub after_watchdog_reset: bool,
     /// Spawner of the executor that runs the control loop above the other tasks.
@@ -89,6 +92,26 @@ impl PositionSensor for NoSensor {
 
     fn take_until(&mut self, _tick: u64, _out: &mut [PositionSample]) -> usize {
         0
+    }
+}
+
+/// A light barrier near the end of the track: blocked while a part stands in it.
+pub trait PartSensor: Send {
+    /// False for a board without one: track control is not run at all.
+    const PRESENT: bool;
+    /// Waits until the barrier changes and says whether it is blocked now.
+    async fn changed(&mut self) -> bool;
+}
+
+/// A board without a part sensor.
+#[allow(dead_code, reason = "boards with a part sensor do not name it")]
+pub struct NoPartSensor;
+
+impl PartSensor for NoPartSensor {
+    const PRESENT: bool = false;
+
+    async fn changed(&mut self) -> bool {
+        core::future::pending().await
     }
 }
 

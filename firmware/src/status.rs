@@ -5,7 +5,7 @@ use core::cell::Cell;
 
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
-use feeder_shared::closed_loop::LoopReport;
+use feeder_shared::closed_loop::{LoopReport, TrackReport};
 use feeder_shared::{Led, Phase, RunState};
 
 /// The feeder as the control loop sees it.
@@ -57,4 +57,19 @@ pub fn publish_loop(report: LoopReport) {
 #[cfg(feature = "console")]
 pub fn closed_loop() -> Option<LoopReport> {
     CLOSED_LOOP.lock(Cell::get)
+}
+
+static TRACK: Mutex<CriticalSectionRawMutex, Cell<Option<TrackReport>>> =
+    Mutex::new(Cell::new(None));
+
+/// Replaces track control's published report; track control's alone.
+pub fn publish_track(report: TrackReport) {
+    TRACK.lock(|published| published.set(Some(report)));
+}
+
+/// Track control's report as last published, for the console's `status`; `None` on a board
+/// without a part sensor.
+#[cfg(feature = "console")]
+pub fn track() -> Option<TrackReport> {
+    TRACK.lock(Cell::get)
 }

@@ -14,4 +14,4 @@ pub use course::{
 pub use cycle_loop::{CycleLoop, LoopError, LoopLimits, Stroke, Trims};
 pub use identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};
 pub use shape::{CommandSegment, CycleShape};
-pub use track::{Track, TrackConfig, TrackState};
+pub use track::{Track, TrackConfig, TrackReport, TrackState};

@@ -57,6 +57,8 @@ pub struct Snapshot {
     pub cycles: u64,
     /// The closed loop, on a board that runs one.
     pub closed_loop: Option<crate::closed_loop::LoopReport>,
+    /// Track control, on a board with a part sensor.
+    pub track: Option<crate::closed_loop::TrackReport>,
 }
 
 /// What the control loop must do after a command. `Configure` carries the whole plan: it is
@@ -276,6 +278,7 @@ impl Controller {
             uptime_ms: snapshot.uptime_ms,
             cycles: snapshot.cycles,
             closed_loop: snapshot.closed_loop,
+            track: snapshot.track,
         }
     }
 }

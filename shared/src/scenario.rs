@@ -11,7 +11,7 @@ use core::fmt;
 use crate::number::split_decimal;
 
 /// The keys, each with its meaning, in the order a help text lists them.
-pub const SCENARIO_KEYS: [(&str, &str); 12] = [
+pub const SCENARIO_KEYS: [(&str, &str); 14] = [
     ("cycles", "request the soft stop once N cycles have begun (N ≥ 1)"),
     ("freq_hz", "waveform frequency"),
     ("duty", "duty at start"),
@@ -24,6 +24,8 @@ pub const SCENARIO_KEYS: [(&str, &str); 12] = [
     ("late_preload_at", "preload this cycle's first segment too late: a missed edge, then a restart"),
     ("changes", "random operator changes between start and stop: settings in and past range, stops and starts"),
     ("seed", "seed of the random changes"),
+    ("track_full_at", "from this cycle on, the track's light barrier is blocked (a full track)"),
+    ("track_room_at", "from this cycle on, the barrier is clear again (the track has room)"),
 ];
 
 /// One setting of the scripted operator.
@@ -53,6 +55,10 @@ pub enum ScenarioSetting {
     Changes(u32),
     /// `seed=S`: the seed of the random changes.
     Seed(u32),
+    /// `track_full_at=C`: from cycle `C` on, the track's light barrier is blocked.
+    TrackFullAt(u32),
+    /// `track_room_at=C`: from cycle `C` on, the barrier is clear again.
+    TrackRoomAt(u32),
 }
 
 /// Why a scenario word was refused; each names the word or value as typed.
@@ -80,11 +86,16 @@ impl fmt::Display for ScenarioError<'_> {
             ScenarioError::NotKeyValue(word) => {
                 write!(f, "scenario setting `{word}` is not of the form key=value")
             }
-            ScenarioError::UnknownKey(key) => write!(
-                f,
-                "unknown scenario key `{key}` (known: cycles, freq_hz, duty, stroke_m, new_duty, \
-                 ramp, panic_at, overflow_at, mask_at, late_preload_at, changes, seed)"
-            ),
+            ScenarioError::UnknownKey(key) => {
+                write!(f, "unknown scenario key `{key}` (known: ")?;
+                for (index, (known, _)) in SCENARIO_KEYS.iter().enumerate() {
+                    if index > 0 {
+                        f.write_str(", ")?;
+                    }
+                    f.write_str(known)?;
+                }
+                f.write_str(")")
+            }
             ScenarioError::NotACount {
                 key,
                 value,
@@ -140,6 +151,8 @@ pub fn parse_setting(word: &str) -> Result<ScenarioSetting, ScenarioError<'_>> {
         "late_preload_at" => ScenarioSetting::LatePreloadAt(count("late_preload_at", 0, u32::MAX)?),
         "changes" => ScenarioSetting::Changes(count("changes", 0, u32::MAX)?),
         "seed" => ScenarioSetting::Seed(count("seed", 0, u32::MAX)?),
+        "track_full_at" => ScenarioSetting::TrackFullAt(count("track_full_at", 0, u32::MAX)?),
+        "track_room_at" => ScenarioSetting::TrackRoomAt(count("track_room_at", 0, u32::MAX)?),
         _ => return Err(ScenarioError::UnknownKey(key)),
     })
 }

@@ -7,7 +7,9 @@
 //! until the output has reached idle. A fault stops the motor in its [`StopCategory`] and is
 //! latched: the next press (or an explicit reset) only acknowledges it, back to stopped, and a
 //! further press or start starts again. Explicit start and stop requests (command line, scripts)
-//! act like the button but never toggle.
+//! act like the button but never toggle. Track control: a full track (its part sensor,
+//! `closed_loop::Track`) pauses a running feeder with a soft stop, and it resumes when the track
+//! has room; a start into a full track runs once there is room.
 
 /// Why the output was halted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -98,6 +100,10 @@ pub enum SupervisorEvent {
     ResetRequested,
     /// An idle period has begun on the output: no motion is being commanded.
     OutputIdle,
+    /// The track's part sensor says it is full (`closed_loop::Track`): pause feeding.
+    TrackFull,
+    /// The track has room again: feed, if running.
+    TrackEmpty,
     Fault(Fault),
 }
 
@@ -123,6 +129,8 @@ pub struct Supervisor {
     state: RunState,
     /// A controlled fault stop is finishing its cycle: the driver stays enabled until idle.
     braking: bool,
+    /// The track is full: while running, the plate rests until it has room.
+    track_full: bool,
 }
 
 impl Supervisor {
@@ -136,6 +144,7 @@ impl Supervisor {
         Self {
             state,
             braking: false,
+            track_full: false,
         }
     }
 
@@ -146,13 +155,31 @@ impl Supervisor {
         if event == SupervisorEvent::OutputIdle {
             self.braking = false;
         }
+        // A start into a full track runs without motion until the track has room.
+        let feed = if self.track_full { Keep } else { Start };
         let (state, request) = match (self.state, event) {
             (_, SupervisorEvent::Fault(fault)) => return self.fault(fault),
-            (Stopped, SupervisorEvent::ButtonPressed) => (Running, Start),
+            (state, SupervisorEvent::TrackFull) => {
+                let request = match (state, self.track_full) {
+                    (Running, false) => Stop,
+                    _ => Keep,
+                };
+                self.track_full = true;
+                (state, request)
+            }
+            (state, SupervisorEvent::TrackEmpty) => {
+                let request = match (state, self.track_full) {
+                    (Running, true) => Start,
+                    _ => Keep,
+                };
+                self.track_full = false;
+                (state, request)
+            }
+            (Stopped, SupervisorEvent::ButtonPressed) => (Running, feed),
             (Running, SupervisorEvent::ButtonPressed) => (Stopping, Stop),
-            (Stopping, SupervisorEvent::ButtonPressed) => (Running, Start),
+            (Stopping, SupervisorEvent::ButtonPressed) => (Running, feed),
             (Faulted(_), SupervisorEvent::ButtonPressed) => (Stopped, Keep),
-            (Stopped | Stopping, SupervisorEvent::StartRequested) => (Running, Start),
+            (Stopped | Stopping, SupervisorEvent::StartRequested) => (Running, feed),
             (Running | Stopping, SupervisorEvent::StopRequested) => (Stopping, Stop),
             (Faulted(_), SupervisorEvent::ResetRequested) => (Stopped, Keep),
             (
@@ -191,6 +218,11 @@ impl Supervisor {
     /// cycle of a controlled fault stop.
     pub const fn driver_enabled(&self) -> bool {
         self.braking || matches!(self.state, RunState::Running | RunState::Stopping)
+    }
+
+    /// Running, but resting because the track is full.
+    pub const fn paused(&self) -> bool {
+        self.track_full && matches!(self.state, RunState::Running)
     }
 
     /// Whether a controlled fault stop is still finishing its cycle.

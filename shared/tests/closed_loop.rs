@@ -525,14 +525,19 @@ fn track_control_pauses_a_full_track_and_resumes_an_empty_one() {
     assert!((track.parts_per_minute() - 120.0).abs() < 1e-9);
     // A part stays in the beam: full after 1 s, not before.
     assert_eq!(track.update(5.0, true), TrackState::Empty);
+    assert_eq!(track.change_due_s(), Some(1.0));
     assert_eq!(track.update(5.99, true), TrackState::Empty);
+    assert!((track.change_due_s().unwrap() - 0.01).abs() < 1e-12);
     assert_eq!(track.update(6.0, true), TrackState::Full);
+    assert_eq!(track.change_due_s(), None);
     // Cleared: empty again only after 2 s clear; a blip resets the wait.
     assert_eq!(track.update(6.5, false), TrackState::Full);
     assert_eq!(track.update(8.0, true), TrackState::Full);
     assert_eq!(track.update(8.1, false), TrackState::Full);
     assert_eq!(track.update(10.0, false), TrackState::Full);
     assert_eq!(track.update(10.1, false), TrackState::Empty);
+    assert_eq!(track.change_due_s(), None);
+    assert_eq!(track.report().state.name(), "room");
 }
 
 proptest! {

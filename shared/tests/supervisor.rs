@@ -6,7 +6,7 @@ use feeder_shared::{
 
 use SupervisorEvent::{
     ButtonPressed as Press, OutputIdle as Idle, ResetRequested as Reset, StartRequested as Start,
-    StopRequested as Stop,
+    StopRequested as Stop, TrackEmpty as Empty, TrackFull as Full,
 };
 
 #[test]
@@ -156,7 +156,7 @@ fn explicit_commands_start_stop_and_reset() {
     assert_eq!(supervisor.handle(Start), MotionRequest::Start);
 }
 
-const EVENTS: [SupervisorEvent; 8] = [
+const EVENTS: [SupervisorEvent; 11] = [
     Press,
     Idle,
     Start,
@@ -165,6 +165,9 @@ const EVENTS: [SupervisorEvent; 8] = [
     SupervisorEvent::Fault(Fault::EdgeMissed),
     SupervisorEvent::Fault(Fault::WatchdogReset),
     SupervisorEvent::Fault(Fault::InvalidSettings),
+    SupervisorEvent::Fault(Fault::ClosedLoop),
+    Full,
+    Empty,
 ];
 
 /// Every sequence of up to six events from both power-up states.
@@ -223,11 +226,15 @@ fn every_fault_stops_in_its_category_and_only_a_press_or_start_starts() {
             }
         }
         if request == MotionRequest::Start {
-            assert!(event == Press || event == Start);
+            assert!(event == Press || event == Start || event == Empty);
             assert!(
                 !matches!(before.state(), RunState::Faulted(_)),
                 "a fault needs acknowledging"
             );
+            assert!(!after.paused(), "a full track is not fed");
+        }
+        if event == Empty && request == MotionRequest::Start {
+            assert!(before.paused(), "only a paused feeder resumes by itself");
         }
         if matches!(request, MotionRequest::Halt | MotionRequest::QuickStop) {
             assert!(matches!(after.state(), RunState::Faulted(_)));
@@ -246,4 +253,33 @@ fn a_fault_is_left_only_by_a_press_or_reset_and_only_to_stopped() {
             }
         }
     });
+}
+
+/// Track control: a full track pauses a running feeder with a soft stop and the feeder resumes
+/// when the track has room; a start into a full track waits for room; an operator's stop while
+/// paused stays a stop.
+#[test]
+fn a_full_track_pauses_the_feeder_until_it_has_room() {
+    let mut supervisor = Supervisor::new(false);
+    assert_eq!(supervisor.handle(Start), MotionRequest::Start);
+    assert_eq!(supervisor.handle(Full), MotionRequest::Stop);
+    assert!(supervisor.paused());
+    assert_eq!(supervisor.state(), RunState::Running);
+    assert_eq!(supervisor.handle(Full), MotionRequest::Keep);
+    assert_eq!(supervisor.handle(Idle), MotionRequest::Keep);
+    assert_eq!(supervisor.handle(Empty), MotionRequest::Start);
+    assert!(!supervisor.paused());
+
+    assert_eq!(supervisor.handle(Full), MotionRequest::Stop);
+    assert_eq!(supervisor.handle(Stop), MotionRequest::Stop);
+    assert_eq!(supervisor.handle(Idle), MotionRequest::Keep);
+    assert_eq!(supervisor.state(), RunState::Stopped);
+    assert_eq!(supervisor.handle(Empty), MotionRequest::Keep);
+    assert_eq!(supervisor.state(), RunState::Stopped);
+
+    assert_eq!(supervisor.handle(Full), MotionRequest::Keep);
+    assert_eq!(supervisor.handle(Press), MotionRequest::Keep);
+    assert_eq!(supervisor.state(), RunState::Running);
+    assert!(supervisor.paused());
+    assert_eq!(supervisor.handle(Empty), MotionRequest::Start);
 }

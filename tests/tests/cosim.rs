@@ -3,7 +3,7 @@
 //! semihosting FIFOs. QEMU runs no instruction while the firmware waits for an answer, and under
 //! `-icount` virtual time is the instruction count, so the run must not depend on how long the
 //! host takes: runs whose plant answers at once and after random delays give byte-identical logs.
-//! The image with the plant's encoder (`--features encoder`) runs the closed loop against the
+//! The image with the plant's encoder (`--features cosim-encoder`) runs the closed loop against the
 //! real plate of `realistic.toml`.
 //!
 //! These tests need the images' ELFs in `FEEDER_COSIM_ELF` and `FEEDER_CLOSED_LOOP_ELF`

@@ -24,7 +24,7 @@ pub fn build_firmware(image: Image) -> Result<PathBuf> {
         Image::Scripted => ("qemu", "board-qemu"),
         Image::Console => ("qemu-console", "board-qemu,console"),
         Image::Cosim => ("qemu-cosim", "cosim"),
-        Image::ClosedLoop => ("qemu-closed-loop", "encoder"),
+        Image::ClosedLoop => ("qemu-closed-loop", "cosim-encoder"),
     };
     let target_dir = firmware_dir().join("target").join(directory);
     exec(

@@ -5,23 +5,25 @@ mod control;
 mod monitor;
 mod panel;
 mod regulate;
+mod track;
 
 use defmt::unwrap;
 use embassy_executor::SendSpawner;
 
 use crate::board;
 use crate::output::SegmentOutput;
-use crate::ports::{Board, Operator, Parts, PositionSensor};
+use crate::ports::{Board, Operator, PartSensor, Parts, PositionSensor};
 use control::ControlLoop;
 
 type Output = <board::Hardware as Parts>::Output;
 type DriverEnable = <board::Hardware as Parts>::DriverEnable;
 type Sensor = <board::Hardware as Parts>::Sensor;
+type Barrier = <board::Hardware as Parts>::PartSensor;
 
 /// Spawns the tasks: the control loop on the board's control executor, above the others; the
 /// button, the LED, the monitor and the operator on `spawner` (the monitor where the board's
 /// watchdog needs it); with a position sensor, the closed loop on `spawner` and the drive's
-/// identification on the background executor.
+/// identification on the background executor; with a part sensor, track control on `spawner`.
 pub fn start(spawner: SendSpawner, board: Board<board::Hardware>) {
     monitor::enable_cycle_counter();
     board::announce();
@@ -34,6 +36,9 @@ pub fn start(spawner: SendSpawner, board: Board<board::Hardware>) {
         Sensor::PRESENT,
     );
     board.control_spawner.spawn(unwrap!(control_task(control)));
+    if Barrier::PRESENT {
+        spawner.spawn(unwrap!(track::track_task(board.part_sensor)));
+    }
     if Sensor::PRESENT {
         spawner.spawn(unwrap!(regulate::regulate_task(
             board.sensor,

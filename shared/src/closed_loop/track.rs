@@ -23,6 +23,24 @@ pub enum TrackState {
     Full,
 }
 
+impl TrackState {
+    /// The state's name in replies and logs.
+    pub const fn name(self) -> &'static str {
+        match self {
+            TrackState::Empty => "room",
+            TrackState::Full => "full",
+        }
+    }
+}
+
+/// What track control reports (the console's `status`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TrackReport {
+    pub state: TrackState,
+    pub parts_per_minute: f64,
+}
+
 /// Parts counted for the rate, at most.
 const RATE_PARTS: usize = 16;
 
@@ -77,6 +95,25 @@ impl Track {
 
     pub fn state(&self) -> TrackState {
         self.state
+    }
+
+    /// How long the barrier must keep its reading from now for the state to change, if it is
+    /// on its way to a change.
+    pub fn change_due_s(&self) -> Option<f64> {
+        let held_s = self.last_s - self.since_s;
+        match (self.state, self.blocked) {
+            (TrackState::Empty, true) => Some((self.config.full_after_s - held_s).max(0.0)),
+            (TrackState::Full, false) => Some((self.config.empty_after_s - held_s).max(0.0)),
+            _ => None,
+        }
+    }
+
+    /// The state and the parts per minute.
+    pub fn report(&self) -> TrackReport {
+        TrackReport {
+            state: self.state,
+            parts_per_minute: self.parts_per_minute(),
+        }
     }
 
     /// Parts per minute over the last parts counted (at most 16): 0 before the second part.

@@ -7,7 +7,7 @@ use heapless::String;
 use super::grammar::Param;
 use super::limits::REPLY_CAPACITY;
 use super::refusal::ReplyError;
-use crate::closed_loop::LoopReport;
+use crate::closed_loop::{LoopReport, TrackReport};
 use crate::number::Fixed;
 use crate::recipe::{Loaded, RecipeSlot, RecordError, RECIPE_SLOTS};
 use crate::scheduler::Phase;
@@ -30,6 +30,8 @@ pub struct Status<F> {
     pub cycles: u64,
     /// The closed loop, on a board that runs one.
     pub closed_loop: Option<LoopReport>,
+    /// Track control, on a board with a part sensor.
+    pub track: Option<TrackReport>,
 }
 
 /// The reportable parameters.
@@ -139,7 +141,8 @@ impl Reply {
     }
 
     /// The reply to `status`: `OK state=… freq_hz=… … uptime_s=… cycles=… [loop=… [gain_pos=…
-    /// gain_neg=… offset_mps2=…]] fault=…`, the closed loop's fields on a board that runs one.
+    /// gain_neg=… offset_mps2=…]] [track=… parts_per_min=…] fault=…`, the closed loop's and the
+    /// track's fields on a board that has them.
     pub fn status<F: fmt::Display>(status: &Status<F>) -> Self {
         let state = match (&status.fault, status.phase) {
             (Some(_), _) => "fault",
@@ -173,6 +176,17 @@ impl Reply {
                     }
                 );
             }
+        }
+        if let Some(track) = &status.track {
+            let _ = write!(
+                reply,
+                " track={} parts_per_min={}",
+                track.state.name(),
+                Fixed {
+                    value: track.parts_per_minute,
+                    decimals: 1
+                }
+            );
         }
         let _ = write!(reply, " fault=");
         let _ = match &status.fault {

@@ -172,6 +172,7 @@ fn status_reports_the_snapshot_and_the_settings() {
         uptime_ms: 61_005,
         cycles: 3050,
         closed_loop: None,
+        track: None,
     };
     let reply = run(&mut controller, "status", &at, &mut store).reply;
     let text = reply.as_str();

@@ -72,6 +72,7 @@ fn snapshot(state: RunState, phase: Phase, cycles: u64) -> Snapshot {
         uptime_ms: 12_345,
         cycles,
         closed_loop: None,
+        track: None,
     }
 }
 

@@ -17,6 +17,7 @@ fn the_reference_example_is_what_status_prints() {
         uptime_ms: 12_345,
         cycles: 617,
         closed_loop: None,
+        track: None,
     });
     let example = format!("    {reply}\n");
     assert!(

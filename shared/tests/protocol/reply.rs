@@ -26,11 +26,14 @@ fn status(fault: Option<&str>) -> Status<&str> {
         uptime_ms: 12_345,
         cycles: 617,
         closed_loop: None,
+        track: None,
     }
 }
 
 /// On a board that runs the closed loop, `status` names the course's stage and, once the drive
-/// is identified, its gains (5 decimals) and offset (3), before the fault, which stays last.
+/// is identified, its gains (5 decimals) and offset (3); on a board with a part sensor, the
+/// track's state and parts per minute (1 decimal, ties to even); both before the fault, which
+/// stays last.
 #[test]
 fn status_reports_the_closed_loop_before_the_fault() {
     use feeder_shared::closed_loop::{Identified, LoopReport, Stage};
@@ -67,6 +70,18 @@ fn status_reports_the_closed_loop_before_the_fault() {
         "{feeding}"
     );
     assert!(feeding.as_str().len() <= REPLY_CAPACITY);
+    let full = Reply::status(&Status {
+        track: Some(feeder_shared::closed_loop::TrackReport {
+            state: feeder_shared::closed_loop::TrackState::Full,
+            parts_per_minute: 37.25,
+        }),
+        ..status(None)
+    });
+    assert!(
+        full.as_str()
+            .ends_with(" cycles=617 track=full parts_per_min=37.2 fault=none"),
+        "{full}"
+    );
 }
 
 #[test]

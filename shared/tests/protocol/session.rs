@@ -96,6 +96,7 @@ impl Controller {
             uptime_ms: 0,
             cycles: 0,
             closed_loop: None,
+            track: None,
         }
     }
 

@@ -153,7 +153,7 @@ impl SegmentOutput for DacStage {
         });
         self.queued_slack_ticks = None;
         self.playing_slack_ticks = None;
-        self.timer.start();
+        self.timer.start(segment.start_tick);
     }
 
     /// Writes the next code and length and keeps the slack left when they were written (the
@@ -163,6 +163,7 @@ impl SegmentOutput for DacStage {
         if segment.ticks < 2 {
             return Err(EdgeMissed);
         }
+        self.timer.prepare_capture(segment);
         let counter = self.timer.timer().regs_gp32();
         let playing_reload = counter.arr().read();
         self.dac.set(Value::Bit12Right(self.code(segment)));

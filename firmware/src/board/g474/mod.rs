@@ -12,9 +12,16 @@
 //! | status LED LD2              | PA5  | D13           |
 //! | console TX (LPUART1)        | PA2  | ST-LINK VCP   |
 //! | console RX (LPUART1)        | PA3  | ST-LINK VCP   |
+//! | encoder A (TIM4 CH1)        | PB6  | D10           |
+//! | encoder B (TIM4 CH2)        | PB7  | CN7 pin 21    |
 //!
 //! The operator's console runs on LPUART1 (115200 8N1), which the NUCLEO routes to the ST-LINK's
 //! virtual COM port; recipes live in flash ([`recipes`]).
+//!
+//! With `--features encoder` the closed loop runs on a quadrature encoder on TIM4, sampled by DMA
+//! on TIM6 and on the segment timer's update (`encoder`); TIM6 and DMA1 channels 1 and 2 are then
+//! taken, and the application's tasks run on an interrupt executor (UART5's vector) so that thread
+//! mode is left to the drive's identification.
 //!
 //! Both output stages time every edge in hardware ([`segment_timer`]). DAC ([`dac`]): TIM2
 //! (32 bits, 170 MHz) counts one segment; its update event loads the preloaded auto-reload (the
@@ -31,6 +38,9 @@
 #[cfg(not(feature = "output-pwm"))]
 mod dac;
 mod drill;
+#[cfg(feature = "encoder")]
+mod encoder;
+mod light_barrier;
 #[cfg(feature = "console")]
 #[path = "console.rs"]
 mod operator;
@@ -59,6 +69,18 @@ type Stage = dac::DacStage;
 #[cfg(feature = "output-pwm")]
 type Stage = pwm::PwmStage;
 
+/// The timer whose update event begins every segment of [`Stage`].
+#[cfg(all(feature = "encoder", not(feature = "output-pwm")))]
+type SegmentTimerPeri = embassy_stm32::peripherals::TIM2;
+#[cfg(all(feature = "encoder", feature = "output-pwm"))]
+type SegmentTimerPeri = embassy_stm32::peripherals::TIM1;
+
+/// The plate's position sensor: the quadrature encoder with `encoder`, none without (open loop).
+#[cfg(feature = "encoder")]
+type Sensor = encoder::Encoder;
+#[cfg(not(feature = "encoder"))]
+type Sensor = ports::NoSensor;
+
 /// The NUCLEO-G474RE's parts.
 pub enum Hardware {}
 
@@ -69,8 +91,8 @@ impl Parts for Hardware {
     type Button = ExtiInput<'static, Async>;
     type Watchdog = watchdog::OutputWatchdog;
     type Operator = operator::Operator;
-    /// No encoder or accelerometer input yet: the board runs open loop.
-    type Sensor = ports::NoSensor;
+    type Sensor = Sensor;
+    type PartSensor = light_barrier::LightBarrier;
 }
 
 /// The stores that make the output safe, in order (see [`Stage::SAFE_STATE_WRITES`]).
@@ -84,8 +106,8 @@ pub fn run(app: fn(SendSpawner, Board<Hardware>)) -> ! {
     // SAFETY: `run` never returns, so its frame, and the executor in it, lives for good.
     let executor: &'static mut Executor = unsafe { &mut *core::ptr::addr_of_mut!(executor) };
     executor.run(|spawner| {
-        let spawner = spawner.make_send();
-        app(spawner, setup::init(spawner))
+        let (spawner, board) = setup::init(spawner.make_send());
+        app(spawner, board)
     })
 }
 

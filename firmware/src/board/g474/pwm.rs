@@ -204,11 +204,12 @@ impl SegmentOutput for PwmStage {
         let compares = self.compares(segment);
         self.timer.stop_and_load(|timer| compares.write(timer));
         self.timer.timer().set_moe(true);
-        self.timer.start();
+        self.timer.start(segment.start_tick);
     }
 
     /// Writes the next duty, direction and length.
     fn preload(&mut self, segment: &Segment) -> Result<(), EdgeMissed> {
+        self.timer.prepare_capture(segment);
         self.compares(segment).write(self.timer.timer());
         self.timer.confirm_preload()
     }

@@ -21,6 +21,7 @@ use embassy_stm32::timer::low_level::{MasterMode, SlaveMode, Timer, TriggerSourc
 use embassy_stm32::timer::{CoreInstance, GeneralInstance4Channel};
 use embassy_stm32::Peri;
 use embassy_sync::waitqueue::AtomicWaker;
+use feeder_shared::Segment;
 
 use super::setup::CORE_HZ;
 use crate::config;
@@ -129,8 +130,26 @@ impl<T: GeneralInstance4Channel> SegmentTimer<T> {
         });
     }
 
-    pub fn start(&mut self) {
-        self.timer.start();
+    /// Starts the loaded timer: the output's timeline resumes at `start_tick`, where the
+    /// position sensor (with `encoder`) restarts its sampling.
+    pub fn start(&mut self, start_tick: u64) {
+        self.timer.enable_update_dma(false);
+        #[cfg(feature = "encoder")]
+        super::encoder::restart(start_tick, || self.timer.start());
+        #[cfg(not(feature = "encoder"))]
+        {
+            let _ = start_tick;
+            self.timer.start();
+        }
+    }
+
+    /// Before `segment` is preloaded: with `encoder`, the update event that begins it captures
+    /// the encoder's count if it starts a cycle.
+    pub fn prepare_capture(&self, segment: &Segment) {
+        #[cfg(feature = "encoder")]
+        super::encoder::prepare_capture(segment, |on| self.timer.enable_update_dma(on));
+        #[cfg(not(feature = "encoder"))]
+        let _ = segment;
     }
 
     pub fn stop(&mut self) {

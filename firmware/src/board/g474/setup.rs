@@ -8,9 +8,12 @@ use embassy_stm32::interrupt::typelevel::{self, Handler};
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
 use embassy_stm32::{bind_interrupts, pac, rcc, Config};
 
+use super::light_barrier::LightBarrier;
 use super::watchdog::OutputWatchdog;
 use super::{operator, Hardware, Stage};
-use crate::ports::{self, Board, RegisterWrite};
+#[cfg(feature = "encoder")]
+use crate::output::SegmentOutput;
+use crate::ports::{Board, RegisterWrite};
 
 /// Core clock ([`clocks`]).
 pub const CORE_HZ: f64 = 170e6;
@@ -32,10 +35,35 @@ const _: () = assert!(pac::gpio::regs::Bsrr(1 << (16 + DRIVER_ENABLE_PIN)).br(DR
 
 static CONTROL_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 
+#[cfg(not(feature = "encoder"))]
 bind_interrupts!(struct Irqs {
     EXTI15_10 => exti::InterruptHandler<typelevel::EXTI15_10>;
     UART4 => ControlExecutor;
 });
+
+/// With a sensor the application's tasks run on an interrupt executor at the lowest priority,
+/// so that thread mode is free for the background (the drive's identification).
+#[cfg(feature = "encoder")]
+static TASK_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
+
+#[cfg(feature = "encoder")]
+bind_interrupts!(struct Irqs {
+    EXTI15_10 => exti::InterruptHandler<typelevel::EXTI15_10>;
+    UART4 => ControlExecutor;
+    UART5 => TaskExecutor;
+});
+
+/// UART5 is unused on this board; its vector runs the task executor.
+#[cfg(feature = "encoder")]
+struct TaskExecutor;
+
+#[cfg(feature = "encoder")]
+impl Handler<typelevel::UART5> for TaskExecutor {
+    unsafe fn on_interrupt() {
+        // SAFETY: the executor was started on this interrupt in `init`.
+        unsafe { TASK_EXECUTOR.on_interrupt() }
+    }
+}
 
 /// UART4 is unused on this board; its vector runs the control executor.
 struct ControlExecutor;
@@ -48,8 +76,8 @@ impl Handler<typelevel::UART4> for ControlExecutor {
 }
 
 /// Brings the board up with the output at zero and the driver disabled; `thread_spawner` is
-/// the thread-mode executor's.
-pub fn init(thread_spawner: SendSpawner) -> Board<Hardware> {
+/// the thread-mode executor's. Returns the spawner for the application's tasks and the board.
+pub fn init(thread_spawner: SendSpawner) -> (SendSpawner, Board<Hardware>) {
     let after_watchdog_reset = pac::RCC.csr().read().iwdgrstf();
     pac::RCC.csr().modify(|w| w.set_rmvf(true));
 
@@ -57,28 +85,50 @@ pub fn init(thread_spawner: SendSpawner) -> Board<Hardware> {
     let driver_enable = gpio::Output::new(p.PA10, Level::Low, Speed::Low);
     let led = gpio::Output::new(p.PA5, Level::Low, Speed::Low);
     let button = ExtiInput::new(p.PC13, p.EXTI13, Pull::Down, Irqs);
+    let part_sensor = LightBarrier(ExtiInput::new(p.PB10, p.EXTI10, Pull::Up, Irqs));
     let output = Stage::new(p.DAC1, p.PA4, p.TIM2, p.TIM1, p.PA8, p.PA9, p.TIM3);
     freeze_on_halt();
+    #[cfg(feature = "encoder")]
+    let sensor = super::encoder::Encoder::new::<super::SegmentTimerPeri>(
+        p.TIM4,
+        p.PB6,
+        p.PB7,
+        p.TIM6,
+        p.DMA1_CH1,
+        p.DMA1_CH2,
+        output.clock(),
+    );
+    #[cfg(not(feature = "encoder"))]
+    let sensor = crate::ports::NoSensor;
     let watchdog = OutputWatchdog::start(p.IWDG, p.PB5);
 
-    // The control executor runs below the edges and above the thread-mode tasks.
+    // The control executor runs below the edges and above the tasks.
     interrupt::UART4.set_priority(Priority::P1);
     let control_spawner = CONTROL_EXECUTOR.start(interrupt::UART4);
+    // Thread mode is this board's lowest level: without a sensor it runs the tasks (nothing of
+    // the closed loop runs); with one, the drive's identification, below the tasks.
+    #[cfg(not(feature = "encoder"))]
+    let task_spawner = thread_spawner;
+    #[cfg(feature = "encoder")]
+    let task_spawner = {
+        interrupt::UART5.set_priority(Priority::P15);
+        TASK_EXECUTOR.start(interrupt::UART5)
+    };
 
-    Board {
+    let board = Board {
         output,
         driver_enable,
         led,
         button,
         watchdog,
         operator: operator::Operator::new(p.LPUART1, p.PA2, p.PA3, p.FLASH),
-        sensor: ports::NoSensor,
+        sensor,
+        part_sensor,
         after_watchdog_reset,
         control_spawner,
-        // Thread mode is this board's lowest level; nothing of the closed loop runs without a
-        // sensor.
         background_spawner: thread_spawner,
-    }
+    };
+    (task_spawner, board)
 }
 
 /// 170 MHz from HSI16: /4 × 85 /2, range 1 boost.

@@ -13,6 +13,14 @@ use super::uart::Uart;
 use crate::ports;
 
 /// The console's end of UART0.
+/// The console's image has no part sensor: no track control.
+pub type PartSensor = ports::NoPartSensor;
+
+/// The part sensor the console's image has: none.
+pub fn part_sensor() -> PartSensor {
+    ports::NoPartSensor
+}
+
 pub struct Operator(Uart);
 
 impl Operator {

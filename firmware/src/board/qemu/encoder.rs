@@ -1,4 +1,4 @@
-//! The plate's encoder on the host as the board's position sensor (feature `encoder`): the
+//! The plate's encoder on the host as the board's position sensor (feature `cosim-encoder`): the
 //! plant samples it at every multiple of [`ENCODER_SAMPLE_TICKS`] and at every capture the
 //! output asks for, and the closed loop takes those samples once a cycle over the plant link
 //! (`plant_link`'s wire format, with the two kinds defined here).

@@ -72,9 +72,10 @@ impl Parts for Hardware {
     type Watchdog = pins::NoWatchdog;
     type Operator = operator::Operator;
     type Sensor = Sensor;
+    type PartSensor = operator::PartSensor;
 }
 
-/// The plate's encoder: the plant's on the host (feature `encoder`), none otherwise.
+/// The plate's encoder: the plant's on the host (feature `cosim-encoder`), none otherwise.
 #[cfg(feature = "encoder")]
 type Sensor = encoder::PlantEncoder;
 #[cfg(not(feature = "encoder"))]

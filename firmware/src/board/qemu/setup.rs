@@ -52,6 +52,7 @@ pub fn init() -> (SendSpawner, Board<Hardware>) {
         watchdog: NoWatchdog,
         operator: operator::Operator::new(),
         sensor: super::attach_sensor(),
+        part_sensor: operator::part_sensor(),
         // QEMU starts fresh every run.
         after_watchdog_reset: false,
         control_spawner,

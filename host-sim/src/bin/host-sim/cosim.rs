@@ -27,7 +27,7 @@ const LIMIT: Duration = Duration::from_secs(3600);
 /// The flags of `host-sim cosim`.
 #[derive(Args)]
 pub struct CosimArgs {
-    /// The firmware image: an ELF built with `--features encoder` (the closed loop) or, with
+    /// The firmware image: an ELF built with `--features cosim-encoder` (the closed loop) or, with
     /// `--open-loop`, `--features cosim`.
     #[arg(long, value_name = "FILE")]
     elf: PathBuf,

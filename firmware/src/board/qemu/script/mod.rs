@@ -38,6 +38,8 @@ use cortex_m_semihosting::debug::{self, EXIT_SUCCESS};
 use cortex_m_semihosting::nr::GET_CMDLINE;
 use defmt::{info, unwrap};
 use embassy_executor::SendSpawner;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::signal::Signal;
 use embassy_time::{Instant, Timer};
 use feeder_shared::scenario::parse_setting;
 use feeder_shared::{
@@ -120,6 +122,8 @@ struct Scenario {
     late_preload_cycle: Option<u32>,
     random_changes: u32,
     seed: u32,
+    track_full_cycle: Option<u32>,
+    track_room_cycle: Option<u32>,
 }
 
 impl Scenario {
@@ -137,6 +141,8 @@ impl Scenario {
             late_preload_cycle: None,
             random_changes: 0,
             seed: 1,
+            track_full_cycle: None,
+            track_room_cycle: None,
         };
         // The first word is the program's name (the kernel's path when QEMU got no `arg=`).
         for word in command_line.split_whitespace().skip(1) {
@@ -155,6 +161,8 @@ impl Scenario {
                 ScenarioSetting::LatePreloadAt(c) => scenario.late_preload_cycle = Some(c),
                 ScenarioSetting::Changes(k) => scenario.random_changes = k,
                 ScenarioSetting::Seed(seed) => scenario.seed = seed,
+                ScenarioSetting::TrackFullAt(c) => scenario.track_full_cycle = Some(c),
+                ScenarioSetting::TrackRoomAt(c) => scenario.track_room_cycle = Some(c),
             }
         }
         if scenario.new_duty.is_nan() {
@@ -179,6 +187,47 @@ fn command_line(buffer: &mut [u8]) -> &str {
     core::str::from_utf8(&buffer[..length]).unwrap_or("")
 }
 
+/// The track's light barrier as the script sets it (`track_full_at`, `track_room_at`).
+static BARRIER: Signal<CriticalSectionRawMutex, bool> = Signal::new();
+
+/// The script's light barrier: the readings the script hands over.
+pub struct ScriptedBarrier;
+
+/// The scripted image's part sensor.
+pub type PartSensor = ScriptedBarrier;
+
+/// The part sensor the scripted image has.
+pub fn part_sensor() -> PartSensor {
+    ScriptedBarrier
+}
+
+impl ports::PartSensor for ScriptedBarrier {
+    const PRESENT: bool = true;
+
+    async fn changed(&mut self) -> bool {
+        BARRIER.wait().await
+    }
+}
+
+/// Blocks the barrier from cycle `full`, clears it from cycle `room` (either may be never).
+#[embassy_executor::task]
+async fn barrier_task(full: Option<u32>, room: Option<u32>) {
+    let mut steps = [(full, true), (room, false)];
+    steps.sort_unstable_by_key(|(cycle, _)| cycle.unwrap_or(u32::MAX));
+    for (cycle, blocked) in steps {
+        let Some(cycle) = cycle else { return };
+        while self::cycle() < cycle {
+            Timer::after_millis(POLL_MS).await;
+        }
+        info!(
+            "scenario: the track's barrier {=str} at cycle {=u32}",
+            if blocked { "blocked" } else { "clear" },
+            cycle
+        );
+        BARRIER.signal(blocked);
+    }
+}
+
 /// The script, read when its task starts.
 pub struct Operator;
 
@@ -190,7 +239,7 @@ impl Operator {
 
 impl ports::Operator for Operator {
     fn spawn(self, spawner: SendSpawner, clock: TickClock) {
-        spawner.spawn(unwrap!(operator_task(clock)));
+        spawner.spawn(unwrap!(operator_task(clock, spawner)));
     }
 }
 
@@ -258,7 +307,7 @@ impl Run {
 }
 
 #[embassy_executor::task]
-async fn operator_task(clock: TickClock) {
+async fn operator_task(clock: TickClock, spawner: SendSpawner) {
     let mut buffer = [0u8; 256];
     let scenario = match Scenario::parse(command_line(&mut buffer)) {
         Ok(scenario) => scenario,
@@ -293,6 +342,12 @@ async fn operator_task(clock: TickClock) {
     );
     if let Some(cycle) = scenario.late_preload_cycle {
         provoke_late_preload(cycle);
+    }
+    if scenario.track_full_cycle.is_some() || scenario.track_room_cycle.is_some() {
+        spawner.spawn(unwrap!(barrier_task(
+            scenario.track_full_cycle,
+            scenario.track_room_cycle
+        )));
     }
     // Two periods: longer than the segment playing when the mask begins and the one preloaded
     // after it together, so at least one edge passes with nothing preloaded.
