@@ -369,18 +369,6 @@ fn identification_refuses_what_cannot_run() {
     );
 }
 
-fn unit_drive() -> Identified {
-    Identified {
-        gain_positive: 1.0,
-        gain_negative: 1.0,
-        offset_mps2: 0.0,
-        lag_s: 0.0,
-        coulomb_mps2: 0.0,
-        viscous_per_s: 0.0,
-        residual_m: 0.0,
-    }
-}
-
 const LOOSE: LoopLimits = LoopLimits {
     correction_max_mps2: 1e9,
     amplitude_max: 1.0,
@@ -393,7 +381,7 @@ const LOOSE: LoopLimits = LoopLimits {
 fn linear_run(gain: f64, disturbance_mps2: f64, x0_m: f64, cycles: usize) -> Vec<f64> {
     let period_s = 0.02;
     let idle = CycleShape::idle(period_s);
-    let mut cycle_loop = CycleLoop::new(&unit_drive(), LOOSE);
+    let mut cycle_loop = CycleLoop::new(&Identified::NOMINAL, LOOSE);
     let (mut x, mut v) = (x0_m, 0.0);
     let mut trims = cycle_loop.trims();
     let mut starts = Vec::new();
@@ -460,18 +448,18 @@ fn the_loop_gives_up_beyond_its_limits_and_on_a_sensor_fault() {
         position_error_max_m: 2e-3,
     };
     let idle = CycleShape::idle(0.02);
-    let mut far = CycleLoop::new(&unit_drive(), limits);
+    let mut far = CycleLoop::new(&Identified::NOMINAL, limits);
     assert_eq!(
         far.update(3e-3, None, None, &idle, [&idle, &idle]),
         Err(LoopError::Position { error_m: 3e-3 })
     );
-    let mut sensor = CycleLoop::new(&unit_drive(), limits);
+    let mut sensor = CycleLoop::new(&Identified::NOMINAL, limits);
     assert_eq!(
         sensor.update(f64::NAN, None, None, &idle, [&idle, &idle]),
         Err(LoopError::Sensor)
     );
     // A plate running away at 1 m/s needs more than 1 m/s² to stop within a cycle or two.
-    let mut runaway = CycleLoop::new(&unit_drive(), limits);
+    let mut runaway = CycleLoop::new(&Identified::NOMINAL, limits);
     runaway
         .update(0.0, None, None, &idle, [&idle, &idle])
         .unwrap();
@@ -482,7 +470,7 @@ fn the_loop_gives_up_beyond_its_limits_and_on_a_sensor_fault() {
     // A stroke 30 % short asks for more amplitude than 10 %.
     let (_, segments) = paper_cycle(0.586);
     let shape = CycleShape::new(&segments).unwrap();
-    let mut weak = CycleLoop::new(&unit_drive(), limits);
+    let mut weak = CycleLoop::new(&Identified::NOMINAL, limits);
     let stroke = Stroke {
         measured_m: 0.5 * shape.stroke_m,
         planned_m: shape.stroke_m,
@@ -499,7 +487,7 @@ fn the_feedforward_undoes_the_identified_drive() {
         gain_positive: 1.25,
         gain_negative: 0.8,
         offset_mps2: 0.5,
-        ..unit_drive()
+        ..Identified::NOMINAL
     };
     let trims = CycleLoop::new(&drive, LOOSE).trims();
     assert!((1.25 * trims.positive - 1.0).abs() < 1e-15);

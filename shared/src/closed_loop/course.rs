@@ -147,6 +147,18 @@ pub struct Decision {
     pub identify: bool,
 }
 
+impl Decision {
+    /// `trims` for the cycle after the one `begun` starts, nothing else.
+    fn trims(begun: &Segment, trims: Trims) -> Self {
+        Decision {
+            cycle: begun.cycle + 1,
+            trims,
+            release: false,
+            identify: false,
+        }
+    }
+}
+
 /// Why the course stopped.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -371,12 +383,7 @@ impl Course {
         samples: &[PositionSample],
     ) -> Result<Decision, CourseError> {
         if self.stage == Stage::Failed {
-            return Ok(Decision {
-                cycle: begun.cycle + 1,
-                trims: Trims::NONE,
-                release: false,
-                identify: false,
-            });
+            return Ok(Decision::trims(begun, Trims::NONE));
         }
         let result = self.step(begun, ahead, start, samples);
         if result.is_err() {
@@ -412,12 +419,7 @@ impl Course {
             _ => self.feedforward(),
         };
         let held = !idle && ahead.held_step() == Some(begun.amplitude.step);
-        let mut decision = Decision {
-            cycle: begun.cycle + 1,
-            trims: self.feedforward(),
-            release: false,
-            identify: false,
-        };
+        let mut decision = Decision::trims(begun, self.feedforward());
         match self.stage {
             Stage::Waiting | Stage::Probing if !held => {
                 // A stop (or anything but the held cycles) before the probe is complete: it
