@@ -15,11 +15,17 @@ use feeder_shared::{
 
 use super::monitor::{cycles, COST, HEARTBEAT};
 use super::regulate::{self, Boundary, Ruling, BOUNDARY, RULING};
+use crate::board;
 use crate::config;
 use crate::mailbox::{ReadyPlan, NEXT_PLAN, REQUESTS};
 use crate::output::{SegmentOutput, TrimmedCycle};
+use crate::ports::{Parts, PositionSensor};
 use crate::status::{self, Status};
 use crate::trace;
+
+/// The board has a position sensor: the control loop runs the closed loop's course
+/// (`super::regulate`). Known at compile time, so a board without one carries none of it.
+const CLOSED_LOOP: bool = <<board::Hardware as Parts>::Sensor as PositionSensor>::PRESENT;
 
 /// Runs the scheduler into the output stage and applies the supervisor's decisions.
 pub struct ControlLoop<O, E> {
@@ -32,8 +38,6 @@ pub struct ControlLoop<O, E> {
     cycle: u64,
     /// The status as last published.
     published: Status,
-    /// The closed loop runs (the board has a position sensor).
-    closed_loop: bool,
     /// The closed loop's trims last decided, for their cycle, and its feedforward for a cycle
     /// whose trims were not decided.
     decided: Option<(u64, Trims)>,
@@ -43,9 +47,7 @@ pub struct ControlLoop<O, E> {
 }
 
 impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
-    /// The control loop; with `closed_loop` it runs the course of the closed loop
-    /// (`super::regulate`).
-    pub fn new(output: O, driver_enable: E, after_watchdog_reset: bool, closed_loop: bool) -> Self {
+    pub fn new(output: O, driver_enable: E, after_watchdog_reset: bool) -> Self {
         Self {
             output,
             driver_enable,
@@ -53,7 +55,6 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             phase: Phase::Stopped,
             cycle: 0,
             published: Status::POWER_UP,
-            closed_loop,
             decided: None,
             feedforward: Trims::NONE,
             idle: true,
@@ -101,7 +102,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     /// One preload per edge; the status is published after it, while the segment plays.
     async fn run_plan(mut self, plan: TickPlan) -> ! {
         let mut scheduler = Scheduler::new(plan, config::RAMP_CYCLES);
-        if self.closed_loop {
+        if CLOSED_LOOP {
             // The course probes and centres on held cycles from the first start.
             scheduler.hold_step(regulate::probe_step());
         }
@@ -141,7 +142,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     /// trims are not there is one the loop did not decide in time: it runs the feedforward and
     /// the closed loop's fault stops the feeder at its end.
     fn trim(&mut self, segment: &Segment, scheduler: &mut Scheduler) {
-        if !self.closed_loop || segment.kind != SegmentKind::Accelerate {
+        if !CLOSED_LOOP || segment.kind != SegmentKind::Accelerate {
             return;
         }
         let trims = match self.decided {
@@ -236,7 +237,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         if playing.starts_cycle() {
             self.cycle = playing.cycle;
             self.idle = playing.kind == SegmentKind::Idle;
-            if self.closed_loop {
+            if CLOSED_LOOP {
                 BOUNDARY.signal(Boundary {
                     begun: *playing,
                     ahead: scheduler.clone(),
@@ -244,7 +245,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
                 });
             }
         }
-        if self.closed_loop {
+        if CLOSED_LOOP {
             self.take_ruling(scheduler);
         }
         if playing.phase != self.phase {

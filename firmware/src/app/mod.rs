@@ -33,7 +33,6 @@ pub fn start(spawner: SendSpawner, board: Board<board::Hardware>) {
         board.output,
         board.driver_enable,
         board.after_watchdog_reset,
-        Sensor::PRESENT,
     );
     board.control_spawner.spawn(unwrap!(control_task(control)));
     if Barrier::PRESENT {
