@@ -7,7 +7,7 @@
 
 use core::cell::Cell;
 
-use defmt::{error, info, warn};
+use defmt::{error, info, Display2Format};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::mutex::Mutex as AsyncMutex;
@@ -95,22 +95,19 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
                 return;
             }
         }
-        if last_cycle.is_some_and(|last| boundary.begun.cycle != last + 1) {
-            warn!(
-                "closed loop: boundary of cycle {=u64} missed",
-                last_cycle.unwrap_or(0) + 1
-            );
-            stop(CourseError::Loop(
-                feeder_shared::closed_loop::LoopError::Sensor,
-            ));
+        if let Some(last) = last_cycle.filter(|last| boundary.begun.cycle != last + 1) {
+            stop(CourseError::MissedBoundary { cycle: last + 1 });
             return;
         }
         last_cycle = Some(boundary.begun.cycle);
         let count = sensor.take_until(boundary.start_tick, &mut samples);
-        let Some((start, during)) = samples[..count].split_last() else {
-            stop(CourseError::Loop(
-                feeder_shared::closed_loop::LoopError::Sensor,
-            ));
+        let Some((start, during)) = samples[..count]
+            .split_last()
+            .filter(|(start, _)| start.tick == boundary.start_tick)
+        else {
+            stop(CourseError::NoCapture {
+                tick: boundary.start_tick,
+            });
             return;
         };
         match course.boundary(&boundary.begun, &boundary.ahead, *start, during) {
@@ -175,11 +172,11 @@ fn report(result: &Result<Identified, IdentifyError>) {
             drive.viscous_per_s,
             drive.residual_m
         ),
-        Err(error) => error!("drive identification refused: {}", error),
+        Err(error) => error!("drive identification refused: {}", Display2Format(error)),
     }
 }
 
 fn stop(error: CourseError) {
-    error!("closed loop stopped: {}", error);
+    error!("closed loop stopped: {}", Display2Format(&error));
     RULING.lock(|ruling| ruling.set(Some(Ruling::Stop)));
 }

@@ -171,6 +171,10 @@ pub enum CourseError {
     },
     /// A cycle of the plan never turns back.
     Plan,
+    /// The boundary of this cycle reached the course too late or not at all.
+    MissedBoundary { cycle: u64 },
+    /// The position sensor had no capture at this cycle start tick.
+    NoCapture { tick: u64 },
 }
 
 impl core::fmt::Display for CourseError {
@@ -183,6 +187,14 @@ impl core::fmt::Display for CourseError {
                 "the plate is still {error_m} m from its centre after the centring's last cycle"
             ),
             CourseError::Plan => f.write_str("a planned cycle does not turn back"),
+            CourseError::MissedBoundary { cycle } => write!(
+                f,
+                "the closed loop missed the start of cycle {cycle}: it cannot keep up with the output"
+            ),
+            CourseError::NoCapture { tick } => write!(
+                f,
+                "the position sensor has no capture at the cycle start tick {tick}"
+            ),
         }
     }
 }
