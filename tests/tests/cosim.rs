@@ -326,3 +326,51 @@ fn the_closed_loop_log_matches_the_golden_file_byte_for_byte() {
         );
     }
 }
+
+/// A drive the identification refuses (half the gain the plan expects, as from a motor wired to
+/// the wrong winding) stops the firmware with the refusal named: the closed loop's fault, a
+/// controlled stop, the run ended by the script with a failure code, the plate never near an
+/// end stop.
+#[test]
+#[ignore = "needs the closed-loop firmware image in FEEDER_CLOSED_LOOP_ELF"]
+fn a_drive_the_identification_refuses_stops_the_firmware_by_name() {
+    let (mut file, _) = realistic_plate();
+    file.plate.gain_positive = 0.5;
+    file.plate.gain_negative = 0.5;
+    let plate = host_sim::cosim::PlatePlant::new(
+        &file,
+        &contact(),
+        feeder_shared::DacCalibration::DEFAULT,
+        feeder_emulator::plant::TICK_HZ,
+    )
+    .expect("the plant file has an encoder");
+    let PlantRun { run, plant, .. } =
+        feeder_emulator::run_with_plant(&closed_loop_elf(), &["cycles=600"], TIMEOUT, plate)
+            .unwrap_or_else(|error| panic!("the closed-loop run: {error}"));
+    assert!(!run.status.success(), "the firmware ran on:\n{}", run.log);
+    assert!(
+        run.log.contains("closed loop: Identifying at cycle"),
+        "{}",
+        run.log
+    );
+    assert!(
+        run.log
+            .contains("drive identification refused: the drive's positive gain is 0.4")
+            || run
+                .log
+                .contains("drive identification refused: the drive's positive gain is 0.5"),
+        "{}",
+        run.log
+    );
+    assert!(
+        run.log.contains("closed loop stopped: identification:"),
+        "{}",
+        run.log
+    );
+    assert!(
+        run.log.contains("Running -> Faulted(ClosedLoop)"),
+        "{}",
+        run.log
+    );
+    assert_eq!(plant.end_stop(), None);
+}
