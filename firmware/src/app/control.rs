@@ -42,6 +42,8 @@ pub struct ControlLoop<O, E> {
     /// whose trims were not decided.
     decided: Option<(u64, Trims)>,
     feedforward: Trims,
+    /// The closed loop's course stopped: it runs again only after a reset of the board.
+    loop_stopped: bool,
     /// The segment playing belongs to an idle period.
     idle: bool,
 }
@@ -57,6 +59,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             published: Status::POWER_UP,
             decided: None,
             feedforward: Trims::NONE,
+            loop_stopped: false,
             idle: true,
         }
     }
@@ -140,12 +143,18 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     /// With the closed loop, gives the output the trimmed levels of the cycle `segment` begins:
     /// the ones decided for it or, after an idle period, the feedforward. A running cycle whose
     /// trims are not there is one the loop did not decide in time: it runs the feedforward and
-    /// the closed loop's fault stops the feeder at its end.
+    /// the closed loop's fault stops the feeder at its end. Once the course has stopped, every
+    /// start ends so after one cycle at the plan's levels, until a reset of the board.
     fn trim(&mut self, segment: &Segment, scheduler: &mut Scheduler) {
         if !CLOSED_LOOP || segment.kind != SegmentKind::Accelerate {
             return;
         }
         let trims = match self.decided {
+            _ if self.loop_stopped => {
+                error!("closed loop: its course stopped earlier; reset the board to run it again");
+                self.handle(SupervisorEvent::Fault(Fault::ClosedLoop), Some(scheduler));
+                Trims::NONE
+            }
             Some((cycle, trims)) if cycle == segment.cycle => trims,
             _ if self.idle => self.feedforward,
             _ => {
@@ -185,6 +194,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
                 self.feedforward = feedforward;
             }
             Some(Ruling::Stop) => {
+                self.loop_stopped = true;
                 self.handle(SupervisorEvent::Fault(Fault::ClosedLoop), Some(scheduler));
             }
             None => {}

@@ -172,9 +172,13 @@ pub enum CourseError {
     /// A cycle of the plan never turns back.
     Plan,
     /// The boundary of this cycle reached the course too late or not at all.
-    MissedBoundary { cycle: u64 },
+    MissedBoundary {
+        cycle: u64,
+    },
     /// The position sensor had no capture at this cycle start tick.
-    NoCapture { tick: u64 },
+    NoCapture {
+        tick: u64,
+    },
 }
 
 impl core::fmt::Display for CourseError {
