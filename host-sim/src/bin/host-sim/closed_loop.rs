@@ -13,7 +13,7 @@ use host_sim::{OperatingPoint, SimError, Timing};
 use serde::Serialize;
 
 use crate::args::{count, ContactArgs, OutputArgs, TimingArgs, WaveArgs};
-use crate::output::{emit, say};
+use crate::output::{emit, file_name, say};
 use crate::plot::{self, Mark, Panel, Series};
 
 /// Cycles the loop runs when not told: 60 s at 50 Hz.
@@ -603,12 +603,7 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
             ],
         },
     ];
-    let plant = report
-        .plant
-        .file_name()
-        .map_or(report.plant.display().to_string(), |name| {
-            name.to_string_lossy().into_owned()
-        });
+    let plant = file_name(&report.plant);
     let duty = report.duty_change.map_or(format!("{}", report.duty), |c| {
         format!("{} → {} at cycle {}", report.duty, c.duty, c.at_cycle)
     });

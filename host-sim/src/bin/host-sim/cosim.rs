@@ -18,7 +18,7 @@ use host_sim::SimError;
 use serde::Serialize;
 
 use crate::args::{ContactArgs, OutputArgs};
-use crate::output::{emit, say};
+use crate::output::{emit, file_name, say};
 use crate::plot::{self, Mark, Panel, Series};
 
 /// The longest co-simulation before it is stopped.
@@ -197,12 +197,7 @@ fn plot_run(path: &Path, report: &CosimReport, cycles: &[CosimCycle]) -> Result<
             ],
         },
     ];
-    let plant = report
-        .plant
-        .file_name()
-        .map_or(report.plant.display().to_string(), |name| {
-            name.to_string_lossy().into_owned()
-        });
+    let plant = file_name(&report.plant);
     let mode = if report.open_loop {
         "open loop"
     } else {

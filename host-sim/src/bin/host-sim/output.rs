@@ -74,3 +74,10 @@ fn write_csv<T: Serialize>(path: &Path, rows: &[T]) -> Result<(), SimError> {
     }
     writer.flush().map_err(|e| failure(e.to_string()))
 }
+
+/// The file name of `path` for a chart's title (the whole path if it has none).
+pub fn file_name(path: &Path) -> String {
+    path.file_name().map_or(path.display().to_string(), |name| {
+        name.to_string_lossy().into_owned()
+    })
+}
