@@ -6,8 +6,8 @@
 //! segment is made, as in the firmware's control loop.
 
 use feeder_shared::closed_loop::{
-    Course, CourseConfig, CourseError, Decision, Identified, LoopLimits, PositionSample, Stage,
-    Trims,
+    Course, CourseConfig, CourseError, CycleTrims, Decision, Identified, LoopLimits,
+    PositionSample, Stage, Trims,
 };
 use feeder_shared::{DacCalibration, Scheduler, Segment, SegmentKind, TickPlan};
 
@@ -15,6 +15,15 @@ use crate::error::SimError;
 use crate::plant::{Contact, PlateSegment};
 use crate::plate::{EndStop, PlantFile, Stepper};
 use crate::sensors::EncoderConfig;
+
+/// The closed loop's figures, the same for a run on the host and for the co-simulated
+/// firmware's: every cycle's mean position within this of centre …
+pub const MEAN_POSITION_LIMIT_M: f64 = 50e-6;
+/// … the feed rate over the last [`FEED_RATE_CYCLES`] cycles within this of the ideal plate's …
+pub const FEED_RATE_TOLERANCE: f64 = 0.01;
+pub const FEED_RATE_CYCLES: usize = 50;
+/// … and each identified gain within this of the plant file's.
+pub const GAIN_TOLERANCE: f64 = 0.01;
 
 /// How the closed loop runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -52,7 +61,7 @@ impl ClosedLoopOptions {
             probe_fraction: course.probe_fraction,
             sample_s: 2.5e-4,
             plan_change: None,
-            average_cycles: 50.min(cycles),
+            average_cycles: (FEED_RATE_CYCLES as u64).min(cycles),
             limits: course.loop_limits,
             dac,
         }
@@ -130,7 +139,7 @@ pub fn run_closed_loop(
     let mut worst_mean_position_m = 0.0_f64;
     // The decision made at the last boundary, applied at the next segment begun.
     let mut pending: Option<Decision> = None;
-    let mut decided: Option<Decision> = None;
+    let mut cycle_trims = CycleTrims::NONE;
     // The feeder comes up idle, the drive enabled at zero command, and is started at once: the
     // probe begins one idle period later.
     let mut queued = scheduler.next_segment();
@@ -145,7 +154,7 @@ pub fn run_closed_loop(
             if decision.release {
                 scheduler.release_hold();
             }
-            decided = Some(decision);
+            cycle_trims.take(&decision, course.feedforward());
         }
         if playing.starts_cycle() {
             trims = queued_trims;
@@ -205,10 +214,11 @@ pub fn run_closed_loop(
         }
         queued = scheduler.next_segment();
         if queued.starts_cycle() {
-            queued_trims = match decided {
-                Some(decision) if decision.cycle == queued.cycle => decision.trims,
-                _ => course.feedforward(),
-            };
+            let after_idle = playing.kind == SegmentKind::Idle;
+            queued_trims = cycle_trims
+                .for_cycle(&queued, after_idle)
+                .map_err(|late| SimError::Request(format!("no trims for cycle {}", late.cycle)))?
+                .unwrap_or(Trims::NONE);
         }
         plate.play(&playing, &trims)?;
     }

@@ -6,6 +6,9 @@
 use feeder_emulator::plant::Plant;
 use feeder_shared::DacCalibration;
 
+use crate::closed_loop::{
+    FEED_RATE_CYCLES, FEED_RATE_TOLERANCE, GAIN_TOLERANCE, MEAN_POSITION_LIMIT_M,
+};
 use crate::error::SimError;
 use crate::hil::{parse_line, Event};
 use crate::plant::{Contact, PlateSegment};
@@ -185,16 +188,6 @@ impl Plant for PlatePlant {
         self.pending.drain(..taken).collect()
     }
 }
-
-/// The closed loop's figures, held to: the plate's mean within this of centre in every cycle
-/// from the release of the soft start to the stop request …
-pub const MEAN_POSITION_LIMIT_M: f64 = 50e-6;
-/// … the feed rate of the last [`FEED_RATE_CYCLES`] cycles before the stop within this of the
-/// ideal plate's …
-pub const FEED_RATE_TOLERANCE: f64 = 0.01;
-pub const FEED_RATE_CYCLES: usize = 50;
-/// … and the identified gains within this of the plant file's.
-pub const GAIN_TOLERANCE: f64 = 0.01;
 
 /// What the firmware's log says of its closed loop (its `closed loop:`, `drive identified:` and
 /// `plant: cycle` lines).

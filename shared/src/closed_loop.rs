@@ -9,7 +9,8 @@ pub mod shape;
 pub mod track;
 
 pub use course::{
-    Course, CourseConfig, CourseError, Decision, LoopReport, PositionSample, Probe, Stage,
+    Course, CourseConfig, CourseError, CycleTrims, Decision, LateTrims, LoopReport, PositionSample,
+    Probe, Stage,
 };
 pub use cycle_loop::{CycleLoop, LoopError, LoopLimits, Stroke, Trims};
 pub use identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};

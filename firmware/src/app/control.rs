@@ -7,7 +7,7 @@ use core::sync::atomic::Ordering;
 use defmt::{error, info, warn};
 use embassy_time::Timer;
 use embedded_hal::digital::OutputPin;
-use feeder_shared::closed_loop::Trims;
+use feeder_shared::closed_loop::{CycleTrims, LateTrims, Trims};
 use feeder_shared::{
     Fault, MotionRequest, Phase, RunState, Scheduler, Segment, SegmentKind, StopCategory,
     Supervisor, SupervisorEvent, TickPlan,
@@ -38,10 +38,8 @@ pub struct ControlLoop<O, E> {
     cycle: u64,
     /// The status as last published.
     published: Status,
-    /// The closed loop's trims last decided, for their cycle, and its feedforward for a cycle
-    /// whose trims were not decided.
-    decided: Option<(u64, Trims)>,
-    feedforward: Trims,
+    /// The closed loop's trims as each cycle takes them.
+    trims: CycleTrims,
     /// The closed loop's course stopped: it runs again only after a reset of the board.
     loop_stopped: bool,
     /// The segment playing belongs to an idle period.
@@ -57,8 +55,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             phase: Phase::Stopped,
             cycle: 0,
             published: Status::POWER_UP,
-            decided: None,
-            feedforward: Trims::NONE,
+            trims: CycleTrims::NONE,
             loop_stopped: false,
             idle: true,
         }
@@ -146,24 +143,21 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     /// the closed loop's fault stops the feeder at its end. Once the course has stopped, every
     /// start ends so after one cycle at the plan's levels, until a reset of the board.
     fn trim(&mut self, segment: &Segment, scheduler: &mut Scheduler) {
-        if !CLOSED_LOOP || segment.kind != SegmentKind::Accelerate {
+        if !CLOSED_LOOP || !segment.starts_cycle() {
             return;
         }
-        let trims = match self.decided {
+        let trims = match self.trims.for_cycle(segment, self.idle) {
+            Ok(None) => return,
             _ if self.loop_stopped => {
                 error!("closed loop: its course stopped earlier; reset the board to run it again");
                 self.handle(SupervisorEvent::Fault(Fault::ClosedLoop), Some(scheduler));
                 Trims::NONE
             }
-            Some((cycle, trims)) if cycle == segment.cycle => trims,
-            _ if self.idle => self.feedforward,
-            _ => {
-                error!(
-                    "closed loop: no trims for cycle {=u64} in time",
-                    segment.cycle
-                );
+            Ok(Some(trims)) => trims,
+            Err(LateTrims { cycle }) => {
+                error!("closed loop: no trims for cycle {=u64} in time", cycle);
                 self.handle(SupervisorEvent::Fault(Fault::ClosedLoop), Some(scheduler));
-                self.feedforward
+                self.trims.feedforward()
             }
         };
         let planned_mps2 = segment.peak_accel_mps2 * segment.amplitude.fraction();
@@ -190,8 +184,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
                 if decision.release {
                     scheduler.release_hold();
                 }
-                self.decided = Some((decision.cycle, decision.trims));
-                self.feedforward = feedforward;
+                self.trims.take(&decision, feedforward);
             }
             Some(Ruling::Stop) => {
                 self.loop_stopped = true;

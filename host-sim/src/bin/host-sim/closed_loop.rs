@@ -7,7 +7,10 @@ use std::time::Instant;
 
 use clap::Args;
 use feeder_shared::closed_loop::Identified;
-use host_sim::closed_loop::{run_closed_loop, ClosedLoopOptions, ClosedLoopRun, CycleRecord};
+use host_sim::closed_loop::{
+    run_closed_loop, ClosedLoopOptions, ClosedLoopRun, CycleRecord, FEED_RATE_TOLERANCE,
+    GAIN_TOLERANCE, MEAN_POSITION_LIMIT_M,
+};
 use host_sim::plate::{EndStop, PlantFile, PlateParams};
 use host_sim::{OperatingPoint, SimError, Timing};
 use serde::Serialize;
@@ -24,13 +27,6 @@ const MAX_CYCLES: u64 = 100_000;
 const DEFAULT_RAMP_CYCLES: u16 = 25;
 /// Longest soft start of `--ramp-cycles`.
 const MAX_RAMP_CYCLES: u16 = 1_000;
-
-/// The verdict's criteria: the worst `|cycle mean position|` over the running cycles …
-const MAX_MEAN_POSITION_M: f64 = 50e-6;
-/// … the feed rate's relative difference from the ideal plate's …
-const MAX_FEED_DIFFERENCE: f64 = 0.01;
-/// … and each identified gain's from the plant file's.
-const MAX_GAIN_ERROR: f64 = 0.01;
 
 /// The flags of `host-sim closed-loop`.
 #[derive(Args)]
@@ -333,23 +329,23 @@ impl ClosedLoopReport {
         let feed_rate_difference =
             (ideal_feed_rate_mps != 0.0).then(|| run.feed_rate_mps / ideal_feed_rate_mps - 1.0);
         let mut reasons = Vec::new();
-        if !within(run.worst_mean_position_m, MAX_MEAN_POSITION_M) {
+        if !within(run.worst_mean_position_m, MEAN_POSITION_LIMIT_M) {
             reasons.push(format!(
                 "worst mean position {:.1} µm: over {:.0} µm",
                 run.worst_mean_position_m * 1e6,
-                MAX_MEAN_POSITION_M * 1e6
+                MEAN_POSITION_LIMIT_M * 1e6
             ));
         }
         match feed_rate_difference {
-            Some(difference) if !within(difference, MAX_FEED_DIFFERENCE) => reasons.push(format!(
+            Some(difference) if !within(difference, FEED_RATE_TOLERANCE) => reasons.push(format!(
                 "feed rate {:.2} % {} the ideal plate's: over {:.0} %",
                 difference.abs() * 1e2,
                 if difference < 0.0 { "below" } else { "above" },
-                MAX_FEED_DIFFERENCE * 1e2
+                FEED_RATE_TOLERANCE * 1e2
             )),
             // Where the ideal part does not move, the real one must not either: within the
             // same share of the velocity scale a_max·T/4.
-            None if !within(run.feed_rate_mps, MAX_FEED_DIFFERENCE * velocity_scale_mps) => reasons
+            None if !within(run.feed_rate_mps, FEED_RATE_TOLERANCE * velocity_scale_mps) => reasons
                 .push(format!(
                     "feed rate {:.2} mm/s where the ideal plate's part does not move",
                     run.feed_rate_mps * 1e3
@@ -357,12 +353,12 @@ impl ClosedLoopReport {
             _ => {}
         }
         for (sign, error) in [("+", gain_positive_error), ("−", gain_negative_error)] {
-            if !within(error, MAX_GAIN_ERROR) {
+            if !within(error, GAIN_TOLERANCE) {
                 reasons.push(format!(
                     "gain {sign} identified {:.2} % {}: over {:.0} %",
                     error.abs() * 1e2,
                     if error < 0.0 { "low" } else { "high" },
-                    MAX_GAIN_ERROR * 1e2
+                    GAIN_TOLERANCE * 1e2
                 ));
             }
         }
@@ -539,7 +535,7 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
     };
     let start_s = running.first().map_or(0.0, |c| c.time_s);
     let end_s = running.last().map_or(0.0, |c| c.time_s);
-    let limit_um = MAX_MEAN_POSITION_M * 1e6;
+    let limit_um = MEAN_POSITION_LIMIT_M * 1e6;
     let line = |name: String, points: Vec<(f64, f64)>, mark: Mark, color: usize| Series {
         name,
         points,

@@ -10,9 +10,8 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use feeder_emulator::plant::TICK_HZ;
 use feeder_shared::DacCalibration;
-use host_sim::cosim::{
-    cycles, judge, CosimCycle, LoopLog, LoopVerdict, PlatePlant, PlateSample, MEAN_POSITION_LIMIT_M,
-};
+use host_sim::closed_loop::{FEED_RATE_CYCLES, MEAN_POSITION_LIMIT_M};
+use host_sim::cosim::{cycles, judge, CosimCycle, LoopLog, LoopVerdict, PlatePlant, PlateSample};
 use host_sim::plate::{EndStop, PlantFile};
 use host_sim::SimError;
 use serde::Serialize;
@@ -271,7 +270,7 @@ fn print_closed_loop(closed: &ClosedLoopReport) {
         say!(
             "feed rate         {:.2} mm/s over the last {} cycles before the stop, ideal plate {:.2} mm/s ({:+.2} %)",
             rate * 1e3,
-            host_sim::cosim::FEED_RATE_CYCLES,
+            FEED_RATE_CYCLES,
             verdict.ideal_feed_rate_mps * 1e3,
             (rate / verdict.ideal_feed_rate_mps - 1.0) * 100.0
         );
