@@ -4,8 +4,8 @@
 //! that made them, a cycle's trims fixed when its first segment is made.
 
 use feeder_shared::closed_loop::{
-    CommandSegment, Course, CourseConfig, CourseError, CycleShape, Decision, IdentifyError,
-    LoopError, PositionSample, Stage, Trims,
+    CommandSegment, Course, CourseConfig, CourseError, CycleShape, CycleTrims, Decision,
+    IdentifyError, LateTrims, LoopError, PositionSample, Stage, Trims,
 };
 use feeder_shared::{
     Drive, Limits, Scheduler, Segment, TickClock, TickPlan, Waveform, WaveformSpec,
@@ -457,4 +457,50 @@ proptest! {
             }
         }
     }
+}
+
+/// Which trims a cycle runs: the ones decided for it; after an idle period, whose first segment
+/// was made before the decision, the feedforward; an idle period none; and a running cycle after
+/// a running one without its decision is late, named by its cycle.
+#[test]
+fn a_cycle_runs_its_decided_trims_the_feedforward_after_idle_or_is_late() {
+    let mut scheduler = Scheduler::new(plan(), 4);
+    let idle = scheduler.next_segment();
+    scheduler.start();
+    let first = scheduler.next_segment();
+    let decided = Trims {
+        positive: 0.98,
+        negative: 1.02,
+        bias_mps2: -1.0,
+    };
+    let feedforward = Trims {
+        bias_mps2: -0.5,
+        ..Trims::NONE
+    };
+    let mut trims = CycleTrims::NONE;
+    assert_eq!(trims.for_cycle(&idle, true), Ok(None));
+    assert_eq!(trims.for_cycle(&first, true), Ok(Some(Trims::NONE)));
+    assert_eq!(
+        trims.for_cycle(&first, false),
+        Err(LateTrims { cycle: first.cycle })
+    );
+    let decision = Decision {
+        cycle: first.cycle,
+        trims: decided,
+        release: false,
+        identify: false,
+    };
+    trims.take(&decision, feedforward);
+    assert_eq!(trims.for_cycle(&first, false), Ok(Some(decided)));
+    for _ in 0..3 {
+        scheduler.next_segment();
+    }
+    let second = scheduler.next_segment();
+    assert_eq!(trims.for_cycle(&second, true), Ok(Some(feedforward)));
+    assert_eq!(
+        trims.for_cycle(&second, false),
+        Err(LateTrims {
+            cycle: second.cycle
+        })
+    );
 }
