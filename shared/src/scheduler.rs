@@ -141,8 +141,8 @@ impl Scheduler {
 
     /// Hold the amplitude at `step / ramp_cycles` (at most all) from the next cycle boundary
     /// while motion is requested: a start goes there at once, without the soft start, and a
-    /// running plan drops to it; step 0 idles. The closed loop probes the drive and centres the
-    /// plate on held cycles, and idles on a hold at 0 while it identifies the drive.
+    /// running plan drops to it; step 0 idles while motion stays requested. The closed loop
+    /// probes the drive and centres the plate on held cycles.
     pub fn hold_step(&mut self, step: u16) {
         self.held_step = Some(step);
     }
