@@ -4,11 +4,13 @@
 //!
 //! [`params`] are the plate's keys of a TOML plant file ([`PlantFile`]: with its sensors); [`motion`] solves the plate and part
 //! exactly between events ([`linear`]: matrix exponential and bracketed root finding;
-//! [`regime`]: what is kept of each regime); [`Stepper`] advances them one commanded segment
+//! [`regime`]: what is kept of each regime), and [`free`] the same in scalar closed form
+//! where the slide has no Coulomb friction; [`Stepper`] advances them one commanded segment
 //! at a time and [`run()`] over a stream of segments; [`Trajectory`] is the recorded motion at
 //! any instant, for sensors; [`mod@reference`] is a fixed-step integrator for validation only. When [`PlateParams::is_ideal`] holds, callers keep the exact
 //! piecewise-linear simulator of [`crate::sim`].
 
+pub mod free;
 pub mod linear;
 pub mod motion;
 pub mod params;

@@ -4,6 +4,7 @@
 use crate::error::SimError;
 use crate::plant::{Contact, PlateSegment};
 
+use super::free::FreeSlide;
 use super::linear::{self, Matrix, State, F, P, Q, U, V, X};
 use super::motion::{Event, Model, Part, Slide};
 use super::params::PlateParams;
@@ -42,6 +43,8 @@ pub struct PlatePoint {
 #[derive(Debug)]
 pub struct Stepper {
     model: Model,
+    /// The scalar solution, where the slide is free.
+    free: Option<FreeSlide>,
     regimes: Regimes,
     z: State,
     slide: Slide,
@@ -62,8 +65,10 @@ impl Stepper {
         } else {
             Slide::Free
         };
+        let model = Model::new(*params, *contact);
         Ok(Stepper {
-            model: Model::new(*params, *contact),
+            free: FreeSlide::new(&model),
+            model,
             regimes: Regimes::default(),
             z: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
             slide,
@@ -160,27 +165,37 @@ impl Stepper {
         let mut offset_s = 0.0;
         for _ in 0..MAX_EVENTS_PER_SEGMENT {
             model.settle(&mut self.z, &mut self.slide, &mut self.part);
-            let regime = self.regimes.get(model, self.slide, self.part, target_n);
             let rest_s = (segment.duration_s - offset_s).max(0.0);
             let peak_m = &mut self.peak_m;
-            let (next, end_z) = model.next_event(regime, &self.z, rest_s, |x| {
-                *peak_m = peak_m.max(x.abs());
-            });
+            let mut turn = |x: f64| *peak_m = peak_m.max(x.abs());
+            let free = self
+                .free
+                .as_ref()
+                .and_then(|free| free.next_event(self.part, target_n, &self.z, rest_s, &mut turn));
+            let (next, end_z) = match free {
+                Some(outcome) => outcome,
+                None => {
+                    let regime = self.regimes.get(model, self.slide, self.part, target_n);
+                    model.next_event(regime, &self.z, rest_s, &mut turn)
+                }
+            };
             let until_s = next.map_or(segment.duration_s, |(_, t)| offset_s + t);
-            if let Some(points) = self.points.as_mut() {
-                let span = (self.time_s, segment.duration_s);
-                let part = self.part;
-                sample(
-                    points, &regime.a, &self.z, part, command, span, offset_s, until_s,
-                );
-            }
-            if let Some(pieces) = self.pieces.as_mut() {
-                pieces.push(Piece {
-                    start_s: self.time_s + offset_s,
-                    end_s: self.time_s + until_s,
-                    a: regime.a,
-                    z: self.z,
-                });
+            if self.points.is_some() || self.pieces.is_some() {
+                let a = model.matrix(self.slide, self.part, target_n);
+                if let Some(points) = self.points.as_mut() {
+                    let span = (self.time_s, segment.duration_s);
+                    sample(
+                        points, &a, &self.z, self.part, command, span, offset_s, until_s,
+                    );
+                }
+                if let Some(pieces) = self.pieces.as_mut() {
+                    pieces.push(Piece {
+                        start_s: self.time_s + offset_s,
+                        end_s: self.time_s + until_s,
+                        a,
+                        z: self.z,
+                    });
+                }
             }
             self.z = end_z;
             if self.part == Part::Stuck {

@@ -1,0 +1,861 @@
+//! The plate on a free slide (no Coulomb friction), in scalar closed form.
+//!
+//! Without slide friction the plate `(x, v, F, q)` is linear and time-invariant under the
+//! segment's target `F*`, and the part does not act back on it. With `φ = F − F*` decaying as
+//! `φ₀·e^{−ρτ}` (`ρ = 2π·f_c`; `φ ≡ 0` without a current loop) and `r_x = 1/(M·ρ² − c·ρ + k)` the
+//! current loop's mode (`c` the slide's damping and viscous friction together),
+//!
+//! * `x(τ) = X(τ) + r_x·φ(τ)`, `v = X′ − ρ·r_x·φ`, `a = X″ + ρ²·r_x·φ`, `q = ∫X − (r_x/ρ)·φ`,
+//!
+//! where the slow part `X` obeys `M·X″ + c·X′ + k·X = F*` and is summed as its Taylor series
+//! over a chunk of length `L ≤ 1/ω` (`ω = max(√(k/M), c/M)` bounds its rates; the coefficients
+//! follow from the equation by a two-term recurrence and are summed until `(ω·L)ⁿ/n!` is below
+//! `2⁻⁶⁴`, at most 22 of them). The part slides with constant `u′` or moves with the plate.
+//! No matrix exponential is formed: the general solver of [`super::motion`] needs one per
+//! regime and a ladder of steps through it.
+//!
+//! Every event function is `g(τ) = S(τ) + γ·e^{−ρτ}` with `S` a polynomial. Between two zeros of
+//! `Q = ρ·S + S′`, `H = e^{ρτ}·g` (`H′ = e^{ρτ}·Q`) is monotone, so `g` has at most one zero
+//! there, bracketed by its signs at the ends and refined by Newton's steps inside the bracket to
+//! a few units in the last place. The zeros of `Q` are isolated through its derivatives: the
+//! lowest derivative `Q^(j)` whose constant Taylor coefficient outweighs the others' bound over
+//! the chunk has no zero, so `Q^(j−1)` is monotone and its zeros, and from them those of
+//! `Q^(j−2)`, …, `Q`, are bracketed in turn. Where `Q` is monotone (`j = 1`) its one zero is
+//! found only if `H`'s extremum there may reach zero. A chunk on which no `j ≤ 4` passes is
+//! halved.
+
+use super::linear::{State, F, P, Q, U, V, X};
+use super::motion::{Event, Model, Part};
+
+/// Taylor coefficients summed for the slow part over a chunk of at most `1/ω`.
+const TERMS: usize = 22;
+
+/// Highest derivative of `Q` tried for a proof that it has no zero on a chunk.
+const MAX_ORDER: usize = 4;
+
+/// Zeros of `Q^(i)` at most, `i ≥ 0`: one more than those of `Q^(i+1)`.
+const MAX_ZEROS: usize = MAX_ORDER;
+
+/// Halvings of a chunk before the free slide hands the stretch to the general solver.
+const MAX_HALVINGS: i32 = 40;
+
+type Poly = [f64; TERMS];
+
+/// `1/n` for `n < TERMS + 1` (`1/0` left at 0).
+const INVERSE: [f64; TERMS + 1] = {
+    let mut out = [0.0; TERMS + 1];
+    let mut n = 1;
+    while n <= TERMS {
+        out[n] = 1.0 / n as f64;
+        n += 1;
+    }
+    out
+};
+
+/// The plate on a free slide and its part: what the scalar solution needs of a [`Model`].
+#[derive(Debug, Clone, Copy)]
+pub struct FreeSlide {
+    /// `ρ`, 0 without a current loop.
+    lag_per_s: f64,
+    /// `r_x`: the plate's position per newton of `φ` in the current loop's mode.
+    mode_m_per_n: f64,
+    mass_kg: f64,
+    /// `k/M`.
+    spring_per_s2: f64,
+    /// `c/M`.
+    damping_per_s: f64,
+    /// `ω`, 0 for a plate without spring or damping.
+    rate_per_s: f64,
+    longest_chunk_s: f64,
+    end_stop_m: Option<f64>,
+    /// `μ_k·g`, `μ_s·g` and the contact's own force per mass, `φ_c`.
+    kinetic_mps2: f64,
+    static_mps2: f64,
+    force_mps2: f64,
+}
+
+impl FreeSlide {
+    /// The free slide of `model`; `None` if the slide has Coulomb friction, or if the current
+    /// loop's rate is one of the slide's own (the mode cannot be split off).
+    pub fn new(model: &Model) -> Option<FreeSlide> {
+        let p = &model.params;
+        if p.coulomb_friction_n != 0.0 {
+            return None;
+        }
+        let damping_nspm = p.spring_damping_nspm + p.viscous_friction_nspm;
+        let (lag_per_s, mode_m_per_n) = match model.lag_per_s {
+            Some(rho) => {
+                let stiffness = p.mass_kg * rho * rho - damping_nspm * rho + p.spring_npm;
+                let scale = p.mass_kg * rho * rho + damping_nspm * rho + p.spring_npm;
+                if stiffness.abs() <= 1e-9 * scale {
+                    return None;
+                }
+                (rho, 1.0 / stiffness)
+            }
+            None => (0.0, 0.0),
+        };
+        let spring_per_s2 = p.spring_npm / p.mass_kg;
+        let damping_per_s = damping_nspm / p.mass_kg;
+        let rate_per_s = spring_per_s2.sqrt().max(damping_per_s);
+        Some(FreeSlide {
+            lag_per_s,
+            mode_m_per_n,
+            mass_kg: p.mass_kg,
+            spring_per_s2,
+            damping_per_s,
+            rate_per_s,
+            longest_chunk_s: if rate_per_s > 0.0 {
+                1.0 / rate_per_s
+            } else {
+                f64::INFINITY
+            },
+            end_stop_m: p.end_stop_m,
+            kinetic_mps2: model.contact.kinetic_accel_mps2(),
+            static_mps2: model.contact.static_accel_mps2(),
+            force_mps2: model.contact.force_accel_mps2(),
+        })
+    }
+
+    /// The first event within `duration_s` of the state `z0` under the drive target `target_n`
+    /// with the part in contact `part`, with its time, and the state then (at `duration_s` if no
+    /// event comes first); the plate's turning points before it are passed to `turn` with their
+    /// position. The same answer as [`Model::next_event`] on the free slide; `None` where a chunk
+    /// could not be decided (a zero of `Q` of order beyond [`MAX_ORDER`]).
+    pub fn next_event(
+        &self,
+        part: Part,
+        target_n: f64,
+        z0: &State,
+        duration_s: f64,
+        mut turn: impl FnMut(f64),
+    ) -> Option<(Option<(Event, f64)>, State)> {
+        let mut z = *z0;
+        let mut start_s = 0.0;
+        let mut halvings = 0;
+        loop {
+            let rest_s = duration_s - start_s;
+            if rest_s <= 0.0 {
+                return Some((None, z));
+            }
+            let step_s = self.longest_chunk_s * 0.5_f64.powi(halvings);
+            let last = step_s >= rest_s;
+            let length_s = if last { rest_s } else { step_s };
+            let chunk = Chunk::new(self, part, target_n, &z, length_s);
+            let Some((first, turns)) = chunk.first_event() else {
+                halvings += 1;
+                if halvings > MAX_HALVINGS {
+                    return None;
+                }
+                continue;
+            };
+            for &t in turns.as_slice() {
+                if first.is_none_or(|(_, at)| t <= at) {
+                    turn(chunk.plate(t).0);
+                }
+            }
+            if let Some((event, t)) = first {
+                return Some((Some((event, start_s + t)), chunk.state(t)));
+            }
+            if last {
+                return Some((None, chunk.state(rest_s)));
+            }
+            z = chunk.state(length_s);
+            start_s += length_s;
+            halvings = 0;
+        }
+    }
+}
+
+/// A few sorted times.
+#[derive(Debug, Clone, Copy, Default)]
+struct Times {
+    len: usize,
+    at: [f64; MAX_ZEROS + 2],
+}
+
+impl Times {
+    fn push(&mut self, t: f64) {
+        if self.len < self.at.len() {
+            self.at[self.len] = t;
+            self.len += 1;
+        }
+    }
+
+    fn as_slice(&self) -> &[f64] {
+        &self.at[..self.len]
+    }
+}
+
+/// What a function watches for.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Watch {
+    Event(Event),
+    Turn,
+}
+
+/// A watched function's kind, weights of `(x, v, a)`, constant and slope in `τ`.
+type Watched = (Watch, [f64; 3], f64, f64);
+
+/// An event function `g(τ) = S(τ) + γ·e^{−ρτ}`.
+struct Function {
+    slow: Poly,
+    fast: f64,
+    /// `g(0)` from the state itself, exactly zero where the regime was entered on its boundary.
+    start: f64,
+    /// `g` at the chunk's end.
+    end: f64,
+}
+
+/// The plate's and the part's motion from a state, over one chunk.
+struct Chunk<'a> {
+    free: &'a FreeSlide,
+    part: Part,
+    target_n: f64,
+    z0: State,
+    /// `φ₀`.
+    phi_n: f64,
+    /// Taylor coefficients of the slow position `X`.
+    x: Poly,
+    /// `∫X` at the start.
+    q0: f64,
+    /// The chunk's length `L` and the plate's `(x, v, a)` then.
+    length_s: f64,
+    end: (f64, f64, f64),
+    /// Taylor coefficients summed: the first `n` with `(ω·L)ⁿ/n!` below `2⁻⁶⁴` for the chunk's
+    /// length `L`, at least 4 (a plate without spring or damping is a cubic).
+    terms: usize,
+}
+
+impl<'a> Chunk<'a> {
+    fn new(free: &'a FreeSlide, part: Part, target_n: f64, z0: &State, length_s: f64) -> Self {
+        let phi_n = if free.lag_per_s > 0.0 {
+            z0[F] - target_n
+        } else {
+            0.0
+        };
+        let r_x = free.mode_m_per_n;
+        let rho = free.lag_per_s;
+        let reach = free.rate_per_s * length_s;
+        let mut terms = 4;
+        let mut bound = reach * reach * reach / 6.0;
+        while terms < TERMS && bound >= f64::EPSILON / 4096.0 {
+            bound *= reach * INVERSE[terms];
+            terms += 1;
+        }
+        let mut x = [0.0; TERMS];
+        x[0] = z0[X] - r_x * phi_n;
+        x[1] = z0[V] + rho * r_x * phi_n;
+        x[2] =
+            0.5 * (target_n / free.mass_kg - free.spring_per_s2 * x[0] - free.damping_per_s * x[1]);
+        for n in 1..terms - 2 {
+            x[n + 2] = -(free.spring_per_s2 * x[n]
+                + free.damping_per_s * (n + 1) as f64 * x[n + 1])
+                * INVERSE[n + 1]
+                * INVERSE[n + 2];
+        }
+        let q0 = if rho > 0.0 {
+            z0[Q] + r_x / rho * phi_n
+        } else {
+            z0[Q]
+        };
+        let mut chunk = Chunk {
+            free,
+            part,
+            target_n,
+            z0: *z0,
+            phi_n,
+            x,
+            q0,
+            length_s,
+            end: (0.0, 0.0, 0.0),
+            terms,
+        };
+        chunk.end = chunk.plate_at(length_s);
+        chunk
+    }
+
+    /// `φ(τ)`.
+    fn phi(&self, t: f64) -> f64 {
+        if self.phi_n == 0.0 {
+            0.0
+        } else {
+            self.phi_n * (-self.free.lag_per_s * t).exp()
+        }
+    }
+
+    /// The plate's `(x, v, a)` at `τ`.
+    fn plate(&self, t: f64) -> (f64, f64, f64) {
+        if t == self.length_s {
+            self.end
+        } else {
+            self.plate_at(t)
+        }
+    }
+
+    /// [`Chunk::plate`], summed.
+    fn plate_at(&self, t: f64) -> (f64, f64, f64) {
+        let p = &self.x[..self.terms];
+        let x = sum_from(0, p, |_| 1.0, t);
+        let v = sum_from(1, p, |n| n as f64, t);
+        let a = sum_from(2, p, |n| (n * (n - 1)) as f64, t);
+        let phi = self.phi(t);
+        let rho = self.free.lag_per_s;
+        let r_x = self.free.mode_m_per_n;
+        (
+            x + r_x * phi,
+            v - rho * r_x * phi,
+            a + rho * rho * r_x * phi,
+        )
+    }
+
+    /// The whole state at `τ`.
+    fn state(&self, t: f64) -> State {
+        let (x, v, _) = self.plate(t);
+        let phi = self.phi(t);
+        let mut q = 0.0;
+        for n in (0..self.terms).rev() {
+            q = q * t + self.x[n] * INVERSE[n + 1];
+        }
+        q = self.q0 + q * t;
+        if self.free.lag_per_s > 0.0 {
+            q -= self.free.mode_m_per_n / self.free.lag_per_s * phi;
+        }
+        let mut z = self.z0;
+        z[X] = x;
+        z[V] = v;
+        z[F] = self.target_n + phi;
+        z[Q] = q;
+        match self.part {
+            Part::Sliding(sigma) => {
+                let accel = self.part_accel_mps2(sigma);
+                z[P] = self.z0[P] + t * (self.z0[U] + 0.5 * accel * t);
+                z[U] = self.z0[U] + accel * t;
+            }
+            Part::Stuck => {
+                z[P] = self.z0[P] + (x - self.z0[X]);
+                z[U] = v;
+            }
+        }
+        z
+    }
+
+    /// `u′` of a part sliding with `w = u − v` of sign `σ`.
+    fn part_accel_mps2(&self, sigma: f64) -> f64 {
+        -sigma * self.free.kinetic_mps2 + self.free.force_mps2
+    }
+
+    /// The function `s_x·x + s_v·v + s_a·a + constant + slope·τ`.
+    fn function(&self, [s_x, s_v, s_a]: [f64; 3], constant: f64, slope: f64) -> Function {
+        let terms = self.terms;
+        let mut slow = [0.0; TERMS];
+        for (n, c) in slow[..terms].iter_mut().enumerate() {
+            *c = s_x * self.x[n];
+            if n + 1 < terms {
+                *c += s_v * (n + 1) as f64 * self.x[n + 1];
+            }
+            if n + 2 < terms {
+                *c += s_a * ((n + 1) * (n + 2)) as f64 * self.x[n + 2];
+            }
+        }
+        slow[0] += constant;
+        slow[1] += slope;
+        let rho = self.free.lag_per_s;
+        let r_x = self.free.mode_m_per_n;
+        let fast = self.phi_n * r_x * (s_x - rho * s_v + rho * rho * s_a);
+        let accel_mps2 = self.z0[F] / self.free.mass_kg
+            - self.free.spring_per_s2 * self.z0[X]
+            - self.free.damping_per_s * self.z0[V];
+        let start = s_x * self.z0[X] + s_v * self.z0[V] + s_a * accel_mps2 + constant;
+        let (x, v, a) = self.end;
+        let end = s_x * x + s_v * v + s_a * a + constant + slope * self.length_s;
+        Function {
+            slow,
+            fast,
+            start,
+            end,
+        }
+    }
+
+    /// The functions this chunk watches, each positive while its regime holds, as
+    /// `(watch, [s_x, s_v, s_a], constant, slope)` of `s_x·x + s_v·v + s_a·a + constant + slope·τ`.
+    fn watched(&self) -> ([Watched; 5], usize) {
+        let mut out = [(Watch::Turn, [0.0, 1.0, 0.0], 0.0, 0.0); 5];
+        let mut count = 1;
+        match self.part {
+            Part::Sliding(sigma) => {
+                let accel = self.part_accel_mps2(sigma);
+                out[count] = (
+                    Watch::Event(Event::PartMeetsPlate),
+                    [0.0, -sigma, 0.0],
+                    sigma * self.z0[U],
+                    sigma * accel,
+                );
+                count += 1;
+            }
+            Part::Stuck => {
+                for sign in [1.0, -1.0] {
+                    out[count] = (
+                        Watch::Event(Event::PartBreaksAway),
+                        [0.0, 0.0, -sign],
+                        self.free.static_mps2 + sign * self.free.force_mps2,
+                        0.0,
+                    );
+                    count += 1;
+                }
+            }
+        }
+        if let Some(x_lim) = self.free.end_stop_m {
+            for sign in [1.0, -1.0] {
+                out[count] = (Watch::Event(Event::EndStop), [-sign, 0.0, 0.0], x_lim, 0.0);
+                count += 1;
+            }
+        }
+        (out, count)
+    }
+
+    /// The first event in `[0, L]` and the plate's turning points in `(0, L]`;
+    /// `None` if a zero of some `Q` could not be isolated.
+    fn first_event(&self) -> Option<(Option<(Event, f64)>, Times)> {
+        let (watched, count) = self.watched();
+        let mut first: Option<(Event, f64)> = None;
+        let mut turns = Times::default();
+        for &(watch, weights, constant, slope) in &watched[..count] {
+            let function = self.function(weights, constant, slope);
+            let pieces = self.pieces(&function)?;
+            match watch {
+                Watch::Event(event) => {
+                    if let Some(t) = self.first_zero(&function, &pieces) {
+                        if first.is_none_or(|(_, at)| t < at) {
+                            first = Some((event, t));
+                        }
+                    }
+                }
+                Watch::Turn => turns = self.sign_changes(&function, &pieces),
+            }
+        }
+        Some((first, turns))
+    }
+
+    /// Times `0 < t₁ < … < length_s` between which `H = e^{ρτ}·g` is monotone, as far as the
+    /// zeros of `g` need them: where `Q = ρ·S + S′` changes sign once, that zero only if `H`'s
+    /// extremum there turns towards zero between ends of one sign (or leaves zero from the
+    /// start); more zeros of `Q` all.
+    fn pieces(&self, function: &Function) -> Option<Times> {
+        let length_s = self.length_s;
+        let rho = self.free.lag_per_s;
+        let terms = self.terms;
+        let mut q = [0.0; TERMS];
+        for (n, c) in q[..terms].iter_mut().enumerate() {
+            *c = rho * function.slow[n];
+            if n + 1 < terms {
+                *c += (n + 1) as f64 * function.slow[n + 1];
+            }
+        }
+        let q = &q[..terms];
+        let mut pieces = Times::default();
+        pieces.push(0.0);
+        if !zero_free(q, length_s) {
+            if slope_free(q, length_s) {
+                let (q_lo, q_hi) = (q[0], horner(q, length_s));
+                if (q_lo > 0.0) != (q_hi > 0.0) {
+                    // H rises then falls where Q(0) > 0: a maximum, else a minimum.
+                    let maximum = q_lo > 0.0;
+                    let g_lo = function.start;
+                    let g_hi = self.value(function, length_s);
+                    let needed = if g_lo == 0.0 {
+                        maximum
+                    } else {
+                        (g_lo > 0.0) == (g_hi > 0.0) && (g_lo > 0.0) != maximum
+                    };
+                    if needed {
+                        pieces.push(refine(|t| jet(q, t), 0.0, q_lo, length_s, q_hi));
+                    }
+                }
+            } else {
+                for &t in zeros(q, length_s)?.as_slice() {
+                    if t > 0.0 && t < length_s {
+                        pieces.push(t);
+                    }
+                }
+            }
+        }
+        pieces.push(length_s);
+        Some(pieces)
+    }
+
+    /// `g` and `g′` at `τ > 0`.
+    fn jet(&self, function: &Function, t: f64) -> (f64, f64) {
+        let (slow, slope) = jet(&function.slow[..self.terms], t);
+        if function.fast == 0.0 {
+            (slow, slope)
+        } else {
+            let fast = function.fast * (-self.free.lag_per_s * t).exp();
+            (slow + fast, slope - self.free.lag_per_s * fast)
+        }
+    }
+
+    fn value(&self, function: &Function, t: f64) -> f64 {
+        if t == 0.0 {
+            function.start
+        } else if t == self.length_s {
+            function.end
+        } else {
+            self.jet(function, t).0
+        }
+    }
+
+    /// The first time at which `g` reaches zero from above, over pieces on each of which it has
+    /// at most one zero. A function that starts at zero (a regime entered on its own boundary, as
+    /// a part that has just met the plate) ends its regime at once only if it is positive at no
+    /// end of a piece of the chunk: a dip of rounding size is no event.
+    fn first_zero(&self, function: &Function, pieces: &Times) -> Option<f64> {
+        let g = |t: f64| self.value(function, t);
+        let points = pieces.as_slice();
+        let g_start = g(points[0]);
+        if g_start < 0.0 {
+            return Some(points[0]);
+        }
+        let mut rest = points[1..].iter();
+        let (mut left, mut g_left) = (points[0], g_start);
+        if g_start == 0.0 {
+            match rest
+                .by_ref()
+                .map(|&t| (t, g(t)))
+                .find(|&(_, g_t)| g_t > 0.0)
+            {
+                Some(positive) => (left, g_left) = positive,
+                None => return Some(points[0]),
+            }
+        }
+        for &right in rest {
+            let g_right = g(right);
+            if g_right <= 0.0 {
+                return Some(refine(
+                    |t| self.jet(function, t),
+                    left,
+                    g_left,
+                    right,
+                    g_right,
+                ));
+            }
+            left = right;
+            g_left = g_right;
+        }
+        None
+    }
+
+    /// Every sign change of `g` over the pieces.
+    fn sign_changes(&self, function: &Function, pieces: &Times) -> Times {
+        let g = |t: f64| self.value(function, t);
+        let points = pieces.as_slice();
+        let mut out = Times::default();
+        let mut left = points[0];
+        let mut g_left = g(left);
+        for &right in &points[1..] {
+            let g_right = g(right);
+            if g_right == 0.0 {
+                out.push(right);
+            } else if g_left != 0.0 && (g_left > 0.0) != (g_right > 0.0) {
+                out.push(refine(
+                    |t| self.jet(function, t),
+                    left,
+                    g_left,
+                    right,
+                    g_right,
+                ));
+            }
+            left = right;
+            g_left = g_right;
+        }
+        out
+    }
+}
+
+/// `Σ_{n ≥ low} w(n)·p_n·t^{n−low}` by Horner's scheme in `t²` on the even and the odd powers
+/// apart: two chains of half the length, which the processor runs side by side.
+#[inline(always)]
+fn sum_from(low: usize, p: &[f64], weight: impl Fn(usize) -> f64, t: f64) -> f64 {
+    let t2 = t * t;
+    let (mut even, mut odd) = (0.0, 0.0);
+    let mut k = p.len().saturating_sub(low);
+    if k % 2 == 1 {
+        k -= 1;
+        even = weight(low + k) * p[low + k];
+    }
+    while k > 0 {
+        k -= 2;
+        odd = odd * t2 + weight(low + k + 1) * p[low + k + 1];
+        even = even * t2 + weight(low + k) * p[low + k];
+    }
+    even + t * odd
+}
+
+/// `p(t)`.
+fn horner(p: &[f64], t: f64) -> f64 {
+    sum_from(0, p, |_| 1.0, t)
+}
+
+/// `p(t)` and `p′(t)`.
+fn jet(p: &[f64], t: f64) -> (f64, f64) {
+    (sum_from(0, p, |_| 1.0, t), sum_from(1, p, |n| n as f64, t))
+}
+
+/// The zero of `f` in `[lo, hi]`, given `f(lo) > 0 ≥ f(hi)` (or the reverse) and a single sign
+/// change between: Newton's steps from the secant's point, kept inside the shrinking bracket
+/// (bisecting where a step would leave it), until a step is below a few units in the last
+/// place. `f_df` gives `f` and `f′`.
+fn refine(f_df: impl Fn(f64) -> (f64, f64), mut lo: f64, f_lo: f64, mut hi: f64, f_hi: f64) -> f64 {
+    let lo_positive = f_lo > 0.0;
+    let mut t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
+    if !(t > lo && t < hi) {
+        t = 0.5 * (lo + hi);
+    }
+    for _ in 0..200 {
+        let (f, df) = f_df(t);
+        if f == 0.0 {
+            return t;
+        }
+        if (f > 0.0) == lo_positive {
+            lo = t;
+        } else {
+            hi = t;
+        }
+        let step = f / df;
+        if step.abs() <= 4.0 * f64::EPSILON * t.abs() {
+            return t;
+        }
+        let newton = t - step;
+        t = if newton > lo && newton < hi {
+            newton
+        } else {
+            0.5 * (lo + hi)
+        };
+        if t <= lo || t >= hi {
+            break;
+        }
+    }
+    hi
+}
+
+/// The Taylor coefficients of `p′`.
+fn derivative(p: &[f64]) -> Poly {
+    let mut out = [0.0; TERMS];
+    for n in 0..p.len() - 1 {
+        out[n] = (n + 1) as f64 * p[n + 1];
+    }
+    out
+}
+
+/// Whether `p` has no zero on `[0, length_s]`: its constant term outweighs the rest there, or
+/// it is identically zero.
+fn zero_free(p: &[f64], length_s: f64) -> bool {
+    let rest = p[1..]
+        .iter()
+        .rev()
+        .fold(0.0, |acc, c| acc * length_s + c.abs())
+        * length_s;
+    p[0].abs() > rest || (p[0] == 0.0 && rest == 0.0)
+}
+
+/// Whether `p′` has no zero on `[0, length_s]` ([`zero_free`] without forming it).
+fn slope_free(p: &[f64], length_s: f64) -> bool {
+    let mut rest = 0.0;
+    for n in (2..p.len()).rev() {
+        rest = rest * length_s + n as f64 * p[n].abs();
+    }
+    rest *= length_s;
+    p[1].abs() > rest || (p[1] == 0.0 && rest == 0.0)
+}
+
+/// The zeros of the polynomial `p` in `[0, length_s]` at which it changes sign, sorted; `None`
+/// if none of its first [`MAX_ORDER`] derivatives can be shown free of zeros there.
+fn zeros(p: &[f64], length_s: f64) -> Option<Times> {
+    let terms = p.len();
+    let mut derivatives = [[0.0; TERMS]; MAX_ORDER + 1];
+    derivatives[0][..terms].copy_from_slice(p);
+    let mut order = 0;
+    while !zero_free(&derivatives[order][..terms], length_s) {
+        if order == MAX_ORDER {
+            return None;
+        }
+        derivatives[order + 1] = derivative(&derivatives[order][..terms]);
+        order += 1;
+    }
+    let mut found = Times::default();
+    for d in derivatives[..order].iter().rev() {
+        let d = &d[..terms];
+        let mut next = Times::default();
+        let mut left = 0.0;
+        let mut f_left = horner(d, left);
+        for right in found.as_slice().iter().copied().chain([length_s]) {
+            let f_right = horner(d, right);
+            if (f_left > 0.0) != (f_right > 0.0) {
+                next.push(refine(|t| jet(d, t), left, f_left, right, f_right));
+            }
+            left = right;
+            f_left = f_right;
+        }
+        found = next;
+    }
+    Some(found)
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::super::linear::{State, F, P, Q, U, V, X};
+    use super::super::motion::{Event, Model, Part, Slide};
+    use super::super::params::PlateParams;
+    use super::super::regime::Regimes;
+    use super::FreeSlide;
+    use crate::plant::Contact;
+
+    /// A free slide with a current loop of 100 Hz to 5 kHz (or none), a spring up to
+    /// 10⁵ N/m and damping up to 200 N·s/m.
+    fn free_plate() -> impl Strategy<Value = PlateParams> {
+        (
+            0.2..5.0_f64,
+            prop_oneof![Just(None), (100.0..5000.0_f64).prop_map(Some)],
+            prop_oneof![Just(0.0), 0.0..1e5_f64],
+            prop_oneof![Just(0.0), 0.0..200.0_f64],
+            prop_oneof![Just(None), (1e-3..1e-2_f64).prop_map(Some)],
+        )
+            .prop_map(
+                |(mass_kg, f_c, spring_npm, damping, end_stop_m)| PlateParams {
+                    mass_kg,
+                    current_bandwidth_hz: f_c,
+                    spring_npm,
+                    spring_damping_nspm: damping,
+                    end_stop_m,
+                    ..PlateParams::default()
+                },
+            )
+    }
+
+    /// Both solvers from the same state: the general one through its regime's matrix.
+    #[allow(clippy::type_complexity)]
+    fn both(
+        model: &Model,
+        part: Part,
+        target_n: f64,
+        z: &State,
+        duration_s: f64,
+    ) -> (
+        (Option<(Event, f64)>, State, Vec<f64>),
+        (Option<(Event, f64)>, State, Vec<f64>),
+    ) {
+        let free = FreeSlide::new(model).expect("a free slide");
+        let mut free_turns = Vec::new();
+        let (free_event, free_z) = free
+            .next_event(part, target_n, z, duration_s, |x| free_turns.push(x))
+            .expect("decided");
+        let mut regimes = Regimes::default();
+        let regime = regimes.get(model, Slide::Free, part, target_n);
+        let mut turns = Vec::new();
+        let (event, end_z) = model.next_event(regime, z, duration_s, |x| turns.push(x));
+        ((free_event, free_z, free_turns), (event, end_z, turns))
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(400))]
+
+        /// From any state, the scalar solution finds the general solver's first event at the same
+        /// time and reaches the same state: each to 10⁻⁹ of its scale.
+        #[test]
+        fn the_free_slide_agrees_with_the_general_solver(
+            params in free_plate(),
+            mu in 0.05..1.0_f64,
+            extra_static in prop_oneof![Just(0.0), 0.0..0.5_f64],
+            start in prop::array::uniform6(-1.0..1.0_f64),
+            stuck in any::<bool>(),
+            command_mps2 in -200.0..200.0_f64,
+            duration_s in 1e-4..2e-2_f64,
+        ) {
+            let contact = Contact::new(mu, mu + extra_static, 9.81, 1e-4, 0.0).unwrap();
+            let model = Model::new(params, contact);
+            let target_n = params.target_force_n(command_mps2);
+            let x_lim = params.end_stop_m.unwrap_or(1e-2);
+            let mut z: State = [
+                0.9 * x_lim * start[0],
+                0.3 * start[1],
+                params.mass_kg * 200.0 * start[2],
+                0.3 * start[3],
+                start[4],
+                1e-3 * start[5],
+                1.0,
+            ];
+            if params.current_bandwidth_hz.is_none() {
+                z[F] = target_n;
+            }
+            let mut slide = Slide::Free;
+            let mut part = if stuck { Part::Stuck } else { Part::Sliding((z[U] - z[V]).signum()) };
+            model.settle(&mut z, &mut slide, &mut part);
+            let (free, general) = both(&model, part, target_n, &z, duration_s);
+            let kind = |e: Option<(Event, f64)>| e.map(|(event, _)| event);
+            prop_assert_eq!(kind(free.0), kind(general.0));
+            if let (Some((_, t_free)), Some((_, t))) = (free.0, general.0) {
+                prop_assert!((t_free - t).abs() <= 1e-9 * duration_s, "{} vs {}", t_free, t);
+            }
+            let scale = [x_lim, 1.0, params.mass_kg * 200.0, 1.0, 1.0, 1e-3];
+            for (i, s) in [X, V, F, U, P, Q].into_iter().zip(scale) {
+                prop_assert!(
+                    (free.1[i] - general.1[i]).abs() <= 1e-9 * s,
+                    "state {}: {:e} vs {:e}", i, free.1[i], general.1[i]
+                );
+            }
+            prop_assert_eq!(free.2.len(), general.2.len(), "turning points");
+        }
+    }
+
+    /// A part that has just met the plate starts its regime on the boundary (`u = v`) and must
+    /// not end it at once: the first event is the next one, as the general solver has it.
+    #[test]
+    fn a_regime_entered_on_its_boundary_does_not_end_at_once() {
+        let params = PlateParams {
+            mass_kg: 1.5,
+            current_bandwidth_hz: Some(1000.0),
+            spring_npm: 2e4,
+            spring_damping_nspm: 20.0,
+            ..PlateParams::default()
+        };
+        let model = Model::new(params, Contact::kinetic(0.3, 1e-4).unwrap());
+        // Accelerating at 67 m/s², the drive turning to −146 m/s²: the part slides behind, then
+        // meets the plate when it has slowed.
+        let target_n = params.target_force_n(-146.0);
+        let mut z: State = [1e-4, 0.05, 100.0, 0.0, 0.0, 0.0, 1.0];
+        z[U] = z[V];
+        let mut slide = Slide::Free;
+        let mut part = Part::Stuck;
+        model.settle(&mut z, &mut slide, &mut part);
+        assert!(matches!(part, Part::Sliding(_)));
+        let (free, general) = both(&model, part, target_n, &z, 5e-3);
+        assert_eq!(free.0.map(|(e, _)| e), general.0.map(|(e, _)| e));
+        let (Some((_, t_free)), Some((_, t))) = (free.0, general.0) else {
+            panic!("the part meets the plate again: {free:?} {general:?}");
+        };
+        assert!(t > 1e-4 && (t_free - t).abs() < 1e-15, "{t_free} vs {t}");
+    }
+
+    /// Slide friction and a current loop at one of the slide's own rates are left to the general
+    /// solver.
+    #[test]
+    fn only_a_free_slide_with_a_separable_current_loop_is_solved_in_closed_form() {
+        let contact = Contact::kinetic(0.3, 1e-4).unwrap();
+        let friction = PlateParams {
+            coulomb_friction_n: 1.0,
+            ..PlateParams::default()
+        };
+        assert!(FreeSlide::new(&Model::new(friction, contact)).is_none());
+        // M·ρ² − c·ρ + k = 0 at ρ = 2π·100 Hz with M = 1 kg and c = 2·M·ρ: k = M·ρ².
+        let rho = 2.0 * std::f64::consts::PI * 100.0;
+        let resonant = PlateParams {
+            current_bandwidth_hz: Some(100.0),
+            spring_npm: rho * rho,
+            spring_damping_nspm: 2.0 * rho,
+            ..PlateParams::default()
+        };
+        assert!(FreeSlide::new(&Model::new(resonant, contact)).is_none());
+        assert!(FreeSlide::new(&Model::new(PlateParams::default(), contact)).is_some());
+    }
+}
