@@ -41,6 +41,26 @@ const MAX_HALVINGS: i32 = 40;
 
 type Poly = [f64; TERMS];
 
+/// `n` and `n·(n − 1)` for `n < TERMS`: the weights of a series' slope and curvature.
+const SLOPE: [f64; TERMS] = {
+    let mut out = [0.0; TERMS];
+    let mut n = 0;
+    while n < TERMS {
+        out[n] = n as f64;
+        n += 1;
+    }
+    out
+};
+const CURVATURE: [f64; TERMS] = {
+    let mut out = [0.0; TERMS];
+    let mut n = 0;
+    while n < TERMS {
+        out[n] = (n * n.saturating_sub(1)) as f64;
+        n += 1;
+    }
+    out
+};
+
 /// `1/n` for `n < TERMS + 1` (`1/0` left at 0).
 const INVERSE: [f64; TERMS + 1] = {
     let mut out = [0.0; TERMS + 1];
@@ -66,6 +86,9 @@ pub struct FreeSlide {
     damping_per_s: f64,
     /// `ω`, 0 for a plate without spring or damping.
     rate_per_s: f64,
+    /// Taylor coefficients of `X` from `X(0) = 1`, from `X′(0) = 1` and for `F*/M = 1`, the
+    /// others 0: `X` is their sum weighted by its start and the target.
+    basis: [Poly; 3],
     longest_chunk_s: f64,
     end_stop_m: Option<f64>,
     /// `μ_k·g`, `μ_s·g` and the contact's own force per mass, `φ_c`.
@@ -97,7 +120,24 @@ impl FreeSlide {
         let spring_per_s2 = p.spring_npm / p.mass_kg;
         let damping_per_s = damping_nspm / p.mass_kg;
         let rate_per_s = spring_per_s2.sqrt().max(damping_per_s);
+        let series = |x0: f64, v0: f64, force_per_kg: f64| {
+            let mut x = [0.0; TERMS];
+            x[0] = x0;
+            x[1] = v0;
+            x[2] = 0.5 * (force_per_kg - spring_per_s2 * x0 - damping_per_s * v0);
+            for n in 1..TERMS - 2 {
+                x[n + 2] = -(spring_per_s2 * x[n] + damping_per_s * (n + 1) as f64 * x[n + 1])
+                    * INVERSE[n + 1]
+                    * INVERSE[n + 2];
+            }
+            x
+        };
         Some(FreeSlide {
+            basis: [
+                series(1.0, 0.0, 0.0),
+                series(0.0, 1.0, 0.0),
+                series(0.0, 0.0, 1.0),
+            ],
             lag_per_s,
             mode_m_per_n,
             mass_kg: p.mass_kg,
@@ -150,7 +190,7 @@ impl FreeSlide {
             };
             for &t in turns.as_slice() {
                 if first.is_none_or(|(_, at)| t <= at) {
-                    turn(chunk.plate(t).0);
+                    turn(chunk.position(t));
                 }
             }
             if let Some((event, t)) = first {
@@ -218,9 +258,12 @@ struct Chunk<'a> {
     x: Poly,
     /// `∫X` at the start.
     q0: f64,
-    /// The chunk's length `L` and the plate's `(x, v, a)` then.
+    /// The chunk's length `L` and the plate's `(x, v, a)` then (`a` only where the part is stuck,
+    /// the one contact whose events watch it; else 0).
     length_s: f64,
     end: (f64, f64, f64),
+    /// `φ(L)`.
+    phi_end_n: f64,
     /// Taylor coefficients summed: the first `n` with `(ω·L)ⁿ/n!` below `2⁻⁶⁴` for the chunk's
     /// length `L`, at least 4 (a plate without spring or damping is a cubic).
     terms: usize,
@@ -242,16 +285,13 @@ impl<'a> Chunk<'a> {
             bound *= reach * INVERSE[terms];
             terms += 1;
         }
+        let x0 = z0[X] - r_x * phi_n;
+        let v0 = z0[V] + rho * r_x * phi_n;
+        let force_per_kg = target_n / free.mass_kg;
+        let [from_x, from_v, from_force] = &free.basis;
         let mut x = [0.0; TERMS];
-        x[0] = z0[X] - r_x * phi_n;
-        x[1] = z0[V] + rho * r_x * phi_n;
-        x[2] =
-            0.5 * (target_n / free.mass_kg - free.spring_per_s2 * x[0] - free.damping_per_s * x[1]);
-        for n in 1..terms - 2 {
-            x[n + 2] = -(free.spring_per_s2 * x[n]
-                + free.damping_per_s * (n + 1) as f64 * x[n + 1])
-                * INVERSE[n + 1]
-                * INVERSE[n + 2];
+        for (n, c) in x[..terms].iter_mut().enumerate() {
+            *c = x0 * from_x[n] + v0 * from_v[n] + force_per_kg * from_force[n];
         }
         let q0 = if rho > 0.0 {
             z0[Q] + r_x / rho * phi_n
@@ -268,9 +308,14 @@ impl<'a> Chunk<'a> {
             q0,
             length_s,
             end: (0.0, 0.0, 0.0),
+            phi_end_n: 0.0,
             terms,
         };
-        chunk.end = chunk.plate_at(length_s);
+        if phi_n != 0.0 {
+            chunk.phi_end_n = phi_n * (-free.lag_per_s * length_s).exp();
+        }
+        // Only a stuck part watches the plate's acceleration.
+        chunk.end = chunk.plate_at(length_s, part == Part::Stuck);
         chunk
     }
 
@@ -278,26 +323,38 @@ impl<'a> Chunk<'a> {
     fn phi(&self, t: f64) -> f64 {
         if self.phi_n == 0.0 {
             0.0
+        } else if t == self.length_s {
+            self.phi_end_n
         } else {
             self.phi_n * (-self.free.lag_per_s * t).exp()
         }
     }
 
-    /// The plate's `(x, v, a)` at `τ`.
-    fn plate(&self, t: f64) -> (f64, f64, f64) {
+    /// The plate's position at `τ`.
+    fn position(&self, t: f64) -> f64 {
+        sum_from(0, &self.x[..self.terms], |_| 1.0, t) + self.free.mode_m_per_n * self.phi(t)
+    }
+
+    /// The plate's `(x, v)` at `τ`.
+    fn plate(&self, t: f64) -> (f64, f64) {
         if t == self.length_s {
-            self.end
+            (self.end.0, self.end.1)
         } else {
-            self.plate_at(t)
+            let (x, v, _) = self.plate_at(t, false);
+            (x, v)
         }
     }
 
-    /// [`Chunk::plate`], summed.
-    fn plate_at(&self, t: f64) -> (f64, f64, f64) {
+    /// The plate's `(x, v, a)` at `τ`; `a` only if `accel` (else 0).
+    fn plate_at(&self, t: f64, accel: bool) -> (f64, f64, f64) {
         let p = &self.x[..self.terms];
         let x = sum_from(0, p, |_| 1.0, t);
-        let v = sum_from(1, p, |n| n as f64, t);
-        let a = sum_from(2, p, |n| (n * (n - 1)) as f64, t);
+        let v = sum_from(1, p, |n| SLOPE[n], t);
+        let a = if accel {
+            sum_from(2, p, |n| CURVATURE[n], t)
+        } else {
+            0.0
+        };
         let phi = self.phi(t);
         let rho = self.free.lag_per_s;
         let r_x = self.free.mode_m_per_n;
@@ -310,13 +367,9 @@ impl<'a> Chunk<'a> {
 
     /// The whole state at `τ`.
     fn state(&self, t: f64) -> State {
-        let (x, v, _) = self.plate(t);
+        let (x, v) = self.plate(t);
         let phi = self.phi(t);
-        let mut q = 0.0;
-        for n in (0..self.terms).rev() {
-            q = q * t + self.x[n] * INVERSE[n + 1];
-        }
-        q = self.q0 + q * t;
+        let mut q = self.q0 + t * sum_from(0, &self.x[..self.terms], |n| INVERSE[n + 1], t);
         if self.free.lag_per_s > 0.0 {
             q -= self.free.mode_m_per_n / self.free.lag_per_s * phi;
         }
@@ -349,16 +402,21 @@ impl<'a> Chunk<'a> {
         let terms = self.terms;
         let mut slow = [0.0; TERMS];
         for (n, c) in slow[..terms].iter_mut().enumerate() {
-            *c = s_x * self.x[n];
+            let mut value = s_x * self.x[n];
             if n + 1 < terms {
-                *c += s_v * (n + 1) as f64 * self.x[n + 1];
+                value += s_v * (n + 1) as f64 * self.x[n + 1];
             }
             if n + 2 < terms {
-                *c += s_a * ((n + 1) * (n + 2)) as f64 * self.x[n + 2];
+                value += s_a * ((n + 1) * (n + 2)) as f64 * self.x[n + 2];
             }
+            // Added here, not after the loop: a later read of a pair just stored apart stalls.
+            match n {
+                0 => value += constant,
+                1 => value += slope,
+                _ => {}
+            }
+            *c = value;
         }
-        slow[0] += constant;
-        slow[1] += slope;
         let rho = self.free.lag_per_s;
         let r_x = self.free.mode_m_per_n;
         let fast = self.phi_n * r_x * (s_x - rho * s_v + rho * rho * s_a);
@@ -454,8 +512,9 @@ impl<'a> Chunk<'a> {
         let q = &q[..terms];
         let mut pieces = Times::default();
         pieces.push(0.0);
-        if !zero_free(q, length_s) {
-            if slope_free(q, length_s) {
+        let (zero_free, monotone) = bounds(q, length_s);
+        if !zero_free {
+            if monotone {
                 let (q_lo, q_hi) = (q[0], horner(q, length_s));
                 if (q_lo > 0.0) != (q_hi > 0.0) {
                     // H rises then falls where Q(0) > 0: a maximum, else a minimum.
@@ -468,7 +527,7 @@ impl<'a> Chunk<'a> {
                         (g_lo > 0.0) == (g_hi > 0.0) && (g_lo > 0.0) != maximum
                     };
                     if needed {
-                        pieces.push(refine(|t| jet(q, t), 0.0, q_lo, length_s, q_hi));
+                        pieces.push(refine(|t| jet(q, t), (0.0, q_lo), (length_s, q_hi), EXACT));
                     }
                 }
             } else {
@@ -532,10 +591,9 @@ impl<'a> Chunk<'a> {
             if g_right <= 0.0 {
                 return Some(refine(
                     |t| self.jet(function, t),
-                    left,
-                    g_left,
-                    right,
-                    g_right,
+                    (left, g_left),
+                    (right, g_right),
+                    EXACT,
                 ));
             }
             left = right;
@@ -558,10 +616,9 @@ impl<'a> Chunk<'a> {
             } else if g_left != 0.0 && (g_left > 0.0) != (g_right > 0.0) {
                 out.push(refine(
                     |t| self.jet(function, t),
-                    left,
-                    g_left,
-                    right,
-                    g_right,
+                    (left, g_left),
+                    (right, g_right),
+                    TURN,
                 ));
             }
             left = right;
@@ -597,14 +654,26 @@ fn horner(p: &[f64], t: f64) -> f64 {
 
 /// `p(t)` and `p′(t)`.
 fn jet(p: &[f64], t: f64) -> (f64, f64) {
-    (sum_from(0, p, |_| 1.0, t), sum_from(1, p, |n| n as f64, t))
+    (sum_from(0, p, |_| 1.0, t), sum_from(1, p, |n| SLOPE[n], t))
 }
+
+/// Steps of [`refine`] end below this fraction of the time: a few units in the last place.
+const EXACT: f64 = 4.0 * f64::EPSILON;
+
+/// Steps of [`refine`] for a turning point end below this fraction of the time: the plate's
+/// position is stationary there, so its error is of the order of the square of the time's.
+const TURN: f64 = 1e-9;
 
 /// The zero of `f` in `[lo, hi]`, given `f(lo) > 0 ≥ f(hi)` (or the reverse) and a single sign
 /// change between: Newton's steps from the secant's point, kept inside the shrinking bracket
-/// (bisecting where a step would leave it), until a step is below a few units in the last
-/// place. `f_df` gives `f` and `f′`.
-fn refine(f_df: impl Fn(f64) -> (f64, f64), mut lo: f64, f_lo: f64, mut hi: f64, f_hi: f64) -> f64 {
+/// (bisecting where a step would leave it), until a step is below `relative` of the time.
+/// `f_df` gives `f` and `f′`.
+fn refine(
+    f_df: impl Fn(f64) -> (f64, f64),
+    (mut lo, f_lo): (f64, f64),
+    (mut hi, f_hi): (f64, f64),
+    relative: f64,
+) -> f64 {
     let lo_positive = f_lo > 0.0;
     let mut t = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
     if !(t > lo && t < hi) {
@@ -621,7 +690,7 @@ fn refine(f_df: impl Fn(f64) -> (f64, f64), mut lo: f64, f_lo: f64, mut hi: f64,
             hi = t;
         }
         let step = f / df;
-        if step.abs() <= 4.0 * f64::EPSILON * t.abs() {
+        if step.abs() <= relative * t.abs() {
             return t;
         }
         let newton = t - step;
@@ -657,14 +726,21 @@ fn zero_free(p: &[f64], length_s: f64) -> bool {
     p[0].abs() > rest || (p[0] == 0.0 && rest == 0.0)
 }
 
-/// Whether `p′` has no zero on `[0, length_s]` ([`zero_free`] without forming it).
-fn slope_free(p: &[f64], length_s: f64) -> bool {
-    let mut rest = 0.0;
-    for n in (2..p.len()).rev() {
-        rest = rest * length_s + n as f64 * p[n].abs();
+/// Whether `p` and whether `p′` have no zero on `[0, length_s]` ([`zero_free`] of both, in one
+/// pass without forming `p′`).
+fn bounds(p: &[f64], length_s: f64) -> (bool, bool) {
+    let (mut rest, mut slope_rest) = (0.0, 0.0);
+    let mut power = 1.0;
+    for (n, c) in p.iter().enumerate().skip(1) {
+        let c = c.abs();
+        if n >= 2 {
+            slope_rest += SLOPE[n] * c * power;
+        }
+        power *= length_s;
+        rest += c * power;
     }
-    rest *= length_s;
-    p[1].abs() > rest || (p[1] == 0.0 && rest == 0.0)
+    let free = |first: f64, rest: f64| first.abs() > rest || (first == 0.0 && rest == 0.0);
+    (free(p[0], rest), free(p[1], slope_rest))
 }
 
 /// The zeros of the polynomial `p` in `[0, length_s]` at which it changes sign, sorted; `None`
@@ -690,7 +766,12 @@ fn zeros(p: &[f64], length_s: f64) -> Option<Times> {
         for right in found.as_slice().iter().copied().chain([length_s]) {
             let f_right = horner(d, right);
             if (f_left > 0.0) != (f_right > 0.0) {
-                next.push(refine(|t| jet(d, t), left, f_left, right, f_right));
+                next.push(refine(
+                    |t| jet(d, t),
+                    (left, f_left),
+                    (right, f_right),
+                    EXACT,
+                ));
             }
             left = right;
             f_left = f_right;
