@@ -41,21 +41,19 @@ const MAX_HALVINGS: i32 = 40;
 
 type Poly = [f64; TERMS];
 
-/// `n` and `n·(n − 1)` for `n < TERMS`: the weights of a series' slope and curvature.
-const SLOPE: [f64; TERMS] = {
-    let mut out = [0.0; TERMS];
+/// `n·(n − 1)·…·(n − d + 1)` for `d ≤ 3`, `n < TERMS`: the weight of `X_n` in the Taylor
+/// coefficient of `τ^(n−d)` in `X^(d)`.
+const FALLING: [[f64; TERMS]; 4] = {
+    let mut out = [[0.0; TERMS]; 4];
     let mut n = 0;
     while n < TERMS {
-        out[n] = n as f64;
-        n += 1;
-    }
-    out
-};
-const CURVATURE: [f64; TERMS] = {
-    let mut out = [0.0; TERMS];
-    let mut n = 0;
-    while n < TERMS {
-        out[n] = (n * n.saturating_sub(1)) as f64;
+        let mut d = 0;
+        let mut weight = 1.0;
+        while d < 4 {
+            out[d][n] = weight;
+            weight *= n as f64 - d as f64;
+            d += 1;
+        }
         n += 1;
     }
     out
@@ -233,17 +231,32 @@ enum Watch {
     Turn,
 }
 
-/// A watched function's kind, weights of `(x, v, a)`, constant and slope in `τ`.
-type Watched = (Watch, [f64; 3], f64, f64);
-
-/// An event function `g(τ) = S(τ) + γ·e^{−ρτ}`.
+/// An event function `g(τ) = w·X^(d)(τ) + c + s·τ + γ·e^{−ρτ}`: a weighted derivative of the
+/// slow position (`d = 0, 1, 2`: position, velocity, acceleration), a line, and the current
+/// loop's mode. `Q = ρ·S + S′ = w·(ρ·X^(d) + X^(d+1)) + ρ·c + s + ρ·s·τ`.
+#[derive(Debug, Clone, Copy)]
 struct Function {
-    slow: Poly,
+    watch: Watch,
+    order: usize,
+    weight: f64,
+    constant: f64,
+    slope: f64,
     fast: f64,
     /// `g(0)` from the state itself, exactly zero where the regime was entered on its boundary.
     start: f64,
     /// `g` at the chunk's end.
     end: f64,
+}
+
+/// `ρ·X^(d) + X^(d+1)` over a chunk: its Taylor coefficients and the bounds of its terms from
+/// `τ²` on over the chunk, `Σ_{m≥2} |c_m|·L^m` and `Σ_{m≥2} m·|c_m|·L^{m−1}`, which bound `Q`'s
+/// and `Q′`'s variation for every function on this derivative.
+#[derive(Debug, Clone, Copy)]
+struct Mode {
+    coefficients: Poly,
+    len: usize,
+    tail: f64,
+    slope_tail: f64,
 }
 
 /// The plate's and the part's motion from a state, over one chunk.
@@ -349,9 +362,9 @@ impl<'a> Chunk<'a> {
     fn plate_at(&self, t: f64, accel: bool) -> (f64, f64, f64) {
         let p = &self.x[..self.terms];
         let x = sum_from(0, p, |_| 1.0, t);
-        let v = sum_from(1, p, |n| SLOPE[n], t);
+        let v = sum_from(1, p, |n| FALLING[1][n], t);
         let a = if accel {
-            sum_from(2, p, |n| CURVATURE[n], t)
+            sum_from(2, p, |n| FALLING[2][n], t)
         } else {
             0.0
         };
@@ -397,54 +410,48 @@ impl<'a> Chunk<'a> {
         -sigma * self.free.kinetic_mps2 + self.free.force_mps2
     }
 
-    /// The function `s_x·x + s_v·v + s_a·a + constant + slope·τ`.
-    fn function(&self, [s_x, s_v, s_a]: [f64; 3], constant: f64, slope: f64) -> Function {
-        let terms = self.terms;
-        let mut slow = [0.0; TERMS];
-        for (n, c) in slow[..terms].iter_mut().enumerate() {
-            let mut value = s_x * self.x[n];
-            if n + 1 < terms {
-                value += s_v * (n + 1) as f64 * self.x[n + 1];
-            }
-            if n + 2 < terms {
-                value += s_a * ((n + 1) * (n + 2)) as f64 * self.x[n + 2];
-            }
-            // Added here, not after the loop: a later read of a pair just stored apart stalls.
-            match n {
-                0 => value += constant,
-                1 => value += slope,
-                _ => {}
-            }
-            *c = value;
-        }
+    /// The function `w·X^(d) + c + s·τ` with the current loop's part of `x^(d)` weighted alike.
+    fn function(
+        &self,
+        watch: Watch,
+        order: usize,
+        weight: f64,
+        constant: f64,
+        slope: f64,
+    ) -> Function {
         let rho = self.free.lag_per_s;
-        let r_x = self.free.mode_m_per_n;
-        let fast = self.phi_n * r_x * (s_x - rho * s_v + rho * rho * s_a);
-        let accel_mps2 = self.z0[F] / self.free.mass_kg
+        // x, v, a: the mode's part r_x·φ, −ρ·r_x·φ, ρ²·r_x·φ.
+        let fast = weight * self.phi_n * self.free.mode_m_per_n * (-rho).powi(order as i32);
+        let start_accel_mps2 = self.z0[F] / self.free.mass_kg
             - self.free.spring_per_s2 * self.z0[X]
             - self.free.damping_per_s * self.z0[V];
-        let start = s_x * self.z0[X] + s_v * self.z0[V] + s_a * accel_mps2 + constant;
+        let at_start = [self.z0[X], self.z0[V], start_accel_mps2][order];
         let (x, v, a) = self.end;
-        let end = s_x * x + s_v * v + s_a * a + constant + slope * self.length_s;
+        let at_end = [x, v, a][order];
         Function {
-            slow,
+            watch,
+            order,
+            weight,
+            constant,
+            slope,
             fast,
-            start,
-            end,
+            start: weight * at_start + constant,
+            end: weight * at_end + constant + slope * self.length_s,
         }
     }
 
-    /// The functions this chunk watches, each positive while its regime holds, as
-    /// `(watch, [s_x, s_v, s_a], constant, slope)` of `s_x·x + s_v·v + s_a·a + constant + slope·τ`.
-    fn watched(&self) -> ([Watched; 5], usize) {
-        let mut out = [(Watch::Turn, [0.0, 1.0, 0.0], 0.0, 0.0); 5];
+    /// The functions this chunk watches, each positive while its regime holds.
+    fn watched(&self) -> ([Function; 5], usize) {
+        let turn = self.function(Watch::Turn, 1, 1.0, 0.0, 0.0);
+        let mut out = [turn; 5];
         let mut count = 1;
         match self.part {
             Part::Sliding(sigma) => {
                 let accel = self.part_accel_mps2(sigma);
-                out[count] = (
+                out[count] = self.function(
                     Watch::Event(Event::PartMeetsPlate),
-                    [0.0, -sigma, 0.0],
+                    1,
+                    -sigma,
                     sigma * self.z0[U],
                     sigma * accel,
                 );
@@ -452,9 +459,10 @@ impl<'a> Chunk<'a> {
             }
             Part::Stuck => {
                 for sign in [1.0, -1.0] {
-                    out[count] = (
+                    out[count] = self.function(
                         Watch::Event(Event::PartBreaksAway),
-                        [0.0, 0.0, -sign],
+                        2,
+                        -sign,
                         self.free.static_mps2 + sign * self.free.force_mps2,
                         0.0,
                     );
@@ -464,74 +472,114 @@ impl<'a> Chunk<'a> {
         }
         if let Some(x_lim) = self.free.end_stop_m {
             for sign in [1.0, -1.0] {
-                out[count] = (Watch::Event(Event::EndStop), [-sign, 0.0, 0.0], x_lim, 0.0);
+                out[count] = self.function(Watch::Event(Event::EndStop), 0, -sign, x_lim, 0.0);
                 count += 1;
             }
         }
         (out, count)
     }
 
+    /// `ρ·X^(d) + X^(d+1)` over the chunk.
+    fn mode(&self, order: usize) -> Mode {
+        let rho = self.free.lag_per_s;
+        let length_s = self.length_s;
+        let len = self.terms - order;
+        let mut coefficients = [0.0; TERMS];
+        let (mut tail, mut slope_tail) = (0.0, 0.0);
+        let mut power = 1.0;
+        for (m, c) in coefficients[..len].iter_mut().enumerate() {
+            let n = m + order;
+            let mut value = rho * FALLING[order][n] * self.x[n];
+            if n + 1 < self.terms {
+                value += FALLING[order + 1][n + 1] * self.x[n + 1];
+            }
+            *c = value;
+            if m >= 2 {
+                slope_tail += FALLING[1][m] * value.abs() * power;
+            }
+            power *= length_s;
+            if m >= 2 {
+                tail += value.abs() * power;
+            }
+        }
+        Mode {
+            coefficients,
+            len,
+            tail,
+            slope_tail,
+        }
+    }
+
     /// The first event in `[0, L]` and the plate's turning points in `(0, L]`;
     /// `None` if a zero of some `Q` could not be isolated.
     fn first_event(&self) -> Option<(Option<(Event, f64)>, Times)> {
-        let (watched, count) = self.watched();
+        let (functions, count) = self.watched();
+        let mut modes: [Option<Mode>; 3] = [None; 3];
         let mut first: Option<(Event, f64)> = None;
         let mut turns = Times::default();
-        for &(watch, weights, constant, slope) in &watched[..count] {
-            let function = self.function(weights, constant, slope);
-            let pieces = self.pieces(&function)?;
-            match watch {
+        for function in &functions[..count] {
+            let mode = modes[function.order].get_or_insert_with(|| self.mode(function.order));
+            let pieces = self.pieces(function, mode)?;
+            match function.watch {
                 Watch::Event(event) => {
-                    if let Some(t) = self.first_zero(&function, &pieces) {
+                    if let Some(t) = self.first_zero(function, &pieces) {
                         if first.is_none_or(|(_, at)| t < at) {
                             first = Some((event, t));
                         }
                     }
                 }
-                Watch::Turn => turns = self.sign_changes(&function, &pieces),
+                Watch::Turn => turns = self.sign_changes(function, &pieces),
             }
         }
         Some((first, turns))
     }
 
-    /// Times `0 < t₁ < … < length_s` between which `H = e^{ρτ}·g` is monotone, as far as the
-    /// zeros of `g` need them: where `Q = ρ·S + S′` changes sign once, that zero only if `H`'s
-    /// extremum there turns towards zero between ends of one sign (or leaves zero from the
-    /// start); more zeros of `Q` all.
-    fn pieces(&self, function: &Function) -> Option<Times> {
+    /// Times `0 < t₁ < … < L` between which `H = e^{ρτ}·g` is monotone, as far as the zeros of
+    /// `g` need them: where `Q = ρ·S + S′` changes sign once, that zero only if `H`'s extremum
+    /// there turns towards zero between ends of one sign (or leaves zero from the start); more
+    /// zeros of `Q` all.
+    fn pieces(&self, function: &Function, mode: &Mode) -> Option<Times> {
         let length_s = self.length_s;
         let rho = self.free.lag_per_s;
-        let terms = self.terms;
-        let mut q = [0.0; TERMS];
-        for (n, c) in q[..terms].iter_mut().enumerate() {
-            *c = rho * function.slow[n];
-            if n + 1 < terms {
-                *c += (n + 1) as f64 * function.slow[n + 1];
-            }
-        }
-        let q = &q[..terms];
+        let w = function.weight;
+        let q0 = w * mode.coefficients[0] + rho * function.constant + function.slope;
+        let q1 = w * mode.coefficients[1] + rho * function.slope;
+        let rest = q1.abs() * length_s + w.abs() * mode.tail;
+        let slope_rest = w.abs() * mode.slope_tail;
         let mut pieces = Times::default();
         pieces.push(0.0);
-        let (zero_free, monotone) = bounds(q, length_s);
+        let zero_free = q0.abs() > rest || (q0 == 0.0 && rest == 0.0);
         if !zero_free {
-            if monotone {
-                let (q_lo, q_hi) = (q[0], horner(q, length_s));
+            let q = |t: f64| {
+                let (value, slope) = jet(&mode.coefficients[..mode.len], t);
+                (
+                    w * value + q0 - w * mode.coefficients[0] + rho * function.slope * t,
+                    w * slope + rho * function.slope,
+                )
+            };
+            if q1.abs() > slope_rest || (q1 == 0.0 && slope_rest == 0.0) {
+                let (q_lo, q_hi) = (q0, q(length_s).0);
                 if (q_lo > 0.0) != (q_hi > 0.0) {
                     // H rises then falls where Q(0) > 0: a maximum, else a minimum.
                     let maximum = q_lo > 0.0;
-                    let g_lo = function.start;
-                    let g_hi = self.value(function, length_s);
+                    let (g_lo, g_hi) = (function.start, function.end);
                     let needed = if g_lo == 0.0 {
                         maximum
                     } else {
                         (g_lo > 0.0) == (g_hi > 0.0) && (g_lo > 0.0) != maximum
                     };
                     if needed {
-                        pieces.push(refine(|t| jet(q, t), (0.0, q_lo), (length_s, q_hi), EXACT));
+                        pieces.push(refine(q, (0.0, q_lo), (length_s, q_hi), EXACT));
                     }
                 }
             } else {
-                for &t in zeros(q, length_s)?.as_slice() {
+                let mut full = [0.0; TERMS];
+                for (f, c) in full.iter_mut().zip(&mode.coefficients[..mode.len]) {
+                    *f = w * c;
+                }
+                full[0] = q0;
+                full[1] = q1;
+                for &t in zeros(&full[..mode.len.max(2)], length_s)?.as_slice() {
                     if t > 0.0 && t < length_s {
                         pieces.push(t);
                     }
@@ -544,7 +592,12 @@ impl<'a> Chunk<'a> {
 
     /// `g` and `g′` at `τ > 0`.
     fn jet(&self, function: &Function, t: f64) -> (f64, f64) {
-        let (slow, slope) = jet(&function.slow[..self.terms], t);
+        let d = function.order;
+        let x = &self.x[..self.terms];
+        let slow = function.weight * sum_from(d, x, |n| FALLING[d][n], t)
+            + function.constant
+            + function.slope * t;
+        let slope = function.weight * sum_from(d + 1, x, |n| FALLING[d + 1][n], t) + function.slope;
         if function.fast == 0.0 {
             (slow, slope)
         } else {
@@ -654,7 +707,10 @@ fn horner(p: &[f64], t: f64) -> f64 {
 
 /// `p(t)` and `p′(t)`.
 fn jet(p: &[f64], t: f64) -> (f64, f64) {
-    (sum_from(0, p, |_| 1.0, t), sum_from(1, p, |n| SLOPE[n], t))
+    (
+        sum_from(0, p, |_| 1.0, t),
+        sum_from(1, p, |n| FALLING[1][n], t),
+    )
 }
 
 /// Steps of [`refine`] end below this fraction of the time: a few units in the last place.
@@ -724,23 +780,6 @@ fn zero_free(p: &[f64], length_s: f64) -> bool {
         .fold(0.0, |acc, c| acc * length_s + c.abs())
         * length_s;
     p[0].abs() > rest || (p[0] == 0.0 && rest == 0.0)
-}
-
-/// Whether `p` and whether `p′` have no zero on `[0, length_s]` ([`zero_free`] of both, in one
-/// pass without forming `p′`).
-fn bounds(p: &[f64], length_s: f64) -> (bool, bool) {
-    let (mut rest, mut slope_rest) = (0.0, 0.0);
-    let mut power = 1.0;
-    for (n, c) in p.iter().enumerate().skip(1) {
-        let c = c.abs();
-        if n >= 2 {
-            slope_rest += SLOPE[n] * c * power;
-        }
-        power *= length_s;
-        rest += c * power;
-    }
-    let free = |first: f64, rest: f64| first.abs() > rest || (first == 0.0 && rest == 0.0);
-    (free(p[0], rest), free(p[1], slope_rest))
 }
 
 /// The zeros of the polynomial `p` in `[0, length_s]` at which it changes sign, sorted; `None`
