@@ -267,8 +267,9 @@ struct Chunk<'a> {
     z0: State,
     /// `φ₀`.
     phi_n: f64,
-    /// Taylor coefficients of the slow position `X`.
-    x: Poly,
+    /// Taylor coefficients of the slow position `X` and of its first three derivatives:
+    /// `series[d][m]` is the coefficient of `τ^m` in `X^(d)`.
+    series: [Poly; 4],
     /// `∫X` at the start.
     q0: f64,
     /// The chunk's length `L` and the plate's `(x, v, a)` then (`a` only where the part is stuck,
@@ -302,9 +303,15 @@ impl<'a> Chunk<'a> {
         let v0 = z0[V] + rho * r_x * phi_n;
         let force_per_kg = target_n / free.mass_kg;
         let [from_x, from_v, from_force] = &free.basis;
-        let mut x = [0.0; TERMS];
-        for (n, c) in x[..terms].iter_mut().enumerate() {
+        let mut series = [[0.0; TERMS]; 4];
+        for (n, c) in series[0][..terms].iter_mut().enumerate() {
             *c = x0 * from_x[n] + v0 * from_v[n] + force_per_kg * from_force[n];
+        }
+        for d in 1..4 {
+            let (lower, upper) = series.split_at_mut(d);
+            for (m, c) in upper[0][..terms - d].iter_mut().enumerate() {
+                *c = FALLING[d][m + d] * lower[0][m + d];
+            }
         }
         let q0 = if rho > 0.0 {
             z0[Q] + r_x / rho * phi_n
@@ -317,7 +324,7 @@ impl<'a> Chunk<'a> {
             target_n,
             z0: *z0,
             phi_n,
-            x,
+            series,
             q0,
             length_s,
             end: (0.0, 0.0, 0.0),
@@ -330,6 +337,11 @@ impl<'a> Chunk<'a> {
         // Only a stuck part watches the plate's acceleration.
         chunk.end = chunk.plate_at(length_s, part == Part::Stuck);
         chunk
+    }
+
+    /// The Taylor coefficients of `X^(d)`, `d ≤ 3`.
+    fn derivative(&self, d: usize) -> &[f64] {
+        &self.series[d][..self.terms - d]
     }
 
     /// `φ(τ)`.
@@ -345,7 +357,7 @@ impl<'a> Chunk<'a> {
 
     /// The plate's position at `τ`.
     fn position(&self, t: f64) -> f64 {
-        sum_from(0, &self.x[..self.terms], |_| 1.0, t) + self.free.mode_m_per_n * self.phi(t)
+        horner(self.derivative(0), t) + self.free.mode_m_per_n * self.phi(t)
     }
 
     /// The plate's `(x, v)` at `τ`.
@@ -360,11 +372,10 @@ impl<'a> Chunk<'a> {
 
     /// The plate's `(x, v, a)` at `τ`; `a` only if `accel` (else 0).
     fn plate_at(&self, t: f64, accel: bool) -> (f64, f64, f64) {
-        let p = &self.x[..self.terms];
-        let x = sum_from(0, p, |_| 1.0, t);
-        let v = sum_from(1, p, |n| FALLING[1][n], t);
+        let x = horner(self.derivative(0), t);
+        let v = horner(self.derivative(1), t);
         let a = if accel {
-            sum_from(2, p, |n| FALLING[2][n], t)
+            horner(self.derivative(2), t)
         } else {
             0.0
         };
@@ -382,7 +393,7 @@ impl<'a> Chunk<'a> {
     fn state(&self, t: f64) -> State {
         let (x, v) = self.plate(t);
         let phi = self.phi(t);
-        let mut q = self.q0 + t * sum_from(0, &self.x[..self.terms], |n| INVERSE[n + 1], t);
+        let mut q = self.q0 + t * sum_from(0, self.derivative(0), |n| INVERSE[n + 1], t);
         if self.free.lag_per_s > 0.0 {
             q -= self.free.mode_m_per_n / self.free.lag_per_s * phi;
         }
@@ -489,9 +500,9 @@ impl<'a> Chunk<'a> {
         let mut power = 1.0;
         for (m, c) in coefficients[..len].iter_mut().enumerate() {
             let n = m + order;
-            let mut value = rho * FALLING[order][n] * self.x[n];
+            let mut value = rho * self.series[order][m];
             if n + 1 < self.terms {
-                value += FALLING[order + 1][n + 1] * self.x[n + 1];
+                value += self.series[order + 1][m];
             }
             *c = value;
             if m >= 2 {
@@ -563,8 +574,13 @@ impl<'a> Chunk<'a> {
                     // H rises then falls where Q(0) > 0: a maximum, else a minimum.
                     let maximum = q_lo > 0.0;
                     let (g_lo, g_hi) = (function.start, function.end);
+                    // From zero, the extremum matters only if `g` ends on its other side.
                     let needed = if g_lo == 0.0 {
-                        maximum
+                        if maximum {
+                            g_hi <= 0.0
+                        } else {
+                            g_hi >= 0.0
+                        }
                     } else {
                         (g_lo > 0.0) == (g_hi > 0.0) && (g_lo > 0.0) != maximum
                     };
@@ -593,11 +609,10 @@ impl<'a> Chunk<'a> {
     /// `g` and `g′` at `τ > 0`.
     fn jet(&self, function: &Function, t: f64) -> (f64, f64) {
         let d = function.order;
-        let x = &self.x[..self.terms];
-        let slow = function.weight * sum_from(d, x, |n| FALLING[d][n], t)
+        let slow = function.weight * horner(self.derivative(d), t)
             + function.constant
             + function.slope * t;
-        let slope = function.weight * sum_from(d + 1, x, |n| FALLING[d + 1][n], t) + function.slope;
+        let slope = function.weight * horner(self.derivative(d + 1), t) + function.slope;
         if function.fast == 0.0 {
             (slow, slope)
         } else {
@@ -700,9 +715,19 @@ fn sum_from(low: usize, p: &[f64], weight: impl Fn(usize) -> f64, t: f64) -> f64
     even + t * odd
 }
 
-/// `p(t)`.
+/// `p(t)`, on the even and the odd powers apart (see [`sum_from`]).
 fn horner(p: &[f64], t: f64) -> f64 {
-    sum_from(0, p, |_| 1.0, t)
+    let t2 = t * t;
+    let (mut even, mut odd) = (0.0, 0.0);
+    let pairs = p.chunks_exact(2);
+    if let [last] = pairs.remainder() {
+        even = *last;
+    }
+    for pair in pairs.rev() {
+        odd = odd * t2 + pair[1];
+        even = even * t2 + pair[0];
+    }
+    even + t * odd
 }
 
 /// `p(t)` and `p′(t)`.
