@@ -857,14 +857,14 @@ mod tests {
     use super::FreeSlide;
     use crate::plant::Contact;
 
-    /// A free slide with a current loop of 100 Hz to 5 kHz (or none), a spring up to
-    /// 10⁵ N/m and damping up to 200 N·s/m.
+    /// A free slide with a current loop of 0.1 Hz to 100 kHz (or none), a spring up to
+    /// 10⁷ N/m (up to 7 kHz on the lightest plate) and damping up to 5000 N·s/m.
     fn free_plate() -> impl Strategy<Value = PlateParams> {
         (
             0.2..5.0_f64,
-            prop_oneof![Just(None), (100.0..5000.0_f64).prop_map(Some)],
-            prop_oneof![Just(0.0), 0.0..1e5_f64],
-            prop_oneof![Just(0.0), 0.0..200.0_f64],
+            prop_oneof![Just(None), (0.1..1e5_f64).prop_map(Some)],
+            prop_oneof![Just(0.0), 0.0..1e5_f64, 0.0..1e7_f64],
+            prop_oneof![Just(0.0), 0.0..200.0_f64, 0.0..5000.0_f64],
             prop_oneof![Just(None), (1e-3..1e-2_f64).prop_map(Some)],
         )
             .prop_map(
@@ -950,7 +950,17 @@ mod tests {
                     "state {}: {:e} vs {:e}", i, free.1[i], general.1[i]
                 );
             }
-            prop_assert_eq!(free.2.len(), general.2.len(), "turning points");
+            // The plate's peak excursion over the stretch: a stiff, damped spring rings down
+            // through turning points of rounding size near its rest, which the general solver
+            // may pass over, so the turning points are compared by the peak they give.
+            let peak = |turns: &[f64], end: &State| {
+                turns.iter().fold(z[X].abs().max(end[X].abs()), |peak, x| peak.max(x.abs()))
+            };
+            let (free_peak, general_peak) = (peak(&free.2, &free.1), peak(&general.2, &general.1));
+            prop_assert!(
+                (free_peak - general_peak).abs() <= 1e-9 * x_lim,
+                "peak {:e} vs {:e}", free_peak, general_peak
+            );
         }
     }
 
