@@ -17,7 +17,8 @@
 //! Every event function is `g(τ) = S(τ) + γ·e^{−ρτ}` with `S` a polynomial. Between two zeros of
 //! `Q = ρ·S + S′`, `H = e^{ρτ}·g` (`H′ = e^{ρτ}·Q`) is monotone, so `g` has at most one zero
 //! there, bracketed by its signs at the ends and refined by Newton's steps inside the bracket to
-//! a few units in the last place. The zeros of `Q` are isolated through its derivatives: the
+//! a few units in the last place (a turning point, where only the position matters and it is
+//! stationary, to 10⁻⁹ of the time). The zeros of `Q` are isolated through its derivatives: the
 //! lowest derivative `Q^(j)` whose constant Taylor coefficient outweighs the others' bound over
 //! the chunk has no zero, so `Q^(j−1)` is monotone and its zeros, and from them those of
 //! `Q^(j−2)`, …, `Q`, are bracketed in turn. Where `Q` is monotone (`j = 1`) its one zero is
