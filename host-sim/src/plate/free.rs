@@ -659,17 +659,17 @@ impl<'a> Chunk<'a> {
         for &right in rest {
             let g_right = g(right);
             if g_right <= 0.0 {
-                return Some(refine(
-                    |t| self.jet(function, t),
-                    (left, g_left),
-                    (right, g_right),
-                    EXACT,
-                ));
+                return Some(self.zero(function, (left, g_left), (right, g_right), EXACT));
             }
             left = right;
             g_left = g_right;
         }
         None
+    }
+
+    /// The zero of `g` between two ends of opposite sign ([`refine`]).
+    fn zero(&self, function: &Function, lo: (f64, f64), hi: (f64, f64), relative: f64) -> f64 {
+        refine(|t| self.jet(function, t), lo, hi, relative)
     }
 
     /// Every sign change of `g` over the pieces.
@@ -684,12 +684,7 @@ impl<'a> Chunk<'a> {
             if g_right == 0.0 {
                 out.push(right);
             } else if g_left != 0.0 && (g_left > 0.0) != (g_right > 0.0) {
-                out.push(refine(
-                    |t| self.jet(function, t),
-                    (left, g_left),
-                    (right, g_right),
-                    TURN,
-                ));
+                out.push(self.zero(function, (left, g_left), (right, g_right), TURN));
             }
             left = right;
             g_left = g_right;
