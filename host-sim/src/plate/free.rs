@@ -300,20 +300,6 @@ impl<'a> Chunk<'a> {
             bound *= reach * INVERSE[terms];
             terms += 1;
         }
-        let x0 = z0[X] - r_x * phi_n;
-        let v0 = z0[V] + rho * r_x * phi_n;
-        let force_per_kg = target_n / free.mass_kg;
-        let [from_x, from_v, from_force] = &free.basis;
-        let mut series = [[0.0; TERMS]; 4];
-        for (n, c) in series[0][..terms].iter_mut().enumerate() {
-            *c = x0 * from_x[n] + v0 * from_v[n] + force_per_kg * from_force[n];
-        }
-        for d in 1..4 {
-            let (lower, upper) = series.split_at_mut(d);
-            for (m, c) in upper[0][..terms - d].iter_mut().enumerate() {
-                *c = FALLING[d][m + d] * lower[0][m + d];
-            }
-        }
         let q0 = if rho > 0.0 {
             z0[Q] + r_x / rho * phi_n
         } else {
@@ -325,13 +311,28 @@ impl<'a> Chunk<'a> {
             target_n,
             z0: *z0,
             phi_n,
-            series,
+            series: [[0.0; TERMS]; 4],
             q0,
             length_s,
             end: (0.0, 0.0, 0.0),
             phi_end_n: 0.0,
             terms,
         };
+        let x0 = z0[X] - r_x * phi_n;
+        let v0 = z0[V] + rho * r_x * phi_n;
+        let force_per_kg = target_n / free.mass_kg;
+        let [from_x, from_v, from_force] = &free.basis;
+        for (n, c) in chunk.series[0][..terms].iter_mut().enumerate() {
+            *c = x0 * from_x[n] + v0 * from_v[n] + force_per_kg * from_force[n];
+        }
+        // The third derivative only for a stuck part's events, which watch the acceleration.
+        let orders = if part == Part::Stuck { 4 } else { 3 };
+        for d in 1..orders {
+            let (lower, upper) = chunk.series.split_at_mut(d);
+            for (m, c) in upper[0][..terms - d].iter_mut().enumerate() {
+                *c = FALLING[d][m + d] * lower[0][m + d];
+            }
+        }
         if phi_n != 0.0 {
             chunk.phi_end_n = phi_n * (-free.lag_per_s * length_s).exp();
         }
