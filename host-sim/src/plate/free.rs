@@ -26,7 +26,7 @@
 //! halved.
 
 use super::linear::{State, F, P, Q, U, V, X};
-use super::motion::{Event, Model, Part};
+use super::motion::{Event, Model, Part, Slide};
 
 /// Taylor coefficients summed for the slow part over a chunk of at most `1/ω`.
 const TERMS: usize = 22;
@@ -71,67 +71,56 @@ const INVERSE: [f64; TERMS + 1] = {
     out
 };
 
-/// The plate on a free slide and its part: what the scalar solution needs of a [`Model`].
+/// The plate on a free slide and its part: a [`Model`] with what the scalar solution adds.
 #[derive(Debug, Clone, Copy)]
 pub struct FreeSlide {
+    model: Model,
     /// `ρ`, 0 without a current loop.
     lag_per_s: f64,
     /// `r_x`: the plate's position per newton of `φ` in the current loop's mode.
     mode_m_per_n: f64,
-    mass_kg: f64,
-    /// `k/M`.
-    spring_per_s2: f64,
-    /// `c/M`.
-    damping_per_s: f64,
-    /// `ω`, 0 for a plate without spring or damping.
-    rate_per_s: f64,
-    /// Taylor coefficients of `X` from `X(0) = 1`, from `X′(0) = 1` and for `F*/M = 1`, the
+    /// Taylor coefficients of `X` from `X(0) = 1`, from `X′(0) = 1` and for `F* = 1`, the
     /// others 0: `X` is their sum weighted by its start and the target.
     basis: [Poly; 3],
     longest_chunk_s: f64,
-    end_stop_m: Option<f64>,
-    /// `μ_k·g`, `μ_s·g` and the contact's own force per mass, `φ_c`.
-    kinetic_mps2: f64,
-    static_mps2: f64,
-    force_mps2: f64,
 }
 
 impl FreeSlide {
     /// The free slide of `model`; `None` if the slide has Coulomb friction, or if the current
     /// loop's rate is one of the slide's own (the mode cannot be split off).
     pub fn new(model: &Model) -> Option<FreeSlide> {
-        let p = &model.params;
-        if p.coulomb_friction_n != 0.0 {
+        if model.params.coulomb_friction_n != 0.0 {
             return None;
         }
-        let damping_nspm = p.spring_damping_nspm + p.viscous_friction_nspm;
+        // The plate's equation, `X″ = a_x·X + a_v·X′ + a_F·F`, as the model has it.
+        let row = model.plate_accel_row(Slide::Free);
+        let (a_x, a_v, a_f) = (row[X], row[V], row[F]);
         let (lag_per_s, mode_m_per_n) = match model.lag_per_s {
             Some(rho) => {
-                let stiffness = p.mass_kg * rho * rho - damping_nspm * rho + p.spring_npm;
-                let scale = p.mass_kg * rho * rho + damping_nspm * rho + p.spring_npm;
+                // `r_x·(ρ² + a_v·ρ − a_x) = a_F`: zero where `−ρ` is one of the slide's rates.
+                let stiffness = rho * rho + a_v * rho - a_x;
+                let scale = rho * rho + a_v.abs() * rho + a_x.abs();
                 if stiffness.abs() <= 1e-9 * scale {
                     return None;
                 }
-                (rho, 1.0 / stiffness)
+                (rho, a_f / stiffness)
             }
             None => (0.0, 0.0),
         };
-        let spring_per_s2 = p.spring_npm / p.mass_kg;
-        let damping_per_s = damping_nspm / p.mass_kg;
-        let rate_per_s = spring_per_s2.sqrt().max(damping_per_s);
-        let series = |x0: f64, v0: f64, force_per_kg: f64| {
+        let series = |x0: f64, v0: f64, force_n: f64| {
             let mut x = [0.0; TERMS];
             x[0] = x0;
             x[1] = v0;
-            x[2] = 0.5 * (force_per_kg - spring_per_s2 * x0 - damping_per_s * v0);
+            x[2] = 0.5 * (a_x * x0 + a_v * v0 + a_f * force_n);
             for n in 1..TERMS - 2 {
-                x[n + 2] = -(spring_per_s2 * x[n] + damping_per_s * (n + 1) as f64 * x[n + 1])
+                x[n + 2] = (a_x * x[n] + a_v * (n + 1) as f64 * x[n + 1])
                     * INVERSE[n + 1]
                     * INVERSE[n + 2];
             }
             x
         };
         Some(FreeSlide {
+            model: *model,
             basis: [
                 series(1.0, 0.0, 0.0),
                 series(0.0, 1.0, 0.0),
@@ -139,19 +128,11 @@ impl FreeSlide {
             ],
             lag_per_s,
             mode_m_per_n,
-            mass_kg: p.mass_kg,
-            spring_per_s2,
-            damping_per_s,
-            rate_per_s,
-            longest_chunk_s: if rate_per_s > 0.0 {
-                1.0 / rate_per_s
+            longest_chunk_s: if model.slow_per_s > 0.0 {
+                1.0 / model.slow_per_s
             } else {
                 f64::INFINITY
             },
-            end_stop_m: p.end_stop_m,
-            kinetic_mps2: model.contact.kinetic_accel_mps2(),
-            static_mps2: model.contact.static_accel_mps2(),
-            force_mps2: model.contact.force_accel_mps2(),
         })
     }
 
@@ -293,7 +274,7 @@ impl<'a> Chunk<'a> {
         };
         let r_x = free.mode_m_per_n;
         let rho = free.lag_per_s;
-        let reach = free.rate_per_s * length_s;
+        let reach = free.model.slow_per_s * length_s;
         let mut terms = 4;
         let mut bound = reach * reach * reach / 6.0;
         while terms < TERMS && bound >= f64::EPSILON / 4096.0 {
@@ -320,10 +301,9 @@ impl<'a> Chunk<'a> {
         };
         let x0 = z0[X] - r_x * phi_n;
         let v0 = z0[V] + rho * r_x * phi_n;
-        let force_per_kg = target_n / free.mass_kg;
         let [from_x, from_v, from_force] = &free.basis;
         for (n, c) in chunk.series[0][..terms].iter_mut().enumerate() {
-            *c = x0 * from_x[n] + v0 * from_v[n] + force_per_kg * from_force[n];
+            *c = x0 * from_x[n] + v0 * from_v[n] + target_n * from_force[n];
         }
         // The third derivative only for a stuck part's events, which watch the acceleration.
         let orders = if part == Part::Stuck { 4 } else { 3 };
@@ -406,7 +386,7 @@ impl<'a> Chunk<'a> {
         z[Q] = q;
         match self.part {
             Part::Sliding(sigma) => {
-                let accel = self.part_accel_mps2(sigma);
+                let accel = self.free.model.sliding_part_accel_mps2(sigma);
                 z[P] = self.z0[P] + t * (self.z0[U] + 0.5 * accel * t);
                 z[U] = self.z0[U] + accel * t;
             }
@@ -416,11 +396,6 @@ impl<'a> Chunk<'a> {
             }
         }
         z
-    }
-
-    /// `u′` of a part sliding with `w = u − v` of sign `σ`.
-    fn part_accel_mps2(&self, sigma: f64) -> f64 {
-        -sigma * self.free.kinetic_mps2 + self.free.force_mps2
     }
 
     /// The function `w·X^(d) + c + s·τ` with the current loop's part of `x^(d)` weighted alike.
@@ -435,9 +410,7 @@ impl<'a> Chunk<'a> {
         let rho = self.free.lag_per_s;
         // x, v, a: the mode's part r_x·φ, −ρ·r_x·φ, ρ²·r_x·φ.
         let fast = weight * self.phi_n * self.free.mode_m_per_n * (-rho).powi(order as i32);
-        let start_accel_mps2 = self.z0[F] / self.free.mass_kg
-            - self.free.spring_per_s2 * self.z0[X]
-            - self.free.damping_per_s * self.z0[V];
+        let start_accel_mps2 = self.free.model.plate_accel_mps2(Slide::Free, &self.z0);
         let at_start = [self.z0[X], self.z0[V], start_accel_mps2][order];
         let (x, v, a) = self.end;
         let at_end = [x, v, a][order];
@@ -460,7 +433,7 @@ impl<'a> Chunk<'a> {
         let mut count = 1;
         match self.part {
             Part::Sliding(sigma) => {
-                let accel = self.part_accel_mps2(sigma);
+                let accel = self.free.model.sliding_part_accel_mps2(sigma);
                 out[count] = self.function(
                     Watch::Event(Event::PartMeetsPlate),
                     1,
@@ -471,19 +444,20 @@ impl<'a> Chunk<'a> {
                 count += 1;
             }
             Part::Stuck => {
+                let contact = &self.free.model.contact;
                 for sign in [1.0, -1.0] {
                     out[count] = self.function(
                         Watch::Event(Event::PartBreaksAway),
                         2,
                         -sign,
-                        self.free.static_mps2 + sign * self.free.force_mps2,
+                        contact.static_accel_mps2() + sign * contact.force_accel_mps2(),
                         0.0,
                     );
                     count += 1;
                 }
             }
         }
-        if let Some(x_lim) = self.free.end_stop_m {
+        if let Some(x_lim) = self.free.model.params.end_stop_m {
             for sign in [1.0, -1.0] {
                 out[count] = self.function(Watch::Event(Event::EndStop), 0, -sign, x_lim, 0.0);
                 count += 1;

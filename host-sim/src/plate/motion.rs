@@ -88,7 +88,7 @@ impl Model {
     }
 
     /// The plate's acceleration as a functional of the state: `A`'s row for `v`.
-    fn plate_accel_row(&self, slide: Slide) -> [f64; linear::N] {
+    pub(super) fn plate_accel_row(&self, slide: Slide) -> [f64; linear::N] {
         let p = &self.params;
         let mut row = [0.0; linear::N];
         let coulomb_sign = match slide {
@@ -104,6 +104,16 @@ impl Model {
         row
     }
 
+    /// The plate's acceleration at the state `z`.
+    pub(super) fn plate_accel_mps2(&self, slide: Slide, z: &State) -> f64 {
+        linear::dot(&self.plate_accel_row(slide), z)
+    }
+
+    /// `u′` of a part sliding with `w = u − v` of sign `σ`.
+    pub(super) fn sliding_part_accel_mps2(&self, sigma: f64) -> f64 {
+        -sigma * self.contact.kinetic_accel_mps2() + self.contact.force_accel_mps2()
+    }
+
     /// `A` of the regime.
     pub fn matrix(&self, slide: Slide, part: Part, target_n: f64) -> Matrix {
         let mut a = linear::zero();
@@ -116,10 +126,7 @@ impl Model {
             a[F][ONE] = lag * target_n;
         }
         match part {
-            Part::Sliding(sigma) => {
-                a[U][ONE] =
-                    -sigma * self.contact.kinetic_accel_mps2() + self.contact.force_accel_mps2();
-            }
+            Part::Sliding(sigma) => a[U][ONE] = self.sliding_part_accel_mps2(sigma),
             Part::Stuck => a[U] = a[V],
         }
         a[P][U] = 1.0;
@@ -199,7 +206,7 @@ impl Model {
     /// The contact of a part at the plate's velocity: stuck if `|a_plate − φ| ≤ μ_s·g`, else
     /// sliding behind the plate (`a_plate − φ > 0`) or ahead of it.
     fn release(&self, z: &mut State, slide: Slide) -> Part {
-        let need = linear::dot(&self.plate_accel_row(slide), z) - self.contact.force_accel_mps2();
+        let need = self.plate_accel_mps2(slide, z) - self.contact.force_accel_mps2();
         if need.abs() <= self.contact.static_accel_mps2() {
             z[U] = z[V];
             Part::Stuck
@@ -232,8 +239,7 @@ impl Model {
                 *part = self.release(z, *slide);
             }
             Event::PartBreaksAway => {
-                let need =
-                    linear::dot(&self.plate_accel_row(*slide), z) - self.contact.force_accel_mps2();
+                let need = self.plate_accel_mps2(*slide, z) - self.contact.force_accel_mps2();
                 *part = Part::Sliding(-need.signum());
             }
             Event::EndStop => {}
