@@ -884,6 +884,7 @@ mod tests {
     }
 
     /// The part's contact and state, the command and the stretch's length of one check.
+    #[derive(Debug)]
     struct Case {
         mu: f64,
         extra_static: f64,
@@ -891,6 +892,31 @@ mod tests {
         stuck: bool,
         command_mps2: f64,
         duration_s: f64,
+    }
+
+    /// A part's contact and state, with commands and stretches from the strategies given.
+    fn case(
+        command_mps2: impl Strategy<Value = f64>,
+        duration_s: impl Strategy<Value = f64>,
+    ) -> impl Strategy<Value = Case> {
+        (
+            0.05..1.0_f64,
+            prop_oneof![Just(0.0), 0.0..0.5_f64],
+            prop::array::uniform6(-1.0..1.0_f64),
+            any::<bool>(),
+            command_mps2,
+            duration_s,
+        )
+            .prop_map(
+                |(mu, extra_static, start, stuck, command_mps2, duration_s)| Case {
+                    mu,
+                    extra_static,
+                    start,
+                    stuck,
+                    command_mps2,
+                    duration_s,
+                },
+            )
     }
 
     /// Both solvers from the case's state: the same first event, at the same time to 10⁻⁹ of
@@ -968,14 +994,9 @@ mod tests {
         #[test]
         fn the_free_slide_agrees_with_the_general_solver(
             params in free_plate(),
-            mu in 0.05..1.0_f64,
-            extra_static in prop_oneof![Just(0.0), 0.0..0.5_f64],
-            start in prop::array::uniform6(-1.0..1.0_f64),
-            stuck in any::<bool>(),
-            command_mps2 in -200.0..200.0_f64,
-            duration_s in 1e-4..2e-2_f64,
+            case in case(-200.0..200.0_f64, 1e-4..2e-2_f64),
         ) {
-            agree(params, Case { mu, extra_static, start, stuck, command_mps2, duration_s })?;
+            agree(params, case)?;
         }
     }
 
@@ -987,14 +1008,12 @@ mod tests {
         #[test]
         fn the_free_slide_agrees_far_outside_a_feeder_s_range(
             params in extreme_plate(),
-            mu in 0.05..1.0_f64,
-            extra_static in prop_oneof![Just(0.0), 0.0..0.5_f64],
-            start in prop::array::uniform6(-1.0..1.0_f64),
-            stuck in any::<bool>(),
-            command_mps2 in prop_oneof![-200.0..200.0_f64, -1e4..1e4_f64],
-            duration_s in prop_oneof![1e-9..1e-4_f64, 1e-4..2e-2_f64, 2e-2..1.0_f64],
+            case in case(
+                prop_oneof![-200.0..200.0_f64, -1e4..1e4_f64],
+                prop_oneof![1e-9..1e-4_f64, 1e-4..2e-2_f64, 2e-2..1.0_f64],
+            ),
         ) {
-            agree(params, Case { mu, extra_static, start, stuck, command_mps2, duration_s })?;
+            agree(params, case)?;
         }
     }
 
