@@ -225,14 +225,19 @@ fn realistic_plate() -> (host_sim::plate::PlantFile, host_sim::cosim::PlatePlant
     let path =
         std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../host-sim/plants/realistic.toml");
     let file = host_sim::plate::PlantFile::from_path(&path).expect("realistic.toml loads");
-    let plate = host_sim::cosim::PlatePlant::new(
-        &file,
+    let plate = plate_of(&file);
+    (file, plate)
+}
+
+/// The plate of `file`, carrying a part, behind a DAC of the default calibration.
+fn plate_of(file: &host_sim::plate::PlantFile) -> host_sim::cosim::PlatePlant {
+    host_sim::cosim::PlatePlant::new(
+        file,
         &contact(),
         feeder_shared::DacCalibration::DEFAULT,
         feeder_emulator::plant::TICK_HZ,
     )
-    .expect("realistic.toml has an encoder");
-    (file, plate)
+    .expect("the plant file has an encoder")
 }
 
 fn closed_loop_elf() -> PathBuf {
@@ -337,13 +342,7 @@ fn a_drive_the_identification_refuses_stops_the_firmware_by_name() {
     let (mut file, _) = realistic_plate();
     file.plate.gain_positive = 0.5;
     file.plate.gain_negative = 0.5;
-    let plate = host_sim::cosim::PlatePlant::new(
-        &file,
-        &contact(),
-        feeder_shared::DacCalibration::DEFAULT,
-        feeder_emulator::plant::TICK_HZ,
-    )
-    .expect("the plant file has an encoder");
+    let plate = plate_of(&file);
     let PlantRun { run, plant, .. } =
         feeder_emulator::run_with_plant(&closed_loop_elf(), &["cycles=600"], TIMEOUT, plate)
             .unwrap_or_else(|error| panic!("the closed-loop run: {error}"));
