@@ -31,6 +31,9 @@ use super::motion::{Event, Model, Part, Slide};
 /// Taylor coefficients summed for the slow part over a chunk of at most `1/ω`.
 const TERMS: usize = 22;
 
+/// The last Taylor term summed is below this, relative to the slow part's scale.
+const TAIL: f64 = f64::EPSILON / 4096.0;
+
 /// Highest derivative of `Q` tried for a proof that it has no zero on a chunk.
 const MAX_ORDER: usize = 4;
 
@@ -83,6 +86,9 @@ pub struct FreeSlide {
     /// others 0: `X` is their sum weighted by its start and the target.
     basis: [Poly; 3],
     longest_chunk_s: f64,
+    /// `reach_limits[n]`: the reach `ω·L` from which `n` terms are too few, `(tol·(n−1)!)^{1/(n−1)}`
+    /// with `tol` = [`TAIL`] (`n ≥ 4`).
+    reach_limits: [f64; TERMS],
 }
 
 impl FreeSlide {
@@ -133,6 +139,11 @@ impl FreeSlide {
             } else {
                 f64::INFINITY
             },
+            reach_limits: core::array::from_fn(|n| {
+                let below = n.max(2) as i32 - 1;
+                let factorial: f64 = (1..=below).map(f64::from).product();
+                (TAIL * factorial).powf(1.0 / f64::from(below))
+            }),
         })
     }
 
@@ -274,11 +285,10 @@ impl<'a> Chunk<'a> {
         };
         let r_x = free.mode_m_per_n;
         let rho = free.lag_per_s;
+        // `ω·L ≤ 1`, so `(ω·L)^(n−1)/(n−1)!` falls with `n`.
         let reach = free.model.slow_per_s * length_s;
         let mut terms = 4;
-        let mut bound = reach * reach * reach / 6.0;
-        while terms < TERMS && bound >= f64::EPSILON / 4096.0 {
-            bound *= reach * INVERSE[terms];
+        while terms < TERMS && reach >= free.reach_limits[terms] {
             terms += 1;
         }
         let q0 = if rho > 0.0 {
@@ -286,36 +296,33 @@ impl<'a> Chunk<'a> {
         } else {
             z0[Q]
         };
+        let x0 = z0[X] - r_x * phi_n;
+        let v0 = z0[V] + rho * r_x * phi_n;
+        let [from_x, from_v, from_force] = &free.basis;
+        let position: Poly =
+            core::array::from_fn(|n| x0 * from_x[n] + v0 * from_v[n] + target_n * from_force[n]);
         let mut chunk = Chunk {
             free,
             part,
             target_n,
             z0: *z0,
             phi_n,
-            series: [[0.0; TERMS]; 4],
+            series: [
+                position,
+                derived(&position, 1),
+                derived(&position, 2),
+                derived(&position, 3),
+            ],
             q0,
             length_s,
             end: (0.0, 0.0, 0.0),
-            phi_end_n: 0.0,
+            phi_end_n: if phi_n != 0.0 {
+                phi_n * (-free.lag_per_s * length_s).exp()
+            } else {
+                0.0
+            },
             terms,
         };
-        let x0 = z0[X] - r_x * phi_n;
-        let v0 = z0[V] + rho * r_x * phi_n;
-        let [from_x, from_v, from_force] = &free.basis;
-        for (n, c) in chunk.series[0][..terms].iter_mut().enumerate() {
-            *c = x0 * from_x[n] + v0 * from_v[n] + target_n * from_force[n];
-        }
-        // The third derivative only for a stuck part's events, which watch the acceleration.
-        let orders = if part == Part::Stuck { 4 } else { 3 };
-        for d in 1..orders {
-            let (lower, upper) = chunk.series.split_at_mut(d);
-            for (m, c) in upper[0][..terms - d].iter_mut().enumerate() {
-                *c = FALLING[d][m + d] * lower[0][m + d];
-            }
-        }
-        if phi_n != 0.0 {
-            chunk.phi_end_n = phi_n * (-free.lag_per_s * length_s).exp();
-        }
         // Only a stuck part watches the plate's acceleration.
         chunk.end = chunk.plate_at(length_s, part == Part::Stuck);
         chunk
@@ -471,30 +478,20 @@ impl<'a> Chunk<'a> {
         let rho = self.free.lag_per_s;
         let length_s = self.length_s;
         let len = self.terms - order;
-        let mut coefficients = [0.0; TERMS];
-        for (m, c) in coefficients[..len].iter_mut().enumerate() {
-            *c = rho * self.series[order][m];
-            if m + order + 1 < self.terms {
-                *c += self.series[order + 1][m];
-            }
-        }
+        let (lower, higher) = (&self.series[order], &self.series[order + 1]);
+        let coefficients: Poly = core::array::from_fn(|m| rho * lower[m] + higher[m]);
+        // `Σ_{m≥2} |c_m|·L^(m−2)` and `Σ_{m≥2} m·|c_m|·L^(m−2)`, by Horner's scheme.
         let (mut tail, mut slope_tail) = (0.0, 0.0);
-        // `L^(m−1)` at term `m`.
-        let mut power = 1.0;
-        for (m, c) in coefficients[..len].iter().enumerate().skip(1) {
-            if m >= 2 {
-                slope_tail += FALLING[1][m] * c.abs() * power;
-            }
-            power *= length_s;
-            if m >= 2 {
-                tail += c.abs() * power;
-            }
+        for m in (2..len).rev() {
+            let c = coefficients[m].abs();
+            tail = tail * length_s + c;
+            slope_tail = slope_tail * length_s + FALLING[1][m] * c;
         }
         Mode {
             coefficients,
             len,
-            tail,
-            slope_tail,
+            tail: tail * length_s * length_s,
+            slope_tail: slope_tail * length_s,
         }
     }
 
@@ -546,23 +543,24 @@ impl<'a> Chunk<'a> {
                 )
             };
             if q1.abs() > slope_rest || (q1 == 0.0 && slope_rest == 0.0) {
-                let (q_lo, q_hi) = (q0, q(length_s).0);
-                if (q_lo > 0.0) != (q_hi > 0.0) {
-                    // H rises then falls where Q(0) > 0: a maximum, else a minimum.
-                    let maximum = q_lo > 0.0;
-                    let (g_lo, g_hi) = (function.start, function.end);
-                    // From zero, the extremum matters only if `g` ends on its other side.
-                    let needed = if g_lo == 0.0 {
-                        if maximum {
-                            g_hi <= 0.0
-                        } else {
-                            g_hi >= 0.0
-                        }
+                // Were `Q` to change sign, `H` would rise then fall where `Q(0) > 0`: a
+                // maximum, else a minimum.
+                let maximum = q0 > 0.0;
+                let (g_lo, g_hi) = (function.start, function.end);
+                // From zero, the extremum matters only if `g` ends on its other side.
+                let needed = if g_lo == 0.0 {
+                    if maximum {
+                        g_hi <= 0.0
                     } else {
-                        (g_lo > 0.0) == (g_hi > 0.0) && (g_lo > 0.0) != maximum
-                    };
-                    if needed {
-                        pieces.push(refine(q, (0.0, q_lo), (length_s, q_hi), EXACT));
+                        g_hi >= 0.0
+                    }
+                } else {
+                    (g_lo > 0.0) == (g_hi > 0.0) && (g_lo > 0.0) != maximum
+                };
+                if needed {
+                    let q_hi = q(length_s).0;
+                    if (q0 > 0.0) != (q_hi > 0.0) {
+                        pieces.push(refine(q, (0.0, q0), (length_s, q_hi), EXACT));
                     }
                 }
             } else {
@@ -719,8 +717,10 @@ const TURN: f64 = 1e-9;
 
 /// The zero of `f` in `[lo, hi]`, given `f(lo) > 0 ≥ f(hi)` (or the reverse) and a single sign
 /// change between: Newton's steps from the secant's point, kept inside the shrinking bracket
-/// (bisecting where a step would leave it), until a step is below `relative` of the time.
-/// `f_df` gives `f` and `f′`.
+/// (bisecting where a step would leave it), until a step is below `relative` of the time, or
+/// until two Newton steps in a row shrink so fast that the next, `|s_k|³/|s_{k−1}|²` for
+/// quadratic convergence, would be (then the last step is taken unevaluated). `f_df` gives `f`
+/// and `f′`.
 fn refine(
     f_df: impl Fn(f64) -> (f64, f64),
     (mut lo, f_lo): (f64, f64),
@@ -732,6 +732,8 @@ fn refine(
     if !(t > lo && t < hi) {
         t = 0.5 * (lo + hi);
     }
+    // The last step if it was Newton's, else 0.
+    let mut last_step = 0.0;
     for _ in 0..200 {
         let (f, df) = f_df(t);
         if f == 0.0 {
@@ -743,20 +745,36 @@ fn refine(
             hi = t;
         }
         let step = f / df;
-        if step.abs() <= relative * t.abs() {
+        let tolerance = relative * t.abs();
+        if step.abs() <= tolerance {
             return t;
         }
         let newton = t - step;
-        t = if newton > lo && newton < hi {
-            newton
+        let inside = newton > lo && newton < hi;
+        if inside && step.abs().powi(3) <= tolerance * last_step * last_step {
+            return newton;
+        }
+        (t, last_step) = if inside {
+            (newton, step.abs())
         } else {
-            0.5 * (lo + hi)
+            (0.5 * (lo + hi), 0.0)
         };
         if t <= lo || t >= hi {
             break;
         }
     }
     hi
+}
+
+/// The Taylor coefficients of `p^(d)`, `d ≤ 3`.
+fn derived(p: &Poly, d: usize) -> Poly {
+    core::array::from_fn(|m| {
+        if m + d < TERMS {
+            FALLING[d][m + d] * p[m + d]
+        } else {
+            0.0
+        }
+    })
 }
 
 /// The Taylor coefficients of `p′`.
