@@ -158,39 +158,137 @@ impl FreeSlide {
         target_n: f64,
         z0: &State,
         duration_s: f64,
+        turn: impl FnMut(f64),
+    ) -> Option<(Option<(Event, f64)>, State)> {
+        let mut course = Course::default();
+        course.begin(target_n, duration_s);
+        course.next_event(self, part, z0, 0.0, turn)
+    }
+}
+
+/// The plate through one segment on a free slide, and the part on it, event by event. The plate
+/// does not feel the part, so a chunk of its motion, with its turning points and its first
+/// contact with an end stop, serves every contact the part passes through within it: after the
+/// part's event the course goes on in the same chunk.
+#[derive(Debug, Clone, Default)]
+pub struct Course {
+    target_n: f64,
+    duration_s: f64,
+    /// The current chunk, if `valid`, and whether it ends with the segment.
+    chunk: Chunk,
+    valid: bool,
+    last: bool,
+    /// Where the last event left the course.
+    resume: Option<Resume>,
+}
+
+/// An event's place in its chunk, to go on from if the next call starts there.
+#[derive(Debug, Clone, Copy)]
+struct Resume {
+    /// The segment's time of the event, as the caller adds it up.
+    offset_s: f64,
+    /// Its time in the chunk.
+    in_chunk_s: f64,
+    /// The plate's state then: `x`, `v`, `F`, `∫x`.
+    plate: [f64; 4],
+}
+
+fn plate_of(z: &State) -> [f64; 4] {
+    [z[X], z[V], z[F], z[Q]]
+}
+
+impl Course {
+    /// Starts a segment of `duration_s` under the drive target `target_n`.
+    pub fn begin(&mut self, target_n: f64, duration_s: f64) {
+        self.target_n = target_n;
+        self.duration_s = duration_s;
+        self.valid = false;
+        self.resume = None;
+    }
+
+    /// The first event from the state `z` at `offset_s` into the segment, with the part in
+    /// contact `part`, as [`FreeSlide::next_event`] over the rest of the segment: its time from
+    /// `offset_s`, and the state then. Where `z` is the state this course returned at its last
+    /// event, with only the part changed since, and `offset_s` that event's time, it goes on in
+    /// that event's chunk.
+    pub fn next_event(
+        &mut self,
+        free: &FreeSlide,
+        part: Part,
+        z: &State,
+        offset_s: f64,
         mut turn: impl FnMut(f64),
     ) -> Option<(Option<(Event, f64)>, State)> {
-        let mut z = *z0;
-        let mut start_s = 0.0;
+        let duration_s = (self.duration_s - offset_s).max(0.0);
+        let mut z = *z;
+        // The call's time of the chunk's start, and the chunk's time of `z`.
+        let (mut start_s, mut from_s) = match self.resume.take() {
+            Some(resume)
+                if self.valid && resume.offset_s == offset_s && resume.plate == plate_of(&z) =>
+            {
+                (-resume.in_chunk_s, resume.in_chunk_s)
+            }
+            _ => {
+                self.valid = false;
+                (0.0, 0.0)
+            }
+        };
         let mut halvings = 0;
         loop {
-            let rest_s = duration_s - start_s;
-            if rest_s <= 0.0 {
-                return Some((None, z));
+            if !self.valid {
+                let rest_s = duration_s - start_s;
+                if rest_s <= 0.0 {
+                    return Some((None, z));
+                }
+                let step_s = free.longest_chunk_s * 0.5_f64.powi(halvings);
+                self.last = step_s >= rest_s;
+                let length_s = if self.last { rest_s } else { step_s };
+                if self
+                    .chunk
+                    .start(free, self.target_n, &z, length_s)
+                    .is_none()
+                {
+                    halvings += 1;
+                    if halvings > MAX_HALVINGS {
+                        return None;
+                    }
+                    continue;
+                }
+                self.valid = true;
+                from_s = 0.0;
             }
-            let step_s = self.longest_chunk_s * 0.5_f64.powi(halvings);
-            let last = step_s >= rest_s;
-            let length_s = if last { rest_s } else { step_s };
-            let chunk = Chunk::new(self, part, target_n, &z, length_s);
-            let Some((first, turns)) = chunk.first_event() else {
+            let chunk = &mut self.chunk;
+            let Some(first) = chunk.part_event(free, part, &z, from_s) else {
+                // Undecided from here: a shorter chunk from `z`.
                 halvings += 1;
                 if halvings > MAX_HALVINGS {
                     return None;
                 }
+                self.valid = false;
+                start_s += from_s;
                 continue;
             };
-            for &t in turns.as_slice() {
-                if first.is_none_or(|(_, at)| t <= at) {
+            for &t in chunk.turns.as_slice() {
+                if t > from_s && first.is_none_or(|(_, at)| t <= at) {
                     turn(chunk.position(t));
                 }
             }
             if let Some((event, t)) = first {
-                return Some((Some((event, start_s + t)), chunk.state(t)));
+                let state = chunk.state(free, t, part, &z, from_s);
+                let elapsed_s = start_s + t;
+                self.resume = Some(Resume {
+                    offset_s: offset_s + elapsed_s,
+                    in_chunk_s: t,
+                    plate: plate_of(&state),
+                });
+                return Some((Some((event, elapsed_s)), state));
             }
-            if last {
-                return Some((None, chunk.state(rest_s)));
+            let length_s = chunk.length_s;
+            z = chunk.state(free, length_s, part, &z, from_s);
+            self.valid = false;
+            if self.last {
+                return Some((None, z));
             }
-            z = chunk.state(length_s);
             start_s += length_s;
             halvings = 0;
         }
@@ -217,47 +315,46 @@ impl Times {
     }
 }
 
-/// What a function watches for.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Watch {
-    Event(Event),
-    Turn,
-}
-
 /// An event function `g(τ) = w·X^(d)(τ) + c + s·τ + γ·e^{−ρτ}`: a weighted derivative of the
 /// slow position (`d = 0, 1, 2`: position, velocity, acceleration), a line, and the current
 /// loop's mode. `Q = ρ·S + S′ = w·(ρ·X^(d) + X^(d+1)) + ρ·c + s + ρ·s·τ`.
 #[derive(Debug, Clone, Copy)]
 struct Function {
-    watch: Watch,
     order: usize,
     weight: f64,
     constant: f64,
     slope: f64,
     fast: f64,
-    /// `g(0)` from the state itself, exactly zero where the regime was entered on its boundary.
+    /// The time from which it is watched.
+    from: f64,
+    /// `g(from)` from the state itself, exactly zero where the regime was entered on its
+    /// boundary.
     start: f64,
     /// `g` at the chunk's end.
     end: f64,
 }
 
-/// `ρ·X^(d) + X^(d+1)` over a chunk: its Taylor coefficients and the bounds of its terms from
-/// `τ²` on over the chunk, `Σ_{m≥2} |c_m|·L^m` and `Σ_{m≥2} m·|c_m|·L^{m−1}`, which bound `Q`'s
-/// and `Q′`'s variation for every function on this derivative.
+/// `ρ·X^(d) + X^(d+1)` over a chunk: its order `d`, its two lowest Taylor coefficients, how
+/// many it has, and the bounds of its terms from `τ²` on over the chunk, `Σ_{m≥2} |c_m|·L^m`
+/// and `Σ_{m≥2} m·|c_m|·L^{m−1}`, which bound `Q`'s and `Q′`'s variation for every function on
+/// this derivative.
 #[derive(Debug, Clone, Copy)]
 struct Mode {
-    coefficients: Poly,
+    order: usize,
+    low: [f64; 2],
     len: usize,
     tail: f64,
     slope_tail: f64,
 }
 
-/// The plate's and the part's motion from a state, over one chunk.
-struct Chunk<'a> {
-    free: &'a FreeSlide,
-    part: Part,
+/// The plate's motion from a state, over one chunk, with its turning points and its first
+/// contact with an end stop there.
+#[derive(Debug, Clone, Default)]
+struct Chunk {
     target_n: f64,
-    z0: State,
+    /// `ρ` and `r_x` of the free slide.
+    lag_per_s: f64,
+    mode_m_per_n: f64,
     /// `φ₀`.
     phi_n: f64,
     /// Taylor coefficients of the slow position `X` and of its first three derivatives:
@@ -265,8 +362,7 @@ struct Chunk<'a> {
     series: [Poly; 4],
     /// `∫X` at the start.
     q0: f64,
-    /// The chunk's length `L` and the plate's `(x, v, a)` then (`a` only where the part is stuck,
-    /// the one contact whose events watch it; else 0).
+    /// The chunk's length `L` and the plate's `(x, v, a)` then.
     length_s: f64,
     end: (f64, f64, f64),
     /// `φ(L)`.
@@ -274,58 +370,76 @@ struct Chunk<'a> {
     /// Taylor coefficients summed: the first `n` with `(ω·L)ⁿ/n!` below `2⁻⁶⁴` for the chunk's
     /// length `L`, at least 4 (a plate without spring or damping is a cubic).
     terms: usize,
+    /// `ρ·X^(d) + X^(d+1)` for `d = 0, 1, 2`, as the functions watched need them.
+    modes: [Option<Mode>; 3],
+    /// The plate's turning points in `(0, L]`.
+    turns: Times,
+    /// The first time the plate reaches an end stop in `[0, L]`.
+    end_stop: Option<f64>,
 }
 
-impl<'a> Chunk<'a> {
-    fn new(free: &'a FreeSlide, part: Part, target_n: f64, z0: &State, length_s: f64) -> Self {
-        let phi_n = if free.lag_per_s > 0.0 {
-            z0[F] - target_n
-        } else {
-            0.0
-        };
-        let r_x = free.mode_m_per_n;
+impl Chunk {
+    /// Makes this the chunk of `length_s` from the state `z0`; `None` if a zero of `Q` for the
+    /// plate's turning points or its end stops could not be isolated on it.
+    fn start(&mut self, free: &FreeSlide, target_n: f64, z0: &State, length_s: f64) -> Option<()> {
         let rho = free.lag_per_s;
+        let r_x = free.mode_m_per_n;
+        let phi_n = if rho > 0.0 { z0[F] - target_n } else { 0.0 };
         // `ω·L ≤ 1`, so `(ω·L)^(n−1)/(n−1)!` falls with `n`.
         let reach = free.model.slow_per_s * length_s;
         let mut terms = 4;
         while terms < TERMS && reach >= free.reach_limits[terms] {
             terms += 1;
         }
-        let q0 = if rho > 0.0 {
+        self.target_n = target_n;
+        self.lag_per_s = rho;
+        self.mode_m_per_n = r_x;
+        self.phi_n = phi_n;
+        self.q0 = if rho > 0.0 {
             z0[Q] + r_x / rho * phi_n
         } else {
             z0[Q]
         };
+        self.length_s = length_s;
+        self.phi_end_n = if phi_n != 0.0 {
+            phi_n * (-rho * length_s).exp()
+        } else {
+            0.0
+        };
+        self.terms = terms;
+        self.modes = [None; 3];
+        self.end_stop = None;
         let x0 = z0[X] - r_x * phi_n;
         let v0 = z0[V] + rho * r_x * phi_n;
         let [from_x, from_v, from_force] = &free.basis;
-        let position: Poly =
-            core::array::from_fn(|n| x0 * from_x[n] + v0 * from_v[n] + target_n * from_force[n]);
-        let mut chunk = Chunk {
-            free,
-            part,
-            target_n,
-            z0: *z0,
-            phi_n,
-            series: [
-                position,
-                derived(&position, 1),
-                derived(&position, 2),
-                derived(&position, 3),
-            ],
-            q0,
-            length_s,
-            end: (0.0, 0.0, 0.0),
-            phi_end_n: if phi_n != 0.0 {
-                phi_n * (-free.lag_per_s * length_s).exp()
-            } else {
-                0.0
-            },
-            terms,
-        };
-        // Only a stuck part watches the plate's acceleration.
-        chunk.end = chunk.plate_at(length_s, part == Part::Stuck);
-        chunk
+        let [position, velocity, accel, jerk] = &mut self.series;
+        for (n, c) in position.iter_mut().enumerate() {
+            *c = x0 * from_x[n] + v0 * from_v[n] + target_n * from_force[n];
+        }
+        for (d, derivative) in [velocity, accel, jerk].into_iter().enumerate() {
+            let d = d + 1;
+            let (low, high) = derivative.split_at_mut(TERMS - d);
+            for ((c, p), k) in low.iter_mut().zip(&position[d..]).zip(&FALLING[d][d..]) {
+                *c = k * p;
+            }
+            high.fill(0.0);
+        }
+        self.end = self.plate_at(length_s, true);
+        let turn = self.function(1, 1.0, 0.0, 0.0, 0.0, z0[V]);
+        let pieces = self.pieces(&turn)?;
+        self.turns = self.sign_changes(&turn, &pieces);
+        if let Some(x_lim) = free.model.params.end_stop_m {
+            for sign in [1.0, -1.0] {
+                let stop = self.function(0, -sign, x_lim, 0.0, 0.0, x_lim - sign * z0[X]);
+                let pieces = self.pieces(&stop)?;
+                if let Some(t) = self.first_zero(&stop, &pieces) {
+                    if self.end_stop.is_none_or(|at| t < at) {
+                        self.end_stop = Some(t);
+                    }
+                }
+            }
+        }
+        Some(())
     }
 
     /// The Taylor coefficients of `X^(d)`, `d ≤ 3`.
@@ -340,13 +454,13 @@ impl<'a> Chunk<'a> {
         } else if t == self.length_s {
             self.phi_end_n
         } else {
-            self.phi_n * (-self.free.lag_per_s * t).exp()
+            self.phi_n * (-self.lag_per_s * t).exp()
         }
     }
 
     /// The plate's position at `τ`.
     fn position(&self, t: f64) -> f64 {
-        horner(self.derivative(0), t) + self.free.mode_m_per_n * self.phi(t)
+        horner(self.derivative(0), t) + self.mode_m_per_n * self.phi(t)
     }
 
     /// The plate's `(x, v)` at `τ`.
@@ -369,8 +483,8 @@ impl<'a> Chunk<'a> {
             0.0
         };
         let phi = self.phi(t);
-        let rho = self.free.lag_per_s;
-        let r_x = self.free.mode_m_per_n;
+        let rho = self.lag_per_s;
+        let r_x = self.mode_m_per_n;
         (
             x + r_x * phi,
             v - rho * r_x * phi,
@@ -378,174 +492,189 @@ impl<'a> Chunk<'a> {
         )
     }
 
-    /// The whole state at `τ`.
-    fn state(&self, t: f64) -> State {
+    /// The whole state at `τ`, from the state `z` at `from` with the part in contact `part`.
+    fn state(&self, free: &FreeSlide, t: f64, part: Part, z: &State, from: f64) -> State {
         let (x, v) = self.plate(t);
         let phi = self.phi(t);
         let mut q = self.q0 + t * sum_from(0, self.derivative(0), |n| INVERSE[n + 1], t);
-        if self.free.lag_per_s > 0.0 {
-            q -= self.free.mode_m_per_n / self.free.lag_per_s * phi;
+        if self.lag_per_s > 0.0 {
+            q -= self.mode_m_per_n / self.lag_per_s * phi;
         }
-        let mut z = self.z0;
-        z[X] = x;
-        z[V] = v;
-        z[F] = self.target_n + phi;
-        z[Q] = q;
-        match self.part {
+        let mut out = *z;
+        out[X] = x;
+        out[V] = v;
+        out[F] = self.target_n + phi;
+        out[Q] = q;
+        match part {
             Part::Sliding(sigma) => {
-                let accel = self.free.model.sliding_part_accel_mps2(sigma);
-                z[P] = self.z0[P] + t * (self.z0[U] + 0.5 * accel * t);
-                z[U] = self.z0[U] + accel * t;
+                let accel = free.model.sliding_part_accel_mps2(sigma);
+                let dt = t - from;
+                out[P] = z[P] + dt * (z[U] + 0.5 * accel * dt);
+                out[U] = z[U] + accel * dt;
             }
             Part::Stuck => {
-                z[P] = self.z0[P] + (x - self.z0[X]);
-                z[U] = v;
+                out[P] = z[P] + (x - z[X]);
+                out[U] = v;
             }
         }
-        z
+        out
     }
 
-    /// The function `w·X^(d) + c + s·τ` with the current loop's part of `x^(d)` weighted alike.
+    /// The function `w·X^(d) + c + s·τ` with the current loop's part of `x^(d)` weighted alike,
+    /// watched from `from`, where it is `start`.
     fn function(
-        &self,
-        watch: Watch,
+        &mut self,
         order: usize,
         weight: f64,
         constant: f64,
         slope: f64,
+        from: f64,
+        start: f64,
     ) -> Function {
-        let rho = self.free.lag_per_s;
+        let rho = self.lag_per_s;
+        if self.modes[order].is_none() {
+            self.modes[order] = Some(self.mode(order));
+        }
         // x, v, a: the mode's part r_x·φ, −ρ·r_x·φ, ρ²·r_x·φ.
-        let fast = weight * self.phi_n * self.free.mode_m_per_n * (-rho).powi(order as i32);
-        let start_accel_mps2 = self.free.model.plate_accel_mps2(Slide::Free, &self.z0);
-        let at_start = [self.z0[X], self.z0[V], start_accel_mps2][order];
+        let fast = weight * self.phi_n * self.mode_m_per_n * (-rho).powi(order as i32);
         let (x, v, a) = self.end;
         let at_end = [x, v, a][order];
         Function {
-            watch,
             order,
             weight,
             constant,
             slope,
             fast,
-            start: weight * at_start + constant,
+            from,
+            start,
             end: weight * at_end + constant + slope * self.length_s,
         }
     }
 
-    /// The functions this chunk watches, each positive while its regime holds.
-    fn watched(&self) -> ([Function; 5], usize) {
-        let turn = self.function(Watch::Turn, 1, 1.0, 0.0, 0.0);
-        let mut out = [turn; 5];
-        let mut count = 1;
-        match self.part {
+    /// The part's first event in `[from, L]` from the state `z` at `from` (or the plate's first
+    /// contact with an end stop, if that comes first); `None` if a zero of `Q` could not be
+    /// isolated.
+    fn part_event(
+        &mut self,
+        free: &FreeSlide,
+        part: Part,
+        z: &State,
+        from: f64,
+    ) -> Option<Option<(Event, f64)>> {
+        let mut first: Option<(Event, f64)> = None;
+        match part {
             Part::Sliding(sigma) => {
-                let accel = self.free.model.sliding_part_accel_mps2(sigma);
-                out[count] = self.function(
-                    Watch::Event(Event::PartMeetsPlate),
-                    1,
-                    -sigma,
-                    sigma * self.z0[U],
-                    sigma * accel,
-                );
-                count += 1;
+                let accel = free.model.sliding_part_accel_mps2(sigma);
+                let constant = sigma * (z[U] - accel * from);
+                let start = -sigma * z[V] + sigma * z[U];
+                let meet = self.function(1, -sigma, constant, sigma * accel, from, start);
+                let pieces = self.pieces(&meet)?;
+                first = self
+                    .first_zero(&meet, &pieces)
+                    .map(|t| (Event::PartMeetsPlate, t));
             }
             Part::Stuck => {
-                let contact = &self.free.model.contact;
+                let contact = &free.model.contact;
+                let start_accel_mps2 = free.model.plate_accel_mps2(Slide::Free, z);
                 for sign in [1.0, -1.0] {
-                    out[count] = self.function(
-                        Watch::Event(Event::PartBreaksAway),
-                        2,
-                        -sign,
-                        contact.static_accel_mps2() + sign * contact.force_accel_mps2(),
-                        0.0,
-                    );
-                    count += 1;
+                    let constant = contact.static_accel_mps2() + sign * contact.force_accel_mps2();
+                    let start = -sign * start_accel_mps2 + constant;
+                    let away = self.function(2, -sign, constant, 0.0, from, start);
+                    let pieces = self.pieces(&away)?;
+                    if let Some(t) = self.first_zero(&away, &pieces) {
+                        if first.is_none_or(|(_, at)| t < at) {
+                            first = Some((Event::PartBreaksAway, t));
+                        }
+                    }
                 }
             }
         }
-        if let Some(x_lim) = self.free.model.params.end_stop_m {
-            for sign in [1.0, -1.0] {
-                out[count] = self.function(Watch::Event(Event::EndStop), 0, -sign, x_lim, 0.0);
-                count += 1;
+        if let Some(t) = self.end_stop {
+            if t >= from && first.is_none_or(|(_, at)| t < at) {
+                first = Some((Event::EndStop, t));
             }
         }
-        (out, count)
+        Some(first)
+    }
+
+    /// The Taylor coefficient of `τ^m` in `ρ·X^(d) + X^(d+1)`.
+    fn mode_coefficient(&self, order: usize, m: usize) -> f64 {
+        self.lag_per_s * self.series[order][m] + self.series[order + 1][m]
     }
 
     /// `ρ·X^(d) + X^(d+1)` over the chunk.
     fn mode(&self, order: usize) -> Mode {
-        let rho = self.free.lag_per_s;
         let length_s = self.length_s;
         let len = self.terms - order;
-        let (lower, higher) = (&self.series[order], &self.series[order + 1]);
-        let coefficients: Poly = core::array::from_fn(|m| rho * lower[m] + higher[m]);
         // `Σ_{m≥2} |c_m|·L^(m−2)` and `Σ_{m≥2} m·|c_m|·L^(m−2)`, by Horner's scheme.
         let (mut tail, mut slope_tail) = (0.0, 0.0);
+        let (lower, higher) = (&self.series[order][..len], &self.series[order + 1][..len]);
         for m in (2..len).rev() {
-            let c = coefficients[m].abs();
+            let c = (self.lag_per_s * lower[m] + higher[m]).abs();
             tail = tail * length_s + c;
             slope_tail = slope_tail * length_s + FALLING[1][m] * c;
         }
         Mode {
-            coefficients,
+            order,
+            low: [
+                self.mode_coefficient(order, 0),
+                self.mode_coefficient(order, 1),
+            ],
             len,
             tail: tail * length_s * length_s,
             slope_tail: slope_tail * length_s,
         }
     }
 
-    /// The first event in `[0, L]` and the plate's turning points in `(0, L]`;
-    /// `None` if a zero of some `Q` could not be isolated.
-    fn first_event(&self) -> Option<(Option<(Event, f64)>, Times)> {
-        let (functions, count) = self.watched();
-        let mut modes: [Option<Mode>; 3] = [None; 3];
-        let mut first: Option<(Event, f64)> = None;
-        let mut turns = Times::default();
-        for function in &functions[..count] {
-            let mode = modes[function.order].get_or_insert_with(|| self.mode(function.order));
-            let pieces = self.pieces(function, mode)?;
-            match function.watch {
-                Watch::Event(event) => {
-                    if let Some(t) = self.first_zero(function, &pieces) {
-                        if first.is_none_or(|(_, at)| t < at) {
-                            first = Some((event, t));
-                        }
-                    }
-                }
-                Watch::Turn => turns = self.sign_changes(function, &pieces),
-            }
+    /// The Taylor coefficients of `Q = ρ·S + S′` for a function of weight `w` whose `Q` starts
+    /// `q0 + q1·τ`, as many as its mode has.
+    fn q_poly(&self, w: f64, mode: &Mode, [q0, q1]: [f64; 2]) -> Poly {
+        let rho = self.lag_per_s;
+        let len = mode.len;
+        let lower = &self.series[mode.order][..len];
+        let higher = &self.series[mode.order + 1][..len];
+        let mut out = [0.0; TERMS];
+        for ((c, l), h) in out[..len].iter_mut().zip(lower).zip(higher) {
+            *c = w * (rho * l + h);
         }
-        Some((first, turns))
+        out[0] = q0;
+        out[1] = q1;
+        out
     }
 
-    /// Times `0 < t₁ < … < L` between which `H = e^{ρτ}·g` is monotone, as far as the zeros of
-    /// `g` need them: where `Q = ρ·S + S′` changes sign once, that zero only if `H`'s extremum
-    /// there turns towards zero between ends of one sign (or leaves zero from the start); more
-    /// zeros of `Q` all.
-    fn pieces(&self, function: &Function, mode: &Mode) -> Option<Times> {
+    /// Times `from = t₀ < t₁ < … < L` between which `H = e^{ρτ}·g` is monotone, as far as the
+    /// zeros of `g` after `from` need them: where `Q = ρ·S + S′` is monotone, its zero only if
+    /// `H`'s extremum there turns towards zero between ends of one sign (or leaves zero from the
+    /// start); else every zero of `Q`.
+    fn pieces(&self, function: &Function) -> Option<Times> {
+        let mode = self.modes[function.order].as_ref()?;
         let length_s = self.length_s;
-        let rho = self.free.lag_per_s;
+        let rho = self.lag_per_s;
         let w = function.weight;
-        let q0 = w * mode.coefficients[0] + rho * function.constant + function.slope;
-        let q1 = w * mode.coefficients[1] + rho * function.slope;
+        let from = function.from;
+        let q0 = w * mode.low[0] + rho * function.constant + function.slope;
+        let q1 = w * mode.low[1] + rho * function.slope;
         let rest = q1.abs() * length_s + w.abs() * mode.tail;
         let slope_rest = w.abs() * mode.slope_tail;
         let mut pieces = Times::default();
-        pieces.push(0.0);
+        pieces.push(from);
         let zero_free = q0.abs() > rest || (q0 == 0.0 && rest == 0.0);
+        let monotone = q1.abs() > slope_rest || (q1 == 0.0 && slope_rest == 0.0);
         if !zero_free {
-            let q = |t: f64| {
-                let (value, slope) = jet(&mode.coefficients[..mode.len], t);
-                (
-                    w * value + q0 - w * mode.coefficients[0] + rho * function.slope * t,
-                    w * slope + rho * function.slope,
-                )
-            };
-            if q1.abs() > slope_rest || (q1 == 0.0 && slope_rest == 0.0) {
-                // Were `Q` to change sign, `H` would rise then fall where `Q(0) > 0`: a
-                // maximum, else a minimum.
-                let maximum = q0 > 0.0;
+            let q = self.q_poly(w, mode, [q0, q1]);
+            let q = &q[..mode.len.max(2)];
+            if !monotone {
+                for &t in zeros(q, length_s)?.as_slice() {
+                    if t > from && t < length_s {
+                        pieces.push(t);
+                    }
+                }
+            } else {
+                // A monotone `Q` changes sign after `from` only if `Q(from)` and `Q(L)` differ
+                // in sign; `H` then rises and falls where `Q(from) > 0`, a maximum, else falls
+                // and rises.
+                let q_from = if from > 0.0 { horner(q, from) } else { q0 };
+                let maximum = q_from > 0.0;
                 let (g_lo, g_hi) = (function.start, function.end);
                 // From zero, the extremum matters only if `g` ends on its other side.
                 let needed = if g_lo == 0.0 {
@@ -558,20 +687,9 @@ impl<'a> Chunk<'a> {
                     (g_lo > 0.0) == (g_hi > 0.0) && (g_lo > 0.0) != maximum
                 };
                 if needed {
-                    let q_hi = q(length_s).0;
-                    if (q0 > 0.0) != (q_hi > 0.0) {
-                        pieces.push(refine(q, (0.0, q0), (length_s, q_hi), EXACT));
-                    }
-                }
-            } else {
-                let mut full = [0.0; TERMS];
-                for (f, c) in full.iter_mut().zip(&mode.coefficients[..mode.len]) {
-                    *f = w * c;
-                }
-                full[0] = q0;
-                full[1] = q1;
-                for &t in zeros(&full[..mode.len.max(2)], length_s)?.as_slice() {
-                    if t > 0.0 && t < length_s {
+                    let q_hi = horner(q, length_s);
+                    if maximum != (q_hi > 0.0) {
+                        let t = refine(|t| jet(q, t), (from, q_from), (length_s, q_hi), EXACT);
                         pieces.push(t);
                     }
                 }
@@ -591,13 +709,13 @@ impl<'a> Chunk<'a> {
         if function.fast == 0.0 {
             (slow, slope)
         } else {
-            let fast = function.fast * (-self.free.lag_per_s * t).exp();
-            (slow + fast, slope - self.free.lag_per_s * fast)
+            let fast = function.fast * (-self.lag_per_s * t).exp();
+            (slow + fast, slope - self.lag_per_s * fast)
         }
     }
 
     fn value(&self, function: &Function, t: f64) -> f64 {
-        if t == 0.0 {
+        if t == function.from {
             function.start
         } else if t == self.length_s {
             function.end
@@ -766,17 +884,6 @@ fn refine(
     hi
 }
 
-/// The Taylor coefficients of `p^(d)`, `d ≤ 3`.
-fn derived(p: &Poly, d: usize) -> Poly {
-    core::array::from_fn(|m| {
-        if m + d < TERMS {
-            FALLING[d][m + d] * p[m + d]
-        } else {
-            0.0
-        }
-    })
-}
-
 /// The Taylor coefficients of `p′`.
 fn derivative(p: &[f64]) -> Poly {
     let mut out = [0.0; TERMS];
@@ -843,7 +950,7 @@ mod tests {
     use super::super::motion::{Event, Model, Part, Slide};
     use super::super::params::PlateParams;
     use super::super::regime::Regimes;
-    use super::FreeSlide;
+    use super::{Course, FreeSlide};
     use crate::plant::Contact;
 
     /// A free slide with a current loop of 0.1 Hz to 100 kHz (or none), a spring up to
@@ -937,10 +1044,8 @@ mod tests {
             )
     }
 
-    /// Both solvers from the case's state: the same first event, at the same time to 10⁻⁹ of
-    /// the stretch, and the same state and peak excursion to 10⁻⁹ of their scale (or of the
-    /// value, where the plate has gone further).
-    fn agree(params: PlateParams, case: Case) -> Result<(), TestCaseError> {
+    /// The case's model, drive target and settled state with the part's contact.
+    fn setup(params: PlateParams, case: &Case) -> (Model, f64, State, Part) {
         let contact = Contact::new(case.mu, case.mu + case.extra_static, 9.81, 1e-4, 0.0).unwrap();
         let model = Model::new(params, contact);
         let target_n = params.target_force_n(case.command_mps2);
@@ -965,12 +1070,26 @@ mod tests {
             Part::Sliding((z[U] - z[V]).signum())
         };
         model.settle(&mut z, &mut slide, &mut part);
-        let (free, general) = both(&model, part, target_n, &z, case.duration_s);
+        (model, target_n, z, part)
+    }
+
+    /// The free slide's outcome (event, state, turning points' positions) and the general
+    /// solver's from the same state `z` agree: the same event, at the same time to 10⁻⁹ of the
+    /// stretch, and the same state and peak excursion to 10⁻⁹ of their scale (or of the value,
+    /// where the plate has gone further).
+    fn close(
+        params: &PlateParams,
+        z: &State,
+        duration_s: f64,
+        free: &(Option<(Event, f64)>, State, Vec<f64>),
+        general: &(Option<(Event, f64)>, State, Vec<f64>),
+    ) -> Result<(), TestCaseError> {
+        let x_lim = params.end_stop_m.unwrap_or(1e-2);
         let kind = |e: Option<(Event, f64)>| e.map(|(event, _)| event);
         prop_assert_eq!(kind(free.0), kind(general.0));
         if let (Some((_, t_free)), Some((_, t))) = (free.0, general.0) {
             prop_assert!(
-                (t_free - t).abs() <= 1e-9 * case.duration_s,
+                (t_free - t).abs() <= 1e-9 * duration_s,
                 "{} vs {}",
                 t_free,
                 t
@@ -1004,6 +1123,57 @@ mod tests {
         Ok(())
     }
 
+    /// Both solvers from the case's state agree on the first event ([`close`]).
+    fn agree(params: PlateParams, case: Case) -> Result<(), TestCaseError> {
+        let (model, target_n, z, part) = setup(params, &case);
+        let (free, general) = both(&model, part, target_n, &z, case.duration_s);
+        close(&params, &z, case.duration_s, &free, &general)
+    }
+
+    /// Event by event through the case's stretch, as the stepper runs it: after each of the
+    /// part's events the course goes on in its chunk, and agrees with the general solver from
+    /// the same state ([`close`]). Returns how many events the course found.
+    fn agree_through(params: PlateParams, case: Case) -> Result<usize, TestCaseError> {
+        let (model, target_n, mut z, mut part) = setup(params, &case);
+        let free = FreeSlide::new(&model).expect("a free slide");
+        let mut course = Course::default();
+        course.begin(target_n, case.duration_s);
+        let mut regimes = Regimes::default();
+        let mut slide = Slide::Free;
+        let mut offset_s = 0.0;
+        for events in 0..100 {
+            model.settle(&mut z, &mut slide, &mut part);
+            let rest_s = (case.duration_s - offset_s).max(0.0);
+            let mut free_turns = Vec::new();
+            let (event, end_z) = course
+                .next_event(&free, part, &z, offset_s, |x| free_turns.push(x))
+                .expect("decided");
+            let regime = regimes.get(&model, slide, part, target_n);
+            let mut turns = Vec::new();
+            let (general_event, general_z) =
+                model.next_event(regime, &z, rest_s, |x| turns.push(x));
+            close(
+                &params,
+                &z,
+                case.duration_s,
+                &(event, end_z, free_turns),
+                &(general_event, general_z, turns),
+            )?;
+            match event {
+                None | Some((Event::EndStop, _)) => return Ok(events),
+                Some((event, t)) => {
+                    offset_s += t;
+                    z = end_z;
+                    if part == Part::Stuck {
+                        z[U] = z[V];
+                    }
+                    model.apply(event, &mut z, &mut slide, &mut part);
+                }
+            }
+        }
+        Ok(100)
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(2000))]
 
@@ -1015,6 +1185,20 @@ mod tests {
             case in case(-200.0..200.0_f64, 1e-4..2e-2_f64),
         ) {
             agree(params, case)?;
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(1000))]
+
+        /// Through a whole stretch of a feeder's plate, event by event, the course that goes
+        /// on in its chunk after the part's events agrees with the general solver.
+        #[test]
+        fn a_course_through_a_stretch_agrees_with_the_general_solver(
+            params in free_plate(),
+            case in case(-200.0..200.0_f64, 1e-3..2e-2_f64),
+        ) {
+            agree_through(params, case)?;
         }
     }
 

@@ -4,7 +4,7 @@
 use crate::error::SimError;
 use crate::plant::{Contact, PlateSegment};
 
-use super::free::FreeSlide;
+use super::free::{Course, FreeSlide};
 use super::linear::{self, Matrix, State, F, P, Q, U, V, X};
 use super::motion::{Event, Model, Part, Slide};
 use super::params::PlateParams;
@@ -43,8 +43,9 @@ pub struct PlatePoint {
 #[derive(Debug)]
 pub struct Stepper {
     model: Model,
-    /// The scalar solution, where the slide is free.
+    /// The scalar solution, where the slide is free, and its course through the segment.
     free: Option<FreeSlide>,
+    course: Course,
     regimes: Regimes,
     z: State,
     slide: Slide,
@@ -68,6 +69,7 @@ impl Stepper {
         let model = Model::new(*params, *contact);
         Ok(Stepper {
             free: FreeSlide::new(&model),
+            course: Course::default(),
             model,
             regimes: Regimes::default(),
             z: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
@@ -162,16 +164,17 @@ impl Stepper {
             self.z[F] = target_n;
         }
         let command = segment.accel_mps2;
+        self.course.begin(target_n, segment.duration_s);
         let mut offset_s = 0.0;
         for _ in 0..MAX_EVENTS_PER_SEGMENT {
             model.settle(&mut self.z, &mut self.slide, &mut self.part);
             let rest_s = (segment.duration_s - offset_s).max(0.0);
             let peak_m = &mut self.peak_m;
             let mut turn = |x: f64| *peak_m = peak_m.max(x.abs());
-            let free = self
-                .free
-                .as_ref()
-                .and_then(|free| free.next_event(self.part, target_n, &self.z, rest_s, &mut turn));
+            let free = self.free.as_ref().and_then(|free| {
+                self.course
+                    .next_event(free, self.part, &self.z, offset_s, &mut turn)
+            });
             let (next, end_z) = match free {
                 Some(outcome) => outcome,
                 None => {
