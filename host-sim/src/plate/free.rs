@@ -10,7 +10,7 @@
 //! where the slow part `X` obeys `M·X″ + c·X′ + k·X = F*` and is summed as its Taylor series
 //! over a chunk of length `L ≤ 1/ω` (`ω = max(√(k/M), c/M)` bounds its rates; the coefficients
 //! follow from the equation by a two-term recurrence and are summed until `(ω·L)ⁿ/n!` is below
-//! `2⁻⁶⁴`, at most 22 of them). The part slides with constant `u′` or moves with the plate.
+//! `2⁻⁵⁶`, at most 22 of them). The part slides with constant `u′` or moves with the plate.
 //! No matrix exponential is formed: the general solver of [`super::motion`] needs one per
 //! regime and a ladder of steps through it.
 //!
@@ -18,12 +18,15 @@
 //! `Q = ρ·S + S′`, `H = e^{ρτ}·g` (`H′ = e^{ρτ}·Q`) is monotone, so `g` has at most one zero
 //! there, bracketed by its signs at the ends and refined by Newton's steps inside the bracket to
 //! a few units in the last place (a turning point, where only the position matters and it is
-//! stationary, to 10⁻⁹ of the time). The zeros of `Q` are isolated through its derivatives: the
-//! lowest derivative `Q^(j)` whose constant Taylor coefficient outweighs the others' bound over
-//! the chunk has no zero, so `Q^(j−1)` is monotone and its zeros, and from them those of
-//! `Q^(j−2)`, …, `Q`, are bracketed in turn. Where `Q` is monotone (`j = 1`) its one zero is
-//! found only if `H`'s extremum there may reach zero. A chunk on which no `j ≤ 4` passes is
-//! halved.
+//! stationary, to 10⁻⁹ of the time). `Q` has no zero where its constant Taylor coefficient
+//! outweighs the others' bound over the chunk, and is monotone where its slope's does; then its
+//! one zero is found only if `H`'s extremum there may reach zero. Else its zeros are bracketed
+//! through its derivatives: `Q″` combines the slow part's two modes only (the line and the
+//! current loop's mode drop out), which turn by at most `ω·L ≤ 1` radian over the chunk, so it
+//! has at most one zero there, `Q′` at most two and `Q` at most three.
+//!
+//! The plate does not feel the part, so a chunk of its motion serves every contact the part
+//! passes through within it ([`Course`]).
 
 use super::linear::{State, F, P, Q, U, V, X};
 use super::motion::{Event, Model, Part, Slide};
@@ -32,16 +35,10 @@ use super::motion::{Event, Model, Part, Slide};
 const TERMS: usize = 22;
 
 /// The last Taylor term summed is below this, relative to the slow part's scale.
-const TAIL: f64 = f64::EPSILON / 4096.0;
+const TAIL: f64 = f64::EPSILON / 16.0;
 
-/// Highest derivative of `Q` tried for a proof that it has no zero on a chunk.
-const MAX_ORDER: usize = 4;
-
-/// Zeros of `Q^(i)` at most, `i ≥ 0`: one more than those of `Q^(i+1)`.
-const MAX_ZEROS: usize = MAX_ORDER;
-
-/// Halvings of a chunk before the free slide hands the stretch to the general solver.
-const MAX_HALVINGS: i32 = 40;
+/// Zeros of `Q` on a chunk at most (one of `Q″`, two of `Q′`).
+const MAX_ZEROS: usize = 3;
 
 type Poly = [f64; TERMS];
 
@@ -150,8 +147,7 @@ impl FreeSlide {
     /// The first event within `duration_s` of the state `z0` under the drive target `target_n`
     /// with the part in contact `part`, with its time, and the state then (at `duration_s` if no
     /// event comes first); the plate's turning points before it are passed to `turn` with their
-    /// position. The same answer as [`Model::next_event`] on the free slide; `None` where a chunk
-    /// could not be decided (a zero of `Q` of order beyond [`MAX_ORDER`]).
+    /// position. The same answer as [`Model::next_event`] on the free slide.
     pub fn next_event(
         &self,
         part: Part,
@@ -159,7 +155,7 @@ impl FreeSlide {
         z0: &State,
         duration_s: f64,
         turn: impl FnMut(f64),
-    ) -> Option<(Option<(Event, f64)>, State)> {
+    ) -> (Option<(Event, f64)>, State) {
         let mut course = Course::default();
         course.begin(target_n, duration_s);
         course.next_event(self, part, z0, 0.0, turn)
@@ -218,7 +214,7 @@ impl Course {
         z: &State,
         offset_s: f64,
         mut turn: impl FnMut(f64),
-    ) -> Option<(Option<(Event, f64)>, State)> {
+    ) -> (Option<(Event, f64)>, State) {
         let duration_s = (self.duration_s - offset_s).max(0.0);
         let mut z = *z;
         // The call's time of the chunk's start, and the chunk's time of `z`.
@@ -233,41 +229,24 @@ impl Course {
                 (0.0, 0.0)
             }
         };
-        let mut halvings = 0;
         loop {
             if !self.valid {
                 let rest_s = duration_s - start_s;
                 if rest_s <= 0.0 {
-                    return Some((None, z));
+                    return (None, z);
                 }
-                let step_s = free.longest_chunk_s * 0.5_f64.powi(halvings);
-                self.last = step_s >= rest_s;
-                let length_s = if self.last { rest_s } else { step_s };
-                if self
-                    .chunk
-                    .start(free, self.target_n, &z, length_s)
-                    .is_none()
-                {
-                    halvings += 1;
-                    if halvings > MAX_HALVINGS {
-                        return None;
-                    }
-                    continue;
-                }
+                self.last = free.longest_chunk_s >= rest_s;
+                let length_s = if self.last {
+                    rest_s
+                } else {
+                    free.longest_chunk_s
+                };
+                self.chunk.start(free, self.target_n, &z, length_s);
                 self.valid = true;
                 from_s = 0.0;
             }
             let chunk = &mut self.chunk;
-            let Some(first) = chunk.part_event(free, part, &z, from_s) else {
-                // Undecided from here: a shorter chunk from `z`.
-                halvings += 1;
-                if halvings > MAX_HALVINGS {
-                    return None;
-                }
-                self.valid = false;
-                start_s += from_s;
-                continue;
-            };
+            let first = chunk.part_event(free, part, &z, from_s);
             for &t in chunk.turns.as_slice() {
                 if t > from_s && first.is_none_or(|(_, at)| t <= at) {
                     turn(chunk.position(t));
@@ -281,16 +260,15 @@ impl Course {
                     in_chunk_s: t,
                     plate: plate_of(&state),
                 });
-                return Some((Some((event, elapsed_s)), state));
+                return (Some((event, elapsed_s)), state);
             }
             let length_s = chunk.length_s;
             z = chunk.state(free, length_s, part, &z, from_s);
             self.valid = false;
             if self.last {
-                return Some((None, z));
+                return (None, z);
             }
             start_s += length_s;
-            halvings = 0;
         }
     }
 }
@@ -321,6 +299,8 @@ impl Times {
 #[derive(Debug, Clone, Copy)]
 struct Function {
     order: usize,
+    /// `ρ·X^(d) + X^(d+1)` over the chunk.
+    mode: Mode,
     weight: f64,
     constant: f64,
     slope: f64,
@@ -362,9 +342,9 @@ struct Chunk {
     series: [Poly; 4],
     /// `∫X` at the start.
     q0: f64,
-    /// The chunk's length `L` and the plate's `(x, v, a)` then.
+    /// The chunk's length `L` and the plate's `(x, v)` then.
     length_s: f64,
-    end: (f64, f64, f64),
+    end: (f64, f64),
     /// `φ(L)`.
     phi_end_n: f64,
     /// Taylor coefficients summed: the first `n` with `(ω·L)ⁿ/n!` below `2⁻⁶⁴` for the chunk's
@@ -379,9 +359,8 @@ struct Chunk {
 }
 
 impl Chunk {
-    /// Makes this the chunk of `length_s` from the state `z0`; `None` if a zero of `Q` for the
-    /// plate's turning points or its end stops could not be isolated on it.
-    fn start(&mut self, free: &FreeSlide, target_n: f64, z0: &State, length_s: f64) -> Option<()> {
+    /// Makes this the chunk of `length_s` from the state `z0`.
+    fn start(&mut self, free: &FreeSlide, target_n: f64, z0: &State, length_s: f64) {
         let rho = free.lag_per_s;
         let r_x = free.mode_m_per_n;
         let phi_n = if rho > 0.0 { z0[F] - target_n } else { 0.0 };
@@ -424,14 +403,15 @@ impl Chunk {
             }
             high.fill(0.0);
         }
-        self.end = self.plate_at(length_s, true);
+        let (x, v, _) = self.plate_at(length_s, false);
+        self.end = (x, v);
         let turn = self.function(1, 1.0, 0.0, 0.0, 0.0, z0[V]);
-        let pieces = self.pieces(&turn)?;
+        let pieces = self.pieces(&turn);
         self.turns = self.sign_changes(&turn, &pieces);
         if let Some(x_lim) = free.model.params.end_stop_m {
             for sign in [1.0, -1.0] {
                 let stop = self.function(0, -sign, x_lim, 0.0, 0.0, x_lim - sign * z0[X]);
-                let pieces = self.pieces(&stop)?;
+                let pieces = self.pieces(&stop);
                 if let Some(t) = self.first_zero(&stop, &pieces) {
                     if self.end_stop.is_none_or(|at| t < at) {
                         self.end_stop = Some(t);
@@ -439,7 +419,6 @@ impl Chunk {
                 }
             }
         }
-        Some(())
     }
 
     /// The Taylor coefficients of `X^(d)`, `d ≤ 3`.
@@ -466,7 +445,7 @@ impl Chunk {
     /// The plate's `(x, v)` at `τ`.
     fn plate(&self, t: f64) -> (f64, f64) {
         if t == self.length_s {
-            (self.end.0, self.end.1)
+            self.end
         } else {
             let (x, v, _) = self.plate_at(t, false);
             (x, v)
@@ -532,15 +511,20 @@ impl Chunk {
         start: f64,
     ) -> Function {
         let rho = self.lag_per_s;
-        if self.modes[order].is_none() {
-            self.modes[order] = Some(self.mode(order));
-        }
+        let mode = match self.modes[order] {
+            Some(mode) => mode,
+            None => *self.modes[order].insert(self.mode(order)),
+        };
         // x, v, a: the mode's part r_x·φ, −ρ·r_x·φ, ρ²·r_x·φ.
         let fast = weight * self.phi_n * self.mode_m_per_n * (-rho).powi(order as i32);
-        let (x, v, a) = self.end;
-        let at_end = [x, v, a][order];
+        let at_end = match order {
+            0 => self.end.0,
+            1 => self.end.1,
+            _ => self.plate_at(self.length_s, true).2,
+        };
         Function {
             order,
+            mode,
             weight,
             constant,
             slope,
@@ -552,15 +536,14 @@ impl Chunk {
     }
 
     /// The part's first event in `[from, L]` from the state `z` at `from` (or the plate's first
-    /// contact with an end stop, if that comes first); `None` if a zero of `Q` could not be
-    /// isolated.
+    /// contact with an end stop, if that comes first).
     fn part_event(
         &mut self,
         free: &FreeSlide,
         part: Part,
         z: &State,
         from: f64,
-    ) -> Option<Option<(Event, f64)>> {
+    ) -> Option<(Event, f64)> {
         let mut first: Option<(Event, f64)> = None;
         match part {
             Part::Sliding(sigma) => {
@@ -568,7 +551,7 @@ impl Chunk {
                 let constant = sigma * (z[U] - accel * from);
                 let start = -sigma * z[V] + sigma * z[U];
                 let meet = self.function(1, -sigma, constant, sigma * accel, from, start);
-                let pieces = self.pieces(&meet)?;
+                let pieces = self.pieces(&meet);
                 first = self
                     .first_zero(&meet, &pieces)
                     .map(|t| (Event::PartMeetsPlate, t));
@@ -580,7 +563,7 @@ impl Chunk {
                     let constant = contact.static_accel_mps2() + sign * contact.force_accel_mps2();
                     let start = -sign * start_accel_mps2 + constant;
                     let away = self.function(2, -sign, constant, 0.0, from, start);
-                    let pieces = self.pieces(&away)?;
+                    let pieces = self.pieces(&away);
                     if let Some(t) = self.first_zero(&away, &pieces) {
                         if first.is_none_or(|(_, at)| t < at) {
                             first = Some((Event::PartBreaksAway, t));
@@ -594,7 +577,7 @@ impl Chunk {
                 first = Some((Event::EndStop, t));
             }
         }
-        Some(first)
+        first
     }
 
     /// The Taylor coefficient of `τ^m` in `ρ·X^(d) + X^(d+1)`.
@@ -646,8 +629,8 @@ impl Chunk {
     /// zeros of `g` after `from` need them: where `Q = ρ·S + S′` is monotone, its zero only if
     /// `H`'s extremum there turns towards zero between ends of one sign (or leaves zero from the
     /// start); else every zero of `Q`.
-    fn pieces(&self, function: &Function) -> Option<Times> {
-        let mode = self.modes[function.order].as_ref()?;
+    fn pieces(&self, function: &Function) -> Times {
+        let mode = &function.mode;
         let length_s = self.length_s;
         let rho = self.lag_per_s;
         let w = function.weight;
@@ -664,7 +647,7 @@ impl Chunk {
             let q = self.q_poly(w, mode, [q0, q1]);
             let q = &q[..mode.len.max(2)];
             if !monotone {
-                for &t in zeros(q, length_s)?.as_slice() {
+                for &t in zeros(q, length_s).as_slice() {
                     if t > from && t < length_s {
                         pieces.push(t);
                     }
@@ -696,7 +679,7 @@ impl Chunk {
             }
         }
         pieces.push(length_s);
-        Some(pieces)
+        pieces
     }
 
     /// `g` and `g′` at `τ > 0`.
@@ -893,45 +876,28 @@ fn derivative(p: &[f64]) -> Poly {
     out
 }
 
-/// Whether `p` has no zero on `[0, length_s]`: its constant term outweighs the rest there, or
-/// it is identically zero.
-fn zero_free(p: &[f64], length_s: f64) -> bool {
-    let rest = p[1..]
-        .iter()
-        .rev()
-        .fold(0.0, |acc, c| acc * length_s + c.abs())
-        * length_s;
-    p[0].abs() > rest || (p[0] == 0.0 && rest == 0.0)
-}
-
-/// The zeros of the polynomial `p` in `[0, length_s]` at which it changes sign, sorted; `None`
-/// if none of its first [`MAX_ORDER`] derivatives can be shown free of zeros there.
-fn zeros(p: &[f64], length_s: f64) -> Option<Times> {
-    let terms = p.len();
-    let mut derivatives = [[0.0; TERMS]; MAX_ORDER + 1];
-    derivatives[0][..terms].copy_from_slice(p);
-    let mut order = 0;
-    while !zero_free(&derivatives[order][..terms], length_s) {
-        if order == MAX_ORDER {
-            return None;
-        }
-        derivatives[order + 1] = derivative(&derivatives[order][..terms]);
-        order += 1;
-    }
+/// The zeros of `Q` in `[0, length_s]` at which it changes sign, sorted: `Q″` has at most one
+/// there (see the module's notes), bracketed by its signs at the ends; `Q′` is monotone on each
+/// side of it and `Q` on each side of `Q′`'s zeros. The derivatives' zeros only split the level
+/// below into monotone pieces, to 10⁻⁹ of the time: a split off by that could hide only a double
+/// zero of rounding size.
+fn zeros(q: &[f64], length_s: f64) -> Times {
+    let len = q.len();
+    let slope = derivative(q);
+    let curvature = derivative(&slope[..len]);
     let mut found = Times::default();
-    for d in derivatives[..order].iter().rev() {
-        let d = &d[..terms];
+    for (p, tolerance) in [(&curvature[..len], TURN), (&slope[..len], TURN), (q, EXACT)] {
         let mut next = Times::default();
         let mut left = 0.0;
-        let mut f_left = horner(d, left);
+        let mut f_left = p[0];
         for right in found.as_slice().iter().copied().chain([length_s]) {
-            let f_right = horner(d, right);
+            let f_right = horner(p, right);
             if (f_left > 0.0) != (f_right > 0.0) {
                 next.push(refine(
-                    |t| jet(d, t),
+                    |t| jet(p, t),
                     (left, f_left),
                     (right, f_right),
-                    EXACT,
+                    tolerance,
                 ));
             }
             left = right;
@@ -939,7 +905,7 @@ fn zeros(p: &[f64], length_s: f64) -> Option<Times> {
         }
         found = next;
     }
-    Some(found)
+    found
 }
 
 #[cfg(test)]
@@ -989,9 +955,8 @@ mod tests {
     ) {
         let free = FreeSlide::new(model).expect("a free slide");
         let mut free_turns = Vec::new();
-        let (free_event, free_z) = free
-            .next_event(part, target_n, z, duration_s, |x| free_turns.push(x))
-            .expect("decided");
+        let (free_event, free_z) =
+            free.next_event(part, target_n, z, duration_s, |x| free_turns.push(x));
         let mut regimes = Regimes::default();
         let regime = regimes.get(model, Slide::Free, part, target_n);
         let mut turns = Vec::new();
@@ -1145,9 +1110,8 @@ mod tests {
             model.settle(&mut z, &mut slide, &mut part);
             let rest_s = (case.duration_s - offset_s).max(0.0);
             let mut free_turns = Vec::new();
-            let (event, end_z) = course
-                .next_event(&free, part, &z, offset_s, |x| free_turns.push(x))
-                .expect("decided");
+            let (event, end_z) =
+                course.next_event(&free, part, &z, offset_s, |x| free_turns.push(x));
             let regime = regimes.get(&model, slide, part, target_n);
             let mut turns = Vec::new();
             let (general_event, general_z) =
@@ -1271,6 +1235,19 @@ mod tests {
             panic!("the part meets the plate again: {free:?} {general:?}");
         };
         assert!(t > 1e-4 && (t_free - t).abs() < 1e-15, "{t_free} vs {t}");
+    }
+
+    /// `Q = (τ − 0.1)·(τ − 0.5)·(τ − 0.9)` on `[0, 1]`: `Q″ = 6τ − 3` has its one zero at 0.5, `Q′`
+    /// two (`0.5 ± √0.0533…`) where `Q` is positive at both ends, and `Q` all three of its zeros.
+    #[test]
+    fn all_three_zeros_of_q_are_found_through_its_derivatives() {
+        let q = [-0.045, 0.59, -1.5, 1.0];
+        let found = super::zeros(&q, 1.0);
+        let found = found.as_slice();
+        assert_eq!(found.len(), 3, "{found:?}");
+        for (t, expected) in found.iter().zip([0.1, 0.5, 0.9]) {
+            assert!((t - expected).abs() < 1e-14, "{found:?}");
+        }
     }
 
     /// Slide friction and a current loop at one of the slide's own rates are left to the general

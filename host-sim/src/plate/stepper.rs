@@ -171,12 +171,10 @@ impl Stepper {
             let rest_s = (segment.duration_s - offset_s).max(0.0);
             let peak_m = &mut self.peak_m;
             let mut turn = |x: f64| *peak_m = peak_m.max(x.abs());
-            let free = self.free.as_ref().and_then(|free| {
-                self.course
-                    .next_event(free, self.part, &self.z, offset_s, &mut turn)
-            });
-            let (next, end_z) = match free {
-                Some(outcome) => outcome,
+            let (next, end_z) = match self.free.as_ref() {
+                Some(free) => self
+                    .course
+                    .next_event(free, self.part, &self.z, offset_s, &mut turn),
                 None => {
                     let regime = self.regimes.get(model, self.slide, self.part, target_n);
                     model.next_event(regime, &self.z, rest_s, &mut turn)
