@@ -516,7 +516,12 @@ impl Chunk {
             None => *self.modes[order].insert(self.mode(order)),
         };
         // x, v, a: the mode's part r_x·φ, −ρ·r_x·φ, ρ²·r_x·φ.
-        let fast = weight * self.phi_n * self.mode_m_per_n * (-rho).powi(order as i32);
+        let power = match order {
+            0 => 1.0,
+            1 => -rho,
+            _ => rho * rho,
+        };
+        let fast = weight * self.phi_n * self.mode_m_per_n * power;
         let at_end = match order {
             0 => self.end.0,
             1 => self.end.1,
@@ -643,11 +648,12 @@ impl Chunk {
         pieces.push(from);
         let zero_free = q0.abs() > rest || (q0 == 0.0 && rest == 0.0);
         let monotone = q1.abs() > slope_rest || (q1 == 0.0 && slope_rest == 0.0);
+        let q_poly = || self.q_poly(w, mode, [q0, q1]);
+        let len = mode.len.max(2);
         if !zero_free {
-            let q = self.q_poly(w, mode, [q0, q1]);
-            let q = &q[..mode.len.max(2)];
             if !monotone {
-                for &t in zeros(q, length_s).as_slice() {
+                let q = q_poly();
+                for &t in zeros(&q[..len], length_s).as_slice() {
                     if t > from && t < length_s {
                         pieces.push(t);
                     }
@@ -656,7 +662,12 @@ impl Chunk {
                 // A monotone `Q` changes sign after `from` only if `Q(from)` and `Q(L)` differ
                 // in sign; `H` then rises and falls where `Q(from) > 0`, a maximum, else falls
                 // and rises.
-                let q_from = if from > 0.0 { horner(q, from) } else { q0 };
+                let mut q = None;
+                let q_from = if from > 0.0 {
+                    horner(&q.insert(q_poly())[..len], from)
+                } else {
+                    q0
+                };
                 let maximum = q_from > 0.0;
                 let (g_lo, g_hi) = (function.start, function.end);
                 // From zero, the extremum matters only if `g` ends on its other side.
@@ -670,6 +681,7 @@ impl Chunk {
                     (g_lo > 0.0) == (g_hi > 0.0) && (g_lo > 0.0) != maximum
                 };
                 if needed {
+                    let q = &q.get_or_insert_with(q_poly)[..len];
                     let q_hi = horner(q, length_s);
                     if maximum != (q_hi > 0.0) {
                         let t = refine(|t| jet(q, t), (from, q_from), (length_s, q_hi), EXACT);
