@@ -475,7 +475,7 @@ impl Chunk {
     fn state(&self, free: &FreeSlide, t: f64, part: Part, z: &State, from: f64) -> State {
         let (x, v) = self.plate(t);
         let phi = self.phi(t);
-        let mut q = self.q0 + t * sum_from(0, self.derivative(0), |n| INVERSE[n + 1], t);
+        let mut q = self.q0 + t * weighted(self.derivative(0), &INVERSE[1..], t);
         if self.lag_per_s > 0.0 {
             q -= self.mode_m_per_n / self.lag_per_s * phi;
         }
@@ -596,11 +596,13 @@ impl Chunk {
         let len = self.terms - order;
         // `Σ_{m≥2} |c_m|·L^(m−2)` and `Σ_{m≥2} m·|c_m|·L^(m−2)`, by Horner's scheme.
         let (mut tail, mut slope_tail) = (0.0, 0.0);
-        let (lower, higher) = (&self.series[order][..len], &self.series[order + 1][..len]);
-        for m in (2..len).rev() {
-            let c = (self.lag_per_s * lower[m] + higher[m]).abs();
+        let rho = self.lag_per_s;
+        let lower = &self.series[order][2..len];
+        let higher = &self.series[order + 1][2..len];
+        for ((l, h), m) in lower.iter().zip(higher).zip(&FALLING[1][2..len]).rev() {
+            let c = (rho * l + h).abs();
             tail = tail * length_s + c;
-            slope_tail = slope_tail * length_s + FALLING[1][m] * c;
+            slope_tail = slope_tail * length_s + m * c;
         }
         Mode {
             order,
@@ -779,26 +781,25 @@ impl Chunk {
     }
 }
 
-/// `Σ_{n ≥ low} w(n)·p_n·t^{n−low}` by Horner's scheme in `t²` on the even and the odd powers
-/// apart: two chains of half the length, which the processor runs side by side.
-#[inline(always)]
-fn sum_from(low: usize, p: &[f64], weight: impl Fn(usize) -> f64, t: f64) -> f64 {
+/// `Σ_n w_n·p_n·tⁿ` over the shorter of `p` and `w`, as [`horner`] sums.
+fn weighted(p: &[f64], w: &[f64], t: f64) -> f64 {
+    let len = p.len().min(w.len());
+    let (p, w) = (&p[..len], &w[..len]);
     let t2 = t * t;
     let (mut even, mut odd) = (0.0, 0.0);
-    let mut k = p.len().saturating_sub(low);
-    if k % 2 == 1 {
-        k -= 1;
-        even = weight(low + k) * p[low + k];
+    let pairs = p.chunks_exact(2).zip(w.chunks_exact(2));
+    if len % 2 == 1 {
+        even = p[len - 1] * w[len - 1];
     }
-    while k > 0 {
-        k -= 2;
-        odd = odd * t2 + weight(low + k + 1) * p[low + k + 1];
-        even = even * t2 + weight(low + k) * p[low + k];
+    for (pair, weight) in pairs.rev() {
+        odd = odd * t2 + pair[1] * weight[1];
+        even = even * t2 + pair[0] * weight[0];
     }
     even + t * odd
 }
 
-/// `p(t)`, on the even and the odd powers apart (see [`sum_from`]).
+/// `p(t)` by Horner's scheme in `t²` on the even and the odd powers apart: two chains of half
+/// the length, which the processor runs side by side.
 fn horner(p: &[f64], t: f64) -> f64 {
     let t2 = t * t;
     let (mut even, mut odd) = (0.0, 0.0);
@@ -815,10 +816,7 @@ fn horner(p: &[f64], t: f64) -> f64 {
 
 /// `p(t)` and `p′(t)`.
 fn jet(p: &[f64], t: f64) -> (f64, f64) {
-    (
-        sum_from(0, p, |_| 1.0, t),
-        sum_from(1, p, |n| FALLING[1][n], t),
-    )
+    (horner(p, t), weighted(&p[1..], &FALLING[1][1..], t))
 }
 
 /// Steps of [`refine`] end below this fraction of the time: a few units in the last place.
