@@ -347,7 +347,7 @@ struct Chunk {
     end: (f64, f64),
     /// `φ(L)`.
     phi_end_n: f64,
-    /// Taylor coefficients summed: the first `n` with `(ω·L)ⁿ/n!` below `2⁻⁶⁴` for the chunk's
+    /// Taylor coefficients summed: the first `n` with `(ω·L)ⁿ/n!` below `2⁻⁵⁶` for the chunk's
     /// length `L`, at least 4 (a plate without spring or damping is a cubic).
     terms: usize,
     /// `ρ·X^(d) + X^(d+1)` for `d = 0, 1, 2`, as the functions watched need them.
