@@ -437,9 +437,20 @@ impl Chunk {
         }
     }
 
+    /// The current loop's mode's part of `x^(d)` per newton of `φ`: `r_x·(−ρ)^d`, `d ≤ 2`.
+    fn mode_share(&self, order: usize) -> f64 {
+        let rho = self.lag_per_s;
+        self.mode_m_per_n
+            * match order {
+                0 => 1.0,
+                1 => -rho,
+                _ => rho * rho,
+            }
+    }
+
     /// The plate's position at `τ`.
     fn position(&self, t: f64) -> f64 {
-        horner(self.derivative(0), t) + self.mode_m_per_n * self.phi(t)
+        horner(self.derivative(0), t) + self.mode_share(0) * self.phi(t)
     }
 
     /// The plate's `(x, v)` at `τ`.
@@ -462,12 +473,10 @@ impl Chunk {
             0.0
         };
         let phi = self.phi(t);
-        let rho = self.lag_per_s;
-        let r_x = self.mode_m_per_n;
         (
-            x + r_x * phi,
-            v - rho * r_x * phi,
-            a + rho * rho * r_x * phi,
+            x + self.mode_share(0) * phi,
+            v + self.mode_share(1) * phi,
+            a + self.mode_share(2) * phi,
         )
     }
 
@@ -510,18 +519,11 @@ impl Chunk {
         from: f64,
         start: f64,
     ) -> Function {
-        let rho = self.lag_per_s;
         let mode = match self.modes[order] {
             Some(mode) => mode,
             None => *self.modes[order].insert(self.mode(order)),
         };
-        // x, v, a: the mode's part r_x·φ, −ρ·r_x·φ, ρ²·r_x·φ.
-        let power = match order {
-            0 => 1.0,
-            1 => -rho,
-            _ => rho * rho,
-        };
-        let fast = weight * self.phi_n * self.mode_m_per_n * power;
+        let fast = weight * self.phi_n * self.mode_share(order);
         let at_end = match order {
             0 => self.end.0,
             1 => self.end.1,
@@ -651,7 +653,7 @@ impl Chunk {
         let zero_free = q0.abs() > rest || (q0 == 0.0 && rest == 0.0);
         let monotone = q1.abs() > slope_rest || (q1 == 0.0 && slope_rest == 0.0);
         let q_poly = || self.q_poly(w, mode, [q0, q1]);
-        let len = mode.len.max(2);
+        let len = mode.len;
         if !zero_free {
             if !monotone {
                 let q = q_poly();
