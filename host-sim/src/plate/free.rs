@@ -146,19 +146,19 @@ impl FreeSlide {
 
     /// The first event within `duration_s` of the state `z0` under the drive target `target_n`
     /// with the part in contact `part`, with its time, and the state then (at `duration_s` if no
-    /// event comes first); the plate's turning points before it are passed to `turn` with their
-    /// position. The same answer as [`Model::next_event`] on the free slide.
+    /// event comes first); `peak_m` is raised to the plate's distance from the centre at its
+    /// turning points before it. The same answer as [`Model::next_event`] on the free slide.
     pub fn next_event(
         &self,
         part: Part,
         target_n: f64,
         z0: &State,
         duration_s: f64,
-        turn: impl FnMut(f64),
+        peak_m: &mut f64,
     ) -> (Option<(Event, f64)>, State) {
         let mut course = Course::default();
         course.begin(target_n, duration_s);
-        course.next_event(self, part, z0, 0.0, turn)
+        course.next_event(self, part, z0, 0.0, peak_m)
     }
 }
 
@@ -206,14 +206,15 @@ impl Course {
     /// contact `part`, as [`FreeSlide::next_event`] over the rest of the segment: its time from
     /// `offset_s`, and the state then. Where `z` is the state this course returned at its last
     /// event, with only the part changed since, and `offset_s` that event's time, it goes on in
-    /// that event's chunk.
+    /// that event's chunk. The turning points of a chunk whose reach stays below `peak_m` are
+    /// not sought: they could not raise it.
     pub fn next_event(
         &mut self,
         free: &FreeSlide,
         part: Part,
         z: &State,
         offset_s: f64,
-        mut turn: impl FnMut(f64),
+        peak_m: &mut f64,
     ) -> (Option<(Event, f64)>, State) {
         let duration_s = (self.duration_s - offset_s).max(0.0);
         let mut z = *z;
@@ -241,7 +242,7 @@ impl Course {
                 } else {
                     free.longest_chunk_s
                 };
-                self.chunk.start(free, self.target_n, &z, length_s);
+                self.chunk.start(free, self.target_n, &z, length_s, *peak_m);
                 self.valid = true;
                 from_s = 0.0;
             }
@@ -249,7 +250,7 @@ impl Course {
             let first = chunk.part_event(free, part, &z, from_s);
             for &t in chunk.turns.as_slice() {
                 if t > from_s && first.is_none_or(|(_, at)| t <= at) {
-                    turn(chunk.position(t));
+                    *peak_m = peak_m.max(chunk.position(t).abs());
                 }
             }
             if let Some((event, t)) = first {
@@ -359,8 +360,9 @@ struct Chunk {
 }
 
 impl Chunk {
-    /// Makes this the chunk of `length_s` from the state `z0`.
-    fn start(&mut self, free: &FreeSlide, target_n: f64, z0: &State, length_s: f64) {
+    /// Makes this the chunk of `length_s` from the state `z0`, with its turning points if the
+    /// plate may pass `peak_m` in it.
+    fn start(&mut self, free: &FreeSlide, target_n: f64, z0: &State, length_s: f64, peak_m: f64) {
         let rho = free.lag_per_s;
         let r_x = free.mode_m_per_n;
         let phi_n = if rho > 0.0 { z0[F] - target_n } else { 0.0 };
@@ -405,10 +407,20 @@ impl Chunk {
         }
         let (x, v, _) = self.plate_at(length_s, false);
         self.end = (x, v);
-        let turn = self.function(1, 1.0, 0.0, 0.0, 0.0, z0[V]);
-        let pieces = self.pieces(&turn);
-        self.turns = self.sign_changes(&turn, &pieces);
-        if let Some(x_lim) = free.model.params.end_stop_m {
+        let x_lim = free.model.params.end_stop_m;
+        let reach_m = if peak_m > 0.0 || x_lim.is_some() {
+            self.reach_m() * (1.0 + REACH_MARGIN)
+        } else {
+            f64::INFINITY
+        };
+        self.turns = if reach_m < peak_m {
+            Times::default()
+        } else {
+            let turn = self.function(1, 1.0, 0.0, 0.0, 0.0, z0[V]);
+            let pieces = self.pieces(&turn);
+            self.sign_changes(&turn, &pieces)
+        };
+        if let Some(x_lim) = x_lim.filter(|&x_lim| reach_m >= x_lim) {
             for sign in [1.0, -1.0] {
                 let stop = self.function(0, -sign, x_lim, 0.0, 0.0, x_lim - sign * z0[X]);
                 let pieces = self.pieces(&stop);
@@ -419,6 +431,35 @@ impl Chunk {
                 }
             }
         }
+    }
+
+    /// A bound of the plate's distance from the centre over the chunk: the slow part's from
+    /// parabolas through either end with the bounds of its acceleration `X″` (exact where `X″`
+    /// keeps a sign: the far side is then at an end), and the current loop's mode's at most
+    /// `|r_x·φ₀|`.
+    fn reach_m(&self) -> f64 {
+        let length_s = self.length_s;
+        let accel = self.derivative(2);
+        let mut spread = 0.0;
+        for c in accel[1..].iter().rev() {
+            spread = spread * length_s + c.abs();
+        }
+        spread *= length_s;
+        let (low, high) = (accel[0] - spread, accel[0] + spread);
+        let start = (self.series[0][0], self.series[1][0]);
+        let end = (
+            self.end.0 - self.mode_share(0) * self.phi_end_n,
+            self.end.1 - self.mode_share(1) * self.phi_end_n,
+        );
+        let above = farthest(start, end, high, low, length_s);
+        let below = farthest(
+            (-start.0, -start.1),
+            (-end.0, -end.1),
+            -low,
+            -high,
+            length_s,
+        );
+        above.max(below) + (self.mode_share(0) * self.phi_n).abs()
     }
 
     /// The Taylor coefficients of `X^(d)`, `d ≤ 3`.
@@ -783,6 +824,27 @@ impl Chunk {
     }
 }
 
+/// Relative margin on [`Chunk::reach_m`] for the rounding of the values it is built from.
+const REACH_MARGIN: f64 = 1e-12;
+
+/// The highest `X` over `[0, L]` from its `(X, X′)` at both ends and bounds `low ≤ X″ ≤ high`:
+/// at an end where `X` is convex, else the lower of the two parabolas' highest points.
+fn farthest(start: (f64, f64), end: (f64, f64), high: f64, low: f64, length_s: f64) -> f64 {
+    if low >= 0.0 {
+        return start.0.max(end.0);
+    }
+    parabola_top(start, high, length_s).min(parabola_top((end.0, -end.1), high, length_s))
+}
+
+/// The highest point over `s ∈ [0, L]` of `x + v·s + a·s²/2`.
+fn parabola_top((x, v): (f64, f64), a: f64, length_s: f64) -> f64 {
+    if a < 0.0 && v > 0.0 && v < -a * length_s {
+        x - 0.5 * v * v / a
+    } else {
+        x.max(x + length_s * (v + 0.5 * a * length_s))
+    }
+}
+
 /// `Σ_n w_n·p_n·tⁿ` over the shorter of `p` and `w`, as [`horner`] sums.
 fn weighted(p: &[f64], w: &[f64], t: f64) -> f64 {
     let len = p.len().min(w.len());
@@ -953,27 +1015,29 @@ mod tests {
             )
     }
 
+    /// A solver's outcome over a stretch: its first event with its time, the state then, and
+    /// the plate's peak distance from the centre so far (at its ends and turning points).
+    type Outcome = (Option<(Event, f64)>, State, f64);
+
     /// Both solvers from the same state: the general one through its regime's matrix.
-    #[allow(clippy::type_complexity)]
     fn both(
         model: &Model,
         part: Part,
         target_n: f64,
         z: &State,
         duration_s: f64,
-    ) -> (
-        (Option<(Event, f64)>, State, Vec<f64>),
-        (Option<(Event, f64)>, State, Vec<f64>),
-    ) {
+    ) -> (Outcome, Outcome) {
         let free = FreeSlide::new(model).expect("a free slide");
-        let mut free_turns = Vec::new();
-        let (free_event, free_z) =
-            free.next_event(part, target_n, z, duration_s, |x| free_turns.push(x));
+        let mut free_peak = z[X].abs();
+        let (free_event, free_z) = free.next_event(part, target_n, z, duration_s, &mut free_peak);
         let mut regimes = Regimes::default();
         let regime = regimes.get(model, Slide::Free, part, target_n);
-        let mut turns = Vec::new();
-        let (event, end_z) = model.next_event(regime, z, duration_s, |x| turns.push(x));
-        ((free_event, free_z, free_turns), (event, end_z, turns))
+        let mut peak = z[X].abs();
+        let (event, end_z) = model.next_event(regime, z, duration_s, |x| peak = peak.max(x.abs()));
+        (
+            (free_event, free_z, free_peak.max(free_z[X].abs())),
+            (event, end_z, peak.max(end_z[X].abs())),
+        )
     }
 
     /// A plate without spring or damping up to a stiff, heavily damped one, from 1 g to 1 t.
@@ -1050,16 +1114,15 @@ mod tests {
         (model, target_n, z, part)
     }
 
-    /// The free slide's outcome (event, state, turning points' positions) and the general
-    /// solver's from the same state `z` agree: the same event, at the same time to 10⁻⁹ of the
+    /// The free slide's outcome and the general solver's from the same state `z` agree: the same event, at the same time to 10⁻⁹ of the
     /// stretch, and the same state and peak excursion to 10⁻⁹ of their scale (or of the value,
     /// where the plate has gone further).
     fn close(
         params: &PlateParams,
         z: &State,
         duration_s: f64,
-        free: &(Option<(Event, f64)>, State, Vec<f64>),
-        general: &(Option<(Event, f64)>, State, Vec<f64>),
+        free: &Outcome,
+        general: &Outcome,
     ) -> Result<(), TestCaseError> {
         let x_lim = params.end_stop_m.unwrap_or(1e-2);
         let kind = |e: Option<(Event, f64)>| e.map(|(event, _)| event);
@@ -1082,15 +1145,10 @@ mod tests {
                 general.1[i]
             );
         }
-        // The plate's peak excursion over the stretch: a stiff, damped spring rings down
-        // through turning points of rounding size near its rest, which the general solver may
-        // pass over, so the turning points are compared by the peak they give.
-        let peak = |turns: &[f64], end: &State| {
-            turns
-                .iter()
-                .fold(z[X].abs().max(end[X].abs()), |peak, x| peak.max(x.abs()))
-        };
-        let (free_peak, general_peak) = (peak(&free.2, &free.1), peak(&general.2, &general.1));
+        // A stiff, damped spring rings down through turning points of rounding size near its
+        // rest, which the general solver may pass over, so turning points are compared by the
+        // peak they give.
+        let (free_peak, general_peak) = (free.2, general.2);
         prop_assert!(
             (free_peak - general_peak).abs() <= 1e-9 * x_lim.max(general_peak),
             "peak {:e} vs {:e}",
@@ -1118,22 +1176,25 @@ mod tests {
         let mut regimes = Regimes::default();
         let mut slide = Slide::Free;
         let mut offset_s = 0.0;
+        // The peaks run on through the stretch, as the stepper's: the course need not seek the
+        // turning points of a chunk that stays below its peak.
+        let (mut free_peak, mut general_peak) = (z[X].abs(), z[X].abs());
         for events in 0..100 {
             model.settle(&mut z, &mut slide, &mut part);
             let rest_s = (case.duration_s - offset_s).max(0.0);
-            let mut free_turns = Vec::new();
-            let (event, end_z) =
-                course.next_event(&free, part, &z, offset_s, |x| free_turns.push(x));
+            let (event, end_z) = course.next_event(&free, part, &z, offset_s, &mut free_peak);
+            free_peak = free_peak.max(end_z[X].abs());
             let regime = regimes.get(&model, slide, part, target_n);
-            let mut turns = Vec::new();
-            let (general_event, general_z) =
-                model.next_event(regime, &z, rest_s, |x| turns.push(x));
+            let (general_event, general_z) = model.next_event(regime, &z, rest_s, |x| {
+                general_peak = general_peak.max(x.abs());
+            });
+            general_peak = general_peak.max(general_z[X].abs());
             close(
                 &params,
                 &z,
                 case.duration_s,
-                &(event, end_z, free_turns),
-                &(general_event, general_z, turns),
+                &(event, end_z, free_peak),
+                &(general_event, general_z, general_peak),
             )?;
             match event {
                 None | Some((Event::EndStop, _)) => return Ok(events),

@@ -169,15 +169,16 @@ impl Stepper {
         for _ in 0..MAX_EVENTS_PER_SEGMENT {
             model.settle(&mut self.z, &mut self.slide, &mut self.part);
             let rest_s = (segment.duration_s - offset_s).max(0.0);
-            let peak_m = &mut self.peak_m;
-            let mut turn = |x: f64| *peak_m = peak_m.max(x.abs());
             let (next, end_z) = match self.free.as_ref() {
-                Some(free) => self
-                    .course
-                    .next_event(free, self.part, &self.z, offset_s, &mut turn),
+                Some(free) => {
+                    self.course
+                        .next_event(free, self.part, &self.z, offset_s, &mut self.peak_m)
+                }
                 None => {
                     let regime = self.regimes.get(model, self.slide, self.part, target_n);
-                    model.next_event(regime, &self.z, rest_s, &mut turn)
+                    let peak_m = &mut self.peak_m;
+                    let turn = |x: f64| *peak_m = peak_m.max(x.abs());
+                    model.next_event(regime, &self.z, rest_s, turn)
                 }
             };
             let until_s = next.map_or(segment.duration_s, |(_, t)| offset_s + t);
