@@ -124,6 +124,13 @@ pub struct PlateSegment {
     pub starts_cycle: bool,
 }
 
+impl PlateSegment {
+    /// A finite duration `≥ 0` and a finite acceleration.
+    pub fn is_valid(&self) -> bool {
+        self.duration_s >= 0.0 && self.duration_s.is_finite() && self.accel_mps2.is_finite()
+    }
+}
+
 /// The part's relative accelerations during a segment of plate acceleration `a_p`, and their
 /// reciprocals, so that stepping never divides.
 #[derive(Debug, Clone, Copy, PartialEq)]

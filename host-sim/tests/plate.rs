@@ -3,7 +3,7 @@
 
 use feeder_shared::{Drive, Limits, Waveform, WaveformSpec};
 use host_sim::plant::{Contact, PlateSegment};
-use host_sim::plate::{self, PlateParams, PlateRunOptions};
+use host_sim::plate::{self, PlateParams, PlateRunOptions, Stepper};
 use host_sim::segments::exact_cycle;
 use host_sim::sim::{run_segments, Criteria, RunOptions};
 
@@ -165,5 +165,61 @@ fn a_trace_follows_the_run_it_records() {
     assert!(peak_m <= run.peak_excursion_m * (1.0 + 1e-12));
     if let (Some(stop), Some(last)) = (run.end_stop, points.last()) {
         assert_eq!(last.time_s, stop.time_s);
+    }
+}
+
+/// Knowing the next segment lets the solver go on across the boundaries the command holds over
+/// (the return and the next cycle's acceleration): the plate and the part end where a stepper
+/// told nothing puts them, with a current loop and a spring, and at an end stop.
+#[test]
+fn knowing_the_next_segment_changes_nothing() {
+    let lag_spring = PlateParams {
+        mass_kg: 1.5,
+        current_bandwidth_hz: Some(1000.0),
+        spring_npm: 2e4,
+        spring_damping_nspm: 20.0,
+        ..PlateParams::default()
+    };
+    let realistic = PlateParams::from_path("plants/realistic.toml".as_ref()).unwrap();
+    let contact = Contact::kinetic(0.3, 1e-4).unwrap();
+    let segments: Vec<PlateSegment> = cycles(0.586).take(4 * 100).collect();
+    for params in [lag_spring, realistic] {
+        let mut blind = Stepper::new(&params, &contact).unwrap();
+        let mut ahead = Stepper::new(&params, &contact).unwrap();
+        for (k, segment) in segments.iter().enumerate() {
+            blind.segment(segment).unwrap();
+            ahead.segment_before(segment, segments.get(k + 1)).unwrap();
+        }
+        let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-12 * scale.max(b.abs());
+        assert!(close(ahead.time_s(), blind.time_s(), 1.0));
+        assert!(close(
+            ahead.plate_position_m(),
+            blind.plate_position_m(),
+            1e-3
+        ));
+        assert!(close(
+            ahead.plate_velocity_mps(),
+            blind.plate_velocity_mps(),
+            1.0
+        ));
+        assert!(close(
+            ahead.part_position_m(),
+            blind.part_position_m(),
+            1e-3
+        ));
+        assert!(close(
+            ahead.position_integral_ms(),
+            blind.position_integral_ms(),
+            1e-6
+        ));
+        assert!(close(
+            ahead.peak_excursion_m(),
+            blind.peak_excursion_m(),
+            1e-3
+        ));
+        assert_eq!(ahead.end_stop().is_some(), blind.end_stop().is_some());
+        if let (Some(a), Some(b)) = (ahead.end_stop(), blind.end_stop()) {
+            assert!(close(a.time_s, b.time_s, 1.0));
+        }
     }
 }

@@ -157,7 +157,7 @@ impl FreeSlide {
         peak_m: &mut f64,
     ) -> (Option<(Event, f64)>, State) {
         let mut course = Course::default();
-        course.begin(target_n, duration_s);
+        course.begin(target_n, duration_s, duration_s);
         course.next_event(self, part, z0, 0.0, peak_m)
     }
 }
@@ -165,28 +165,42 @@ impl FreeSlide {
 /// The plate through one segment on a free slide, and the part on it, event by event. The plate
 /// does not feel the part, so a chunk of its motion, with its turning points and its first
 /// contact with an end stop, serves every contact the part passes through within it: after the
-/// part's event the course goes on in the same chunk.
+/// part's event the course goes on in the same chunk. Where the next segment holds the target,
+/// chunks run on over it, and the course goes on across the boundary.
 #[derive(Debug, Clone, Default)]
 pub struct Course {
     target_n: f64,
     duration_s: f64,
-    /// The current chunk, if `valid`, and whether it ends with the segment.
+    /// How long the target holds from the segment's start: its duration or more.
+    holds_s: f64,
+    /// The current chunk, if `valid`.
     chunk: Chunk,
     valid: bool,
-    last: bool,
-    /// Where the last event left the course.
+    /// Where the last event or the segment's end left the course.
     resume: Option<Resume>,
 }
 
-/// An event's place in its chunk, to go on from if the next call starts there.
+/// An event's or a segment's end's place in its chunk, to go on from if the next call starts
+/// there.
 #[derive(Debug, Clone, Copy)]
 struct Resume {
-    /// The segment's time of the event, as the caller adds it up.
+    /// The segment's time of the event, as the caller adds it up (0 for the next segment).
     offset_s: f64,
     /// Its time in the chunk.
     in_chunk_s: f64,
     /// The plate's state then: `x`, `v`, `F`, `∫x`.
     plate: [f64; 4],
+    /// At a segment's end inside the chunk, what lies ahead of it there.
+    ahead: Option<Ahead>,
+}
+
+/// The part's first event in the chunk after a segment's end inside it (`None` up to the
+/// chunk's end), for the contact and the state returned there.
+#[derive(Debug, Clone, Copy)]
+struct Ahead {
+    state: State,
+    part: Part,
+    first: Option<(Event, f64)>,
 }
 
 fn plate_of(z: &State) -> [f64; 4] {
@@ -194,12 +208,24 @@ fn plate_of(z: &State) -> [f64; 4] {
 }
 
 impl Course {
-    /// Starts a segment of `duration_s` under the drive target `target_n`.
-    pub fn begin(&mut self, target_n: f64, duration_s: f64) {
+    /// Starts a segment of `duration_s` under the drive target `target_n`, which holds for
+    /// `holds_s ≥ duration_s` (into the segments after it). Where the last segment held the same
+    /// target and ended inside its chunk, the course goes on in that chunk.
+    pub fn begin(&mut self, target_n: f64, duration_s: f64, holds_s: f64) {
+        let goes_on = self.valid
+            && target_n == self.target_n
+            && self.resume.is_some_and(|resume| resume.ahead.is_some());
+        if goes_on {
+            if let Some(resume) = self.resume.as_mut() {
+                resume.offset_s = 0.0;
+            }
+        } else {
+            self.valid = false;
+            self.resume = None;
+        }
         self.target_n = target_n;
         self.duration_s = duration_s;
-        self.valid = false;
-        self.resume = None;
+        self.holds_s = holds_s.max(duration_s);
     }
 
     /// The first event from the state `z` at `offset_s` into the segment, with the part in
@@ -217,56 +243,72 @@ impl Course {
         peak_m: &mut f64,
     ) -> (Option<(Event, f64)>, State) {
         let duration_s = (self.duration_s - offset_s).max(0.0);
+        let holds_s = (self.holds_s - offset_s).max(0.0);
         let mut z = *z;
-        // The call's time of the chunk's start, and the chunk's time of `z`.
-        let (mut start_s, mut from_s) = match self.resume.take() {
+        // The call's time of the chunk's start, the chunk's time of `z`, and the part's first
+        // event after it if known.
+        let (mut start_s, mut from_s, mut ahead) = match self.resume.take() {
             Some(resume)
                 if self.valid && resume.offset_s == offset_s && resume.plate == plate_of(&z) =>
             {
-                (-resume.in_chunk_s, resume.in_chunk_s)
+                let ahead = resume
+                    .ahead
+                    .filter(|ahead| ahead.state == z && ahead.part == part);
+                (-resume.in_chunk_s, resume.in_chunk_s, ahead)
             }
             _ => {
                 self.valid = false;
-                (0.0, 0.0)
+                (0.0, 0.0, None)
             }
         };
         loop {
             if !self.valid {
-                let rest_s = duration_s - start_s;
-                if rest_s <= 0.0 {
+                if duration_s - start_s <= 0.0 {
                     return (None, z);
                 }
-                self.last = free.longest_chunk_s >= rest_s;
-                let length_s = if self.last {
-                    rest_s
-                } else {
-                    free.longest_chunk_s
-                };
+                let length_s = free.longest_chunk_s.min(holds_s - start_s);
                 self.chunk.start(free, self.target_n, &z, length_s, *peak_m);
                 self.valid = true;
                 from_s = 0.0;
             }
             let chunk = &mut self.chunk;
-            let first = chunk.part_event(free, part, &z, from_s);
+            let first = match ahead.take() {
+                Some(ahead) => ahead.first,
+                None => chunk.part_event(free, part, &z, from_s),
+            };
+            // The segment's end in the chunk's time, if it comes before the chunk's.
+            let length_s = chunk.length_s;
+            let end_s = duration_s - start_s;
+            let until_s = end_s.min(length_s);
             for &t in chunk.turns.as_slice() {
-                if t > from_s && first.is_none_or(|(_, at)| t <= at) {
+                if t > from_s && t <= until_s && first.is_none_or(|(_, at)| t <= at) {
                     *peak_m = peak_m.max(chunk.position(t).abs());
                 }
             }
-            if let Some((event, t)) = first {
+            if let Some((event, t)) = first.filter(|&(_, t)| t <= until_s) {
                 let state = chunk.state(free, t, part, &z, from_s);
                 let elapsed_s = start_s + t;
                 self.resume = Some(Resume {
                     offset_s: offset_s + elapsed_s,
                     in_chunk_s: t,
                     plate: plate_of(&state),
+                    ahead: None,
                 });
                 return (Some((event, elapsed_s)), state);
             }
-            let length_s = chunk.length_s;
+            if end_s < length_s {
+                let state = chunk.state(free, end_s, part, &z, from_s);
+                self.resume = Some(Resume {
+                    offset_s: offset_s + duration_s,
+                    in_chunk_s: end_s,
+                    plate: plate_of(&state),
+                    ahead: Some(Ahead { state, part, first }),
+                });
+                return (None, state);
+            }
             z = chunk.state(free, length_s, part, &z, from_s);
             self.valid = false;
-            if self.last {
+            if end_s <= length_s {
                 return (None, z);
             }
             start_s += length_s;
@@ -405,7 +447,7 @@ impl Chunk {
             }
             high.fill(0.0);
         }
-        let (x, v, _) = self.plate_at(length_s, false);
+        let (x, v, _) = self.plate_at(length_s, self.phi_end_n, false);
         self.end = (x, v);
         let x_lim = free.model.params.end_stop_m;
         let reach_m = if peak_m > 0.0 || x_lim.is_some() {
@@ -494,18 +536,8 @@ impl Chunk {
         horner(self.derivative(0), t) + self.mode_share(0) * self.phi(t)
     }
 
-    /// The plate's `(x, v)` at `τ`.
-    fn plate(&self, t: f64) -> (f64, f64) {
-        if t == self.length_s {
-            self.end
-        } else {
-            let (x, v, _) = self.plate_at(t, false);
-            (x, v)
-        }
-    }
-
-    /// The plate's `(x, v, a)` at `τ`; `a` only if `accel` (else 0).
-    fn plate_at(&self, t: f64, accel: bool) -> (f64, f64, f64) {
+    /// The plate's `(x, v, a)` at `τ`, where `φ` is `phi`; `a` only if `accel` (else 0).
+    fn plate_at(&self, t: f64, phi: f64, accel: bool) -> (f64, f64, f64) {
         let x = horner(self.derivative(0), t);
         let v = horner(self.derivative(1), t);
         let a = if accel {
@@ -513,7 +545,6 @@ impl Chunk {
         } else {
             0.0
         };
-        let phi = self.phi(t);
         (
             x + self.mode_share(0) * phi,
             v + self.mode_share(1) * phi,
@@ -523,8 +554,13 @@ impl Chunk {
 
     /// The whole state at `τ`, from the state `z` at `from` with the part in contact `part`.
     fn state(&self, free: &FreeSlide, t: f64, part: Part, z: &State, from: f64) -> State {
-        let (x, v) = self.plate(t);
         let phi = self.phi(t);
+        let (x, v) = if t == self.length_s {
+            self.end
+        } else {
+            let (x, v, _) = self.plate_at(t, phi, false);
+            (x, v)
+        };
         let mut q = self.q0 + t * weighted(self.derivative(0), &INVERSE[1..], t);
         if self.lag_per_s > 0.0 {
             q -= self.mode_m_per_n / self.lag_per_s * phi;
@@ -568,7 +604,7 @@ impl Chunk {
         let at_end = match order {
             0 => self.end.0,
             1 => self.end.1,
-            _ => self.plate_at(self.length_s, true).2,
+            _ => self.plate_at(self.length_s, self.phi_end_n, true).2,
         };
         Function {
             order,
@@ -1114,12 +1150,11 @@ mod tests {
         (model, target_n, z, part)
     }
 
-    /// The free slide's outcome and the general solver's from the same state `z` agree: the same event, at the same time to 10⁻⁹ of the
-    /// stretch, and the same state and peak excursion to 10⁻⁹ of their scale (or of the value,
-    /// where the plate has gone further).
+    /// The free slide's outcome and the general solver's from one state agree: the same event,
+    /// at the same time to 10⁻⁹ of the stretch, and the same state and peak excursion to 10⁻⁹ of
+    /// their scale (or of the value, where the plate has gone further).
     fn close(
         params: &PlateParams,
-        z: &State,
         duration_s: f64,
         free: &Outcome,
         general: &Outcome,
@@ -1162,53 +1197,74 @@ mod tests {
     fn agree(params: PlateParams, case: Case) -> Result<(), TestCaseError> {
         let (model, target_n, z, part) = setup(params, &case);
         let (free, general) = both(&model, part, target_n, &z, case.duration_s);
-        close(&params, &z, case.duration_s, &free, &general)
+        close(&params, case.duration_s, &free, &general)
     }
 
-    /// Event by event through the case's stretch, as the stepper runs it: after each of the
-    /// part's events the course goes on in its chunk, and agrees with the general solver from
-    /// the same state ([`close`]). Returns how many events the course found.
-    fn agree_through(params: PlateParams, case: Case) -> Result<usize, TestCaseError> {
+    /// Event by event through the case's stretch, as the stepper runs it, split into segments
+    /// at the fractions `splits` of it (the target holding through all): after each of the
+    /// part's events the course goes on in its chunk, and across each segment's end; every step
+    /// agrees with the general solver from the same state over the rest of its segment
+    /// ([`close`]). Returns how many events the course found.
+    fn agree_through(
+        params: PlateParams,
+        case: Case,
+        splits: &[f64],
+    ) -> Result<usize, TestCaseError> {
         let (model, target_n, mut z, mut part) = setup(params, &case);
         let free = FreeSlide::new(&model).expect("a free slide");
         let mut course = Course::default();
-        course.begin(target_n, case.duration_s);
         let mut regimes = Regimes::default();
         let mut slide = Slide::Free;
-        let mut offset_s = 0.0;
         // The peaks run on through the stretch, as the stepper's: the course need not seek the
         // turning points of a chunk that stays below its peak.
         let (mut free_peak, mut general_peak) = (z[X].abs(), z[X].abs());
-        for events in 0..100 {
-            model.settle(&mut z, &mut slide, &mut part);
-            let rest_s = (case.duration_s - offset_s).max(0.0);
-            let (event, end_z) = course.next_event(&free, part, &z, offset_s, &mut free_peak);
-            free_peak = free_peak.max(end_z[X].abs());
-            let regime = regimes.get(&model, slide, part, target_n);
-            let (general_event, general_z) = model.next_event(regime, &z, rest_s, |x| {
-                general_peak = general_peak.max(x.abs());
-            });
-            general_peak = general_peak.max(general_z[X].abs());
-            close(
-                &params,
-                &z,
-                case.duration_s,
-                &(event, end_z, free_peak),
-                &(general_event, general_z, general_peak),
-            )?;
-            match event {
-                None | Some((Event::EndStop, _)) => return Ok(events),
-                Some((event, t)) => {
-                    offset_s += t;
-                    z = end_z;
-                    if part == Part::Stuck {
-                        z[U] = z[V];
+        let ends_s: Vec<f64> = splits
+            .iter()
+            .map(|fraction| fraction * case.duration_s)
+            .chain([case.duration_s])
+            .collect();
+        let mut events = 0;
+        let mut start_s = 0.0;
+        for &end_s in &ends_s {
+            let duration_s = end_s - start_s;
+            course.begin(target_n, duration_s, case.duration_s - start_s);
+            start_s = end_s;
+            let mut offset_s = 0.0;
+            loop {
+                model.settle(&mut z, &mut slide, &mut part);
+                let rest_s = (duration_s - offset_s).max(0.0);
+                let (event, end_z) = course.next_event(&free, part, &z, offset_s, &mut free_peak);
+                free_peak = free_peak.max(end_z[X].abs());
+                let regime = regimes.get(&model, slide, part, target_n);
+                let (general_event, general_z) = model.next_event(regime, &z, rest_s, |x| {
+                    general_peak = general_peak.max(x.abs());
+                });
+                general_peak = general_peak.max(general_z[X].abs());
+                close(
+                    &params,
+                    duration_s,
+                    &(event, end_z, free_peak),
+                    &(general_event, general_z, general_peak),
+                )?;
+                z = end_z;
+                if part == Part::Stuck {
+                    z[U] = z[V];
+                }
+                match event {
+                    None => break,
+                    Some((Event::EndStop, _)) => return Ok(events),
+                    Some((event, t)) => {
+                        events += 1;
+                        if events == 100 {
+                            return Ok(events);
+                        }
+                        offset_s += t;
+                        model.apply(event, &mut z, &mut slide, &mut part);
                     }
-                    model.apply(event, &mut z, &mut slide, &mut part);
                 }
             }
         }
-        Ok(100)
+        Ok(events)
     }
 
     proptest! {
@@ -1229,13 +1285,15 @@ mod tests {
         #![proptest_config(ProptestConfig::with_cases(1000))]
 
         /// Through a whole stretch of a feeder's plate, event by event, the course that goes
-        /// on in its chunk after the part's events agrees with the general solver.
+        /// on in its chunk after the part's events, and across a segment's end where the next
+        /// holds the target, agrees with the general solver.
         #[test]
         fn a_course_through_a_stretch_agrees_with_the_general_solver(
             params in free_plate(),
             case in case(-200.0..200.0_f64, 1e-3..2e-2_f64),
+            split in prop_oneof![Just(None), (0.01..0.99_f64).prop_map(Some)],
         ) {
-            agree_through(params, case)?;
+            agree_through(params, case, split.as_slice())?;
         }
     }
 
@@ -1330,7 +1388,30 @@ mod tests {
             command_mps2: 146.0,
             duration_s: 8e-3,
         };
-        let events = agree_through(params, case).expect("the solvers agree");
+        let events = agree_through(params, case, &[]).expect("the solvers agree");
+        assert_eq!(events, 3);
+    }
+
+    /// The same stretch cut into three segments of one target: the course goes on across their
+    /// ends, through the same three events.
+    #[test]
+    fn a_course_goes_on_across_segments_that_hold_the_target() {
+        let params = PlateParams {
+            mass_kg: 1.5,
+            current_bandwidth_hz: Some(1000.0),
+            spring_npm: 2e4,
+            spring_damping_nspm: 20.0,
+            ..PlateParams::default()
+        };
+        let case = Case {
+            mu: 0.1,
+            extra_static: 0.0,
+            start: [0.0, 0.5, 0.0, -0.5, 0.0, 0.0],
+            stuck: true,
+            command_mps2: 146.0,
+            duration_s: 8e-3,
+        };
+        let events = agree_through(params, case, &[0.3, 0.6]).expect("the solvers agree");
         assert_eq!(events, 3);
     }
 

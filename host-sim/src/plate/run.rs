@@ -96,7 +96,10 @@ where
     };
     let mut cycles = 0_u64;
     let mut started = false;
-    for segment in segments {
+    let mut segments = segments.into_iter();
+    let mut next = segments.next();
+    while let Some(segment) = next {
+        next = segments.next();
         if segment.starts_cycle {
             if started {
                 cycles += 1;
@@ -107,7 +110,7 @@ where
             }
             started = true;
         }
-        stepper.segment(&segment)?;
+        stepper.segment_before(&segment, next.as_ref())?;
         if stepper.end_stop().is_some() {
             break;
         }

@@ -147,10 +147,17 @@ impl Stepper {
     /// Runs one commanded segment, or up to the end stop it hits. Refuses a duration that is
     /// negative or not finite and an acceleration that is not finite, changing nothing.
     pub fn segment(&mut self, segment: &PlateSegment) -> Result<(), SimError> {
-        let valid = segment.duration_s >= 0.0
-            && segment.duration_s.is_finite()
-            && segment.accel_mps2.is_finite();
-        if !valid {
+        self.segment_before(segment, None)
+    }
+
+    /// [`Stepper::segment`], knowing the segment that comes `next`: where it holds the command,
+    /// the plate's motion is worked out over both at once. The outcome is the same.
+    pub fn segment_before(
+        &mut self,
+        segment: &PlateSegment,
+        next: Option<&PlateSegment>,
+    ) -> Result<(), SimError> {
+        if !segment.is_valid() {
             return Err(SimError::BadRange {
                 what: "every segment needs a finite duration ≥ 0 and a finite acceleration",
             });
@@ -164,7 +171,11 @@ impl Stepper {
             self.z[F] = target_n;
         }
         let command = segment.accel_mps2;
-        self.course.begin(target_n, segment.duration_s);
+        let held_s = next
+            .filter(|next| next.is_valid() && next.accel_mps2 == segment.accel_mps2)
+            .map_or(0.0, |next| next.duration_s);
+        self.course
+            .begin(target_n, segment.duration_s, segment.duration_s + held_s);
         let mut offset_s = 0.0;
         for _ in 0..MAX_EVENTS_PER_SEGMENT {
             model.settle(&mut self.z, &mut self.slide, &mut self.part);
