@@ -18,8 +18,9 @@
 //! `Q = ρ·S + S′`, `H = e^{ρτ}·g` (`H′ = e^{ρτ}·Q`) is monotone, so `g` has at most one zero
 //! there, bracketed by its signs at the ends and refined by Newton's steps inside the bracket to
 //! a few units in the last place (a turning point, where only the position matters and it is
-//! stationary, to 10⁻⁹ of the time). `Q` has no zero where its constant Taylor coefficient
-//! outweighs the others' bound over the chunk, and is monotone where its slope's does; then its
+//! stationary, to 10⁻⁹ of the time). `Q` has no zero where its line `q₀ + q₁·τ` keeps its sign
+//! to the chunk's end by more than the bound of its other terms (which grow as `τ²`), and is
+//! monotone where its slope's constant outweighs the others' bound over the chunk; then its
 //! one zero is found only if `H`'s extremum there may reach zero. Else its zeros are bracketed
 //! through its derivatives: `Q″` combines the slow part's two modes only (the line and the
 //! current loop's mode drop out), which turn by at most `ω·L ≤ 1` radian over the chunk, so it
@@ -723,11 +724,20 @@ impl Chunk {
         let from = function.from;
         let q0 = w * mode.low[0] + rho * function.constant + function.slope;
         let q1 = w * mode.low[1] + rho * function.slope;
-        let rest = q1.abs() * length_s + w.abs() * mode.tail;
+        let tail = w.abs() * mode.tail;
         let slope_rest = w.abs() * mode.slope_tail;
         let mut pieces = Times::default();
         pieces.push(from);
-        let zero_free = q0.abs() > rest || (q0 == 0.0 && rest == 0.0);
+        // `Q` lies above `q0 + q1·τ − tail·(τ/L)²` (below its mirror), which is concave, so its
+        // least value on the chunk is at an end.
+        let q_end = q0 + q1 * length_s;
+        let zero_free = if q0 > 0.0 {
+            q_end - tail > 0.0
+        } else if q0 < 0.0 {
+            q_end + tail < 0.0
+        } else {
+            q1 == 0.0 && tail == 0.0
+        };
         let monotone = q1.abs() > slope_rest || (q1 == 0.0 && slope_rest == 0.0);
         let q_poly = || self.q_poly(w, mode, [q0, q1]);
         let len = mode.len;
