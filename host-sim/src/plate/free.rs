@@ -179,6 +179,65 @@ pub struct Course {
     valid: bool,
     /// Where the last event or the segment's end left the course.
     resume: Option<Resume>,
+    /// The ends of chunks of recent lengths.
+    ends: Ends,
+}
+
+/// A chunk's end as a linear map of its slow part's start `(X(0), X′(0), F*)`: `X`, `X′` and
+/// `∫X` at its length `L`, and the current loop's decay `e^{−ρL}` over it.
+#[derive(Debug, Clone, Copy, Default)]
+struct EndMap {
+    length_s: f64,
+    position: [f64; 3],
+    velocity: [f64; 3],
+    integral: [f64; 3],
+    decay: f64,
+}
+
+/// The end maps of the chunk lengths a periodic drive repeats: a length's map is made the
+/// second time it is met within the last [`ENDS`] new lengths, and kept for the last [`ENDS`]
+/// made.
+#[derive(Debug, Clone, Copy, Default)]
+struct Ends {
+    maps: [EndMap; ENDS],
+    made: usize,
+    met: [f64; ENDS],
+    newest: usize,
+}
+
+/// Chunk lengths whose end maps are kept.
+const ENDS: usize = 4;
+
+impl Ends {
+    /// The end map for chunks of `length_s` with `terms` Taylor terms, if the length has come
+    /// before.
+    fn get(&mut self, free: &FreeSlide, length_s: f64, terms: usize) -> Option<&EndMap> {
+        let kept = self.made.min(ENDS);
+        if let Some(i) = self.maps[..kept]
+            .iter()
+            .position(|map| map.length_s == length_s)
+        {
+            return Some(&self.maps[i]);
+        }
+        if !self.met.contains(&length_s) {
+            self.met[self.newest % ENDS] = length_s;
+            self.newest += 1;
+            return None;
+        }
+        let at = |p: &Poly| horner(&p[..terms], length_s);
+        let slope = |p: &Poly| weighted(&p[1..terms], &FALLING[1][1..], length_s);
+        let integral = |p: &Poly| length_s * weighted(&p[..terms], &INVERSE[1..], length_s);
+        let map = &mut self.maps[self.made % ENDS];
+        self.made += 1;
+        *map = EndMap {
+            length_s,
+            position: free.basis.each_ref().map(at),
+            velocity: free.basis.each_ref().map(slope),
+            integral: free.basis.each_ref().map(integral),
+            decay: (-free.lag_per_s * length_s).exp(),
+        };
+        Some(map)
+    }
 }
 
 /// An event's or a segment's end's place in its chunk, to go on from if the next call starts
@@ -268,7 +327,8 @@ impl Course {
                     return (None, z);
                 }
                 let length_s = free.longest_chunk_s.min(holds_s - start_s);
-                self.chunk.start(free, self.target_n, &z, length_s, *peak_m);
+                self.chunk
+                    .start(free, self.target_n, &z, length_s, *peak_m, &mut self.ends);
                 self.valid = true;
                 from_s = 0.0;
             }
@@ -389,6 +449,8 @@ struct Chunk {
     /// The chunk's length `L` and the plate's `(x, v)` then.
     length_s: f64,
     end: (f64, f64),
+    /// `∫X` over the chunk, if its end came from a map.
+    end_integral: Option<f64>,
     /// `φ(L)`.
     phi_end_n: f64,
     /// Taylor coefficients summed: the first `n` with `(ω·L)ⁿ/n!` below `2⁻⁵⁶` for the chunk's
@@ -404,8 +466,16 @@ struct Chunk {
 
 impl Chunk {
     /// Makes this the chunk of `length_s` from the state `z0`, with its turning points if the
-    /// plate may pass `peak_m` in it.
-    fn start(&mut self, free: &FreeSlide, target_n: f64, z0: &State, length_s: f64, peak_m: f64) {
+    /// plate may pass `peak_m` in it; its end from the map in `ends` if its length has one.
+    fn start(
+        &mut self,
+        free: &FreeSlide,
+        target_n: f64,
+        z0: &State,
+        length_s: f64,
+        peak_m: f64,
+        ends: &mut Ends,
+    ) {
         let rho = free.lag_per_s;
         let r_x = free.mode_m_per_n;
         let phi_n = if rho > 0.0 { z0[F] - target_n } else { 0.0 };
@@ -425,10 +495,11 @@ impl Chunk {
             z0[Q]
         };
         self.length_s = length_s;
-        self.phi_end_n = if phi_n != 0.0 {
-            phi_n * (-rho * length_s).exp()
-        } else {
-            0.0
+        let map = ends.get(free, length_s, terms).copied();
+        self.phi_end_n = match map {
+            _ if phi_n == 0.0 => 0.0,
+            Some(map) => phi_n * map.decay,
+            None => phi_n * (-rho * length_s).exp(),
         };
         self.terms = terms;
         self.modes = [None; 3];
@@ -448,8 +519,21 @@ impl Chunk {
             }
             high.fill(0.0);
         }
-        let (x, v, _) = self.plate_at(length_s, self.phi_end_n, false);
-        self.end = (x, v);
+        self.end = match map {
+            Some(map) => {
+                let slow = |c: [f64; 3]| c[0] * x0 + c[1] * v0 + c[2] * target_n;
+                self.end_integral = Some(slow(map.integral));
+                (
+                    slow(map.position) + self.mode_share(0) * self.phi_end_n,
+                    slow(map.velocity) + self.mode_share(1) * self.phi_end_n,
+                )
+            }
+            None => {
+                self.end_integral = None;
+                let (x, v, _) = self.plate_at(length_s, self.phi_end_n, false);
+                (x, v)
+            }
+        };
         let x_lim = free.model.params.end_stop_m;
         let reach_m = if peak_m > 0.0 || x_lim.is_some() {
             self.reach_m() * (1.0 + REACH_MARGIN)
@@ -562,7 +646,11 @@ impl Chunk {
             let (x, v, _) = self.plate_at(t, phi, false);
             (x, v)
         };
-        let mut q = self.q0 + t * weighted(self.derivative(0), &INVERSE[1..], t);
+        let integral = match self.end_integral {
+            Some(integral) if t == self.length_s => integral,
+            _ => t * weighted(self.derivative(0), &INVERSE[1..], t),
+        };
+        let mut q = self.q0 + integral;
         if self.lag_per_s > 0.0 {
             q -= self.mode_m_per_n / self.lag_per_s * phi;
         }
