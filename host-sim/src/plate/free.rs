@@ -184,7 +184,8 @@ pub struct Course {
 }
 
 /// A chunk's end as a linear map of its slow part's start `(X(0), X′(0), F*)`: `X`, `X′` and
-/// `∫X` at its length `L`, and the current loop's decay `e^{−ρL}` over it.
+/// `∫X` at its length `L`, and the current loop's decay `e^{−ρL}` over it; with the bound of
+/// the change in `X″` over the chunk per unit of each, `Σ_{n≥1} |X″_n|·Lⁿ` of its basis.
 #[derive(Debug, Clone, Copy, Default)]
 struct EndMap {
     length_s: f64,
@@ -192,6 +193,7 @@ struct EndMap {
     velocity: [f64; 3],
     integral: [f64; 3],
     decay: f64,
+    accel_spread: [f64; 3],
 }
 
 /// The end maps of the chunk lengths a periodic drive repeats: a length's map is made the
@@ -227,6 +229,13 @@ impl Ends {
         let at = |p: &Poly| horner(&p[..terms], length_s);
         let slope = |p: &Poly| weighted(&p[1..terms], &FALLING[1][1..], length_s);
         let integral = |p: &Poly| length_s * weighted(&p[..terms], &INVERSE[1..], length_s);
+        let accel_spread = |p: &Poly| {
+            let accel = p[3..terms].iter().zip(&FALLING[2][3..]);
+            length_s
+                * accel
+                    .rev()
+                    .fold(0.0, |sum, (c, k)| sum * length_s + (k * c).abs())
+        };
         let map = &mut self.maps[self.made % ENDS];
         self.made += 1;
         *map = EndMap {
@@ -235,6 +244,7 @@ impl Ends {
             velocity: free.basis.each_ref().map(slope),
             integral: free.basis.each_ref().map(integral),
             decay: (-free.lag_per_s * length_s).exp(),
+            accel_spread: free.basis.each_ref().map(accel_spread),
         };
         Some(map)
     }
@@ -449,8 +459,10 @@ struct Chunk {
     /// The chunk's length `L` and the plate's `(x, v)` then.
     length_s: f64,
     end: (f64, f64),
-    /// `∫X` over the chunk, if its end came from a map.
+    /// `∫X` over the chunk and a bound of the change in `X″` over it, if its end came from a
+    /// map.
     end_integral: Option<f64>,
+    accel_spread: Option<f64>,
     /// `φ(L)`.
     phi_end_n: f64,
     /// Taylor coefficients summed: the first `n` with `(ω·L)ⁿ/n!` below `2⁻⁵⁶` for the chunk's
@@ -523,6 +535,8 @@ impl Chunk {
             Some(map) => {
                 let slow = |c: [f64; 3]| c[0] * x0 + c[1] * v0 + c[2] * target_n;
                 self.end_integral = Some(slow(map.integral));
+                let [x, v, force] = map.accel_spread;
+                self.accel_spread = Some(x * x0.abs() + v * v0.abs() + force * target_n.abs());
                 (
                     slow(map.position) + self.mode_share(0) * self.phi_end_n,
                     slow(map.velocity) + self.mode_share(1) * self.phi_end_n,
@@ -530,6 +544,7 @@ impl Chunk {
             }
             None => {
                 self.end_integral = None;
+                self.accel_spread = None;
                 let (x, v, _) = self.plate_at(length_s, self.phi_end_n, false);
                 (x, v)
             }
@@ -563,15 +578,15 @@ impl Chunk {
     /// A bound of the plate's distance from the centre over the chunk: the slow part's from
     /// parabolas through either end with the bounds of its acceleration `X″` (exact where `X″`
     /// keeps a sign: the far side is then at an end), and the current loop's mode's at most
-    /// `|r_x·φ₀|`.
+    /// `|r_x·φ₀|`. `X″` strays from its start by at most `Σ_{n≥1} |X″_n|·Lⁿ`, or the map's
+    /// bound.
     fn reach_m(&self) -> f64 {
         let length_s = self.length_s;
         let accel = self.derivative(2);
-        let mut spread = 0.0;
-        for c in accel[1..].iter().rev() {
-            spread = spread * length_s + c.abs();
-        }
-        spread *= length_s;
+        let spread = self.accel_spread.unwrap_or_else(|| {
+            let terms = accel[1..].iter().rev();
+            length_s * terms.fold(0.0, |sum, c| sum * length_s + c.abs())
+        });
         let (low, high) = (accel[0] - spread, accel[0] + spread);
         let start = (self.series[0][0], self.series[1][0]);
         let end = (
@@ -586,7 +601,7 @@ impl Chunk {
             -high,
             length_s,
         );
-        above.max(below) + (self.mode_share(0) * self.phi_n).abs()
+        larger(above, below) + (self.mode_share(0) * self.phi_n).abs()
     }
 
     /// The Taylor coefficients of `X^(d)`, `d ≤ 3`.
@@ -965,9 +980,17 @@ const REACH_MARGIN: f64 = 1e-12;
 /// at an end where `X` is convex, else the lower of the two parabolas' highest points.
 fn farthest(start: (f64, f64), end: (f64, f64), high: f64, low: f64, length_s: f64) -> f64 {
     if low >= 0.0 {
-        return start.0.max(end.0);
+        return larger(start.0, end.0);
     }
-    parabola_top(start, high, length_s).min(parabola_top((end.0, -end.1), high, length_s))
+    let (from_start, from_end) = (
+        parabola_top(start, high, length_s),
+        parabola_top((end.0, -end.1), high, length_s),
+    );
+    if from_start < from_end {
+        from_start
+    } else {
+        from_end
+    }
 }
 
 /// The highest point over `s ∈ [0, L]` of `x + v·s + a·s²/2`.
@@ -975,7 +998,16 @@ fn parabola_top((x, v): (f64, f64), a: f64, length_s: f64) -> f64 {
     if a < 0.0 && v > 0.0 && v < -a * length_s {
         x - 0.5 * v * v / a
     } else {
-        x.max(x + length_s * (v + 0.5 * a * length_s))
+        larger(x, x + length_s * (v + 0.5 * a * length_s))
+    }
+}
+
+/// The larger of two numbers that are not NaN.
+fn larger(a: f64, b: f64) -> f64 {
+    if a < b {
+        b
+    } else {
+        a
     }
 }
 

@@ -171,9 +171,11 @@ impl Stepper {
             self.z[F] = target_n;
         }
         let command = segment.accel_mps2;
+        // A next segment of the same (finite) command holds it; one of a bad duration is
+        // refused when it comes, and holds nothing meanwhile.
         let held_s = next
-            .filter(|next| next.is_valid() && next.accel_mps2 == segment.accel_mps2)
-            .map_or(0.0, |next| next.duration_s);
+            .filter(|next| next.accel_mps2 == segment.accel_mps2 && next.duration_s.is_finite())
+            .map_or(0.0, |next| next.duration_s.max(0.0));
         self.course
             .begin(target_n, segment.duration_s, segment.duration_s + held_s);
         let mut offset_s = 0.0;
