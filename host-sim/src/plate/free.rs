@@ -609,6 +609,13 @@ impl Chunk {
         &self.series[d][..self.terms - d]
     }
 
+    /// `X^(d)(τ)` and `X^(d+1)(τ)`, `d ≤ 2`, summed side by side (`X^(d+1)` to the length of
+    /// `X^(d)`: its coefficient after its last is 0).
+    fn derivative_pair(&self, d: usize, t: f64) -> (f64, f64) {
+        let len = self.terms - d;
+        horner_pair(&self.series[d][..len], &self.series[d + 1][..len], t)
+    }
+
     /// `φ(τ)`.
     fn phi(&self, t: f64) -> f64 {
         if self.phi_n == 0.0 {
@@ -638,8 +645,7 @@ impl Chunk {
 
     /// The plate's `(x, v, a)` at `τ`, where `φ` is `phi`; `a` only if `accel` (else 0).
     fn plate_at(&self, t: f64, phi: f64, accel: bool) -> (f64, f64, f64) {
-        let x = horner(self.derivative(0), t);
-        let v = horner(self.derivative(1), t);
+        let (x, v) = self.derivative_pair(0, t);
         let a = if accel {
             horner(self.derivative(2), t)
         } else {
@@ -890,11 +896,9 @@ impl Chunk {
 
     /// `g` and `g′` at `τ > 0`.
     fn jet(&self, function: &Function, t: f64) -> (f64, f64) {
-        let d = function.order;
-        let slow = function.weight * horner(self.derivative(d), t)
-            + function.constant
-            + function.slope * t;
-        let slope = function.weight * horner(self.derivative(d + 1), t) + function.slope;
+        let (value, derivative) = self.derivative_pair(function.order, t);
+        let slow = function.weight * value + function.constant + function.slope * t;
+        let slope = function.weight * derivative + function.slope;
         if function.fast == 0.0 {
             (slow, slope)
         } else {
@@ -1042,6 +1046,24 @@ fn horner(p: &[f64], t: f64) -> f64 {
         even = even * t2 + pair[0];
     }
     even + t * odd
+}
+
+/// `p(t)` and `q(t)` for two polynomials of one length, each as [`horner`] sums it.
+fn horner_pair(p: &[f64], q: &[f64], t: f64) -> (f64, f64) {
+    let t2 = t * t;
+    let (mut p_even, mut p_odd, mut q_even, mut q_odd) = (0.0, 0.0, 0.0, 0.0);
+    let pairs = p.chunks_exact(2).zip(q.chunks_exact(2));
+    if let ([p_last], [q_last]) = (p.chunks_exact(2).remainder(), q.chunks_exact(2).remainder()) {
+        p_even = *p_last;
+        q_even = *q_last;
+    }
+    for (p_pair, q_pair) in pairs.rev() {
+        p_odd = p_odd * t2 + p_pair[1];
+        p_even = p_even * t2 + p_pair[0];
+        q_odd = q_odd * t2 + q_pair[1];
+        q_even = q_even * t2 + q_pair[0];
+    }
+    (p_even + t * p_odd, q_even + t * q_odd)
 }
 
 /// `p(t)` and `p′(t)`.
