@@ -27,7 +27,10 @@
 //! has at most one zero there, `Q′` at most two and `Q` at most three.
 //!
 //! The plate does not feel the part, so a chunk of its motion serves every contact the part
-//! passes through within it ([`Course`]).
+//! passes through within it, and runs on across segments that hold the command ([`Course`]).
+//! A chunk's turning points and end-stop contacts are sought only where a bound of its reach
+//! may pass the peak so far or the stop (`Chunk::reach_m`), and its end is a linear map of
+//! its slow start, kept for the chunk lengths a periodic drive repeats (`Ends`).
 
 use super::linear::{State, F, P, Q, U, V, X};
 use super::motion::{Event, Model, Part, Slide};
