@@ -168,6 +168,9 @@ fn a_trace_follows_the_run_it_records() {
     }
 }
 
+/// One of a stepper's readings.
+type Reading = fn(&Stepper) -> f64;
+
 /// Knowing the next segment lets the solver go on across the boundaries the command holds over
 /// (the return and the next cycle's acceleration): the plate and the part end where a stepper
 /// told nothing puts them, with a current loop and a spring, and at an end stop.
@@ -190,36 +193,24 @@ fn knowing_the_next_segment_changes_nothing() {
             blind.segment(segment).unwrap();
             ahead.segment_before(segment, segments.get(k + 1)).unwrap();
         }
-        let close = |a: f64, b: f64, scale: f64| (a - b).abs() <= 1e-12 * scale.max(b.abs());
-        assert!(close(ahead.time_s(), blind.time_s(), 1.0));
-        assert!(close(
-            ahead.plate_position_m(),
-            blind.plate_position_m(),
-            1e-3
-        ));
-        assert!(close(
-            ahead.plate_velocity_mps(),
-            blind.plate_velocity_mps(),
-            1.0
-        ));
-        assert!(close(
-            ahead.part_position_m(),
-            blind.part_position_m(),
-            1e-3
-        ));
-        assert!(close(
-            ahead.position_integral_ms(),
-            blind.position_integral_ms(),
-            1e-6
-        ));
-        assert!(close(
-            ahead.peak_excursion_m(),
-            blind.peak_excursion_m(),
-            1e-3
-        ));
+        let quantities: [(&str, Reading, f64); 6] = [
+            ("time", Stepper::time_s, 1.0),
+            ("plate position", Stepper::plate_position_m, 1e-3),
+            ("plate velocity", Stepper::plate_velocity_mps, 1.0),
+            ("part position", Stepper::part_position_m, 1e-3),
+            ("∫x dt", Stepper::position_integral_ms, 1e-6),
+            ("peak excursion", Stepper::peak_excursion_m, 1e-3),
+        ];
+        for (what, of, scale) in quantities {
+            let (a, b) = (of(&ahead), of(&blind));
+            assert!(
+                (a - b).abs() <= 1e-12 * scale.max(b.abs()),
+                "{what}: {a:e} vs {b:e}"
+            );
+        }
         assert_eq!(ahead.end_stop().is_some(), blind.end_stop().is_some());
         if let (Some(a), Some(b)) = (ahead.end_stop(), blind.end_stop()) {
-            assert!(close(a.time_s, b.time_s, 1.0));
+            assert!((a.time_s - b.time_s).abs() <= 1e-12, "{a:?} vs {b:?}");
         }
     }
 }

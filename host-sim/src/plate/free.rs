@@ -1527,11 +1527,9 @@ mod tests {
         assert!(t > 1e-4 && (t_free - t).abs() < 1e-15, "{t_free} vs {t}");
     }
 
-    /// Three of the part's events within one chunk (8 ms of a 1.5 kg plate on an 18 Hz spring,
-    /// whose chunks last up to 8.7 ms): the course goes on in its chunk after each, and agrees
-    /// with the general solver.
-    #[test]
-    fn a_course_goes_on_in_its_chunk_after_the_part_s_events() {
+    /// 8 ms of a 1.5 kg plate on an 18 Hz spring (whose chunks last up to 8.7 ms) with three of
+    /// the part's events.
+    fn three_events() -> (PlateParams, Case) {
         let params = PlateParams {
             mass_kg: 1.5,
             current_bandwidth_hz: Some(1000.0),
@@ -1547,6 +1545,14 @@ mod tests {
             command_mps2: 146.0,
             duration_s: 8e-3,
         };
+        (params, case)
+    }
+
+    /// Three of the part's events within one chunk: the course goes on in its chunk after each,
+    /// and agrees with the general solver.
+    #[test]
+    fn a_course_goes_on_in_its_chunk_after_the_part_s_events() {
+        let (params, case) = three_events();
         let events = agree_through(params, case, &[]).expect("the solvers agree");
         assert_eq!(events, 3);
     }
@@ -1555,21 +1561,7 @@ mod tests {
     /// ends, through the same three events.
     #[test]
     fn a_course_goes_on_across_segments_that_hold_the_target() {
-        let params = PlateParams {
-            mass_kg: 1.5,
-            current_bandwidth_hz: Some(1000.0),
-            spring_npm: 2e4,
-            spring_damping_nspm: 20.0,
-            ..PlateParams::default()
-        };
-        let case = Case {
-            mu: 0.1,
-            extra_static: 0.0,
-            start: [0.0, 0.5, 0.0, -0.5, 0.0, 0.0],
-            stuck: true,
-            command_mps2: 146.0,
-            duration_s: 8e-3,
-        };
+        let (params, case) = three_events();
         let events = agree_through(params, case, &[0.3, 0.6]).expect("the solvers agree");
         assert_eq!(events, 3);
     }
