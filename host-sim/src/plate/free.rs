@@ -201,13 +201,16 @@ struct EndMap {
 
 /// The end maps of the chunk lengths a periodic drive repeats: a length's map is made the
 /// second time it is met within the last [`ENDS`] new lengths, and kept for the last [`ENDS`]
-/// made.
+/// made; all are dropped if the free slide is another.
 #[derive(Debug, Clone, Copy, Default)]
 struct Ends {
     maps: [EndMap; ENDS],
     made: usize,
     met: [f64; ENDS],
     newest: usize,
+    /// The free slide's `ρ` and `X″(0)` per unit of `X(0)`, `X′(0)` and `F*`, which fix its
+    /// motion.
+    slide: [f64; 4],
 }
 
 /// Chunk lengths whose end maps are kept.
@@ -217,6 +220,14 @@ impl Ends {
     /// The end map for chunks of `length_s` with `terms` Taylor terms, if the length has come
     /// before.
     fn get(&mut self, free: &FreeSlide, length_s: f64, terms: usize) -> Option<&EndMap> {
+        let [from_x, from_v, from_force] = &free.basis;
+        let slide = [free.lag_per_s, from_x[2], from_v[2], from_force[2]];
+        if slide != self.slide {
+            *self = Ends {
+                slide,
+                ..Ends::default()
+            };
+        }
         let kept = self.made.min(ENDS);
         if let Some(i) = self.maps[..kept]
             .iter()
@@ -1564,6 +1575,44 @@ mod tests {
         let (params, case) = three_events();
         let events = agree_through(params, case, &[0.3, 0.6]).expect("the solvers agree");
         assert_eq!(events, 3);
+    }
+
+    /// A course keeps its chunk-end maps for one free slide: moved to another, it finds what a
+    /// new course finds there.
+    #[test]
+    fn a_course_drops_its_end_maps_on_another_free_slide() {
+        let (params, _) = three_events();
+        let stiffer = PlateParams {
+            spring_npm: 8e4,
+            ..params
+        };
+        // A part held fast: each segment runs to its end, from the map from the second on.
+        let case = Case {
+            mu: 10.0,
+            extra_static: 0.0,
+            start: [0.1, 0.5, 0.0, 0.0, 0.0, 0.0],
+            stuck: true,
+            command_mps2: 10.0,
+            duration_s: 1e-3,
+        };
+        let run = |course: &mut Course, params: PlateParams| {
+            let (model, target_n, z, part) = setup(params, &case);
+            let free = FreeSlide::new(&model).expect("a free slide");
+            let mut peak_m = 0.0;
+            let mut outcomes = Vec::new();
+            for _ in 0..3 {
+                course.begin(target_n, 1e-3, 1e-3);
+                outcomes.push(course.next_event(&free, part, &z, 0.0, &mut peak_m));
+            }
+            assert!(outcomes.iter().all(|(event, _)| event.is_none()));
+            format!("{outcomes:?} {peak_m}")
+        };
+        let mut moved = Course::default();
+        run(&mut moved, params);
+        assert_eq!(
+            run(&mut moved, stiffer),
+            run(&mut Course::default(), stiffer)
+        );
     }
 
     /// `Q = (τ − 0.1)·(τ − 0.5)·(τ − 0.9)` on `[0, 1]`: `Q″ = 6τ − 3` has its one zero at 0.5, `Q′`
