@@ -181,7 +181,6 @@ impl Stepper {
         let mut offset_s = 0.0;
         for _ in 0..MAX_EVENTS_PER_SEGMENT {
             model.settle(&mut self.z, &mut self.slide, &mut self.part);
-            let rest_s = (segment.duration_s - offset_s).max(0.0);
             let (next, end_z) = match self.free.as_ref() {
                 Some(free) => {
                     self.course
@@ -189,6 +188,7 @@ impl Stepper {
                 }
                 None => {
                     let regime = self.regimes.get(model, self.slide, self.part, target_n);
+                    let rest_s = (segment.duration_s - offset_s).max(0.0);
                     let peak_m = &mut self.peak_m;
                     let turn = |x: f64| *peak_m = peak_m.max(x.abs());
                     model.next_event(regime, &self.z, rest_s, turn)
