@@ -13,17 +13,15 @@ use feeder_shared::{DacCalibration, Scheduler, Segment, SegmentKind, TickPlan};
 
 use crate::error::SimError;
 use crate::plant::{Contact, PlateSegment};
-use crate::plate::{EndStop, PlantFile, Stepper};
+use crate::plate::{EndStop, PlantFile, PlateParams, Stepper};
 use crate::sensors::EncoderConfig;
 
-/// The closed loop's figures, the same for a run on the host and for the co-simulated
-/// firmware's: every cycle's mean position within this of centre …
-pub const MEAN_POSITION_LIMIT_M: f64 = 50e-6;
-/// … the feed rate over the last [`FEED_RATE_CYCLES`] cycles within this of the ideal plate's …
-pub const FEED_RATE_TOLERANCE: f64 = 0.01;
-pub const FEED_RATE_CYCLES: usize = 50;
-/// … and each identified gain within this of the plant file's.
-pub const GAIN_TOLERANCE: f64 = 0.01;
+pub mod verdict;
+
+pub use verdict::{
+    JudgedCycle, RunFacts, Verdict, FEED_RATE_CYCLES, FEED_RATE_TOLERANCE, GAIN_TOLERANCE,
+    MEAN_POSITION_LIMIT_M,
+};
 
 /// How the closed loop runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,7 +39,7 @@ pub struct ClosedLoopOptions {
     /// centring).
     pub plan_change: Option<(u64, TickPlan)>,
     /// The last cycles over which the feed rate is averaged.
-    pub average_cycles: u64,
+    pub feed_cycles: usize,
     pub limits: LoopLimits,
     /// The output's DAC: every level is commanded in its codes.
     pub dac: DacCalibration,
@@ -61,7 +59,7 @@ impl ClosedLoopOptions {
             probe_fraction: course.probe_fraction,
             sample_s: 2.5e-4,
             plan_change: None,
-            average_cycles: (FEED_RATE_CYCLES as u64).min(cycles),
+            feed_cycles: FEED_RATE_CYCLES.min(usize::try_from(cycles).unwrap_or(usize::MAX)),
             limits: course.loop_limits,
             dac,
         }
@@ -73,14 +71,19 @@ impl ClosedLoopOptions {
 pub struct CycleRecord {
     /// Feeding cycles counted from the first; the course's cycles before it count as 0.
     pub cycle: u64,
-    /// Time at the cycle's start, the probe included.
+    /// Time at the cycle's start, from power-up.
     pub time_s: f64,
+    /// How long it ran (shorter than planned where the run ended in it).
+    pub duration_s: f64,
     /// The plate's position sampled by the encoder at the cycle's start tick.
     pub start_m: f64,
     /// The plate's mean position over the cycle (exact).
     pub mean_position_m: f64,
-    /// The part's displacement at the cycle's start.
+    /// The largest `|x|` the encoder sampled in the cycle, its end included.
+    pub peak_m: f64,
+    /// The part's displacement at the cycle's start, and how far it moved in the cycle.
     pub part_m: f64,
+    pub part_moved_m: f64,
     pub positive_trim: f64,
     pub negative_trim: f64,
     pub bias_mps2: f64,
@@ -91,21 +94,89 @@ pub struct CycleRecord {
     pub idle: bool,
 }
 
-/// The outcome of a closed-loop run.
+/// The outcome of a closed-loop run: a run the loop gave up on is an outcome too.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ClosedLoopRun {
-    pub identified: Identified,
+    /// The drive identified by the course (none if it never was).
+    pub identified: Option<Identified>,
     pub cycles: Vec<CycleRecord>,
-    /// Mean part velocity over the last `average_cycles` cycles.
-    pub feed_rate_mps: f64,
-    /// The largest `|mean position|` of a feeding cycle, soft start included.
-    pub worst_mean_position_m: f64,
+    /// The course released the soft start.
+    pub released: bool,
+    /// Largest `|x|` from power-up to the release (to the end if there was none), and over the
+    /// whole run.
+    pub startup_peak_m: f64,
+    pub peak_excursion_m: f64,
     pub end_stop: Option<EndStop>,
+    /// Why the loop gave up: the course stopped, the identification refused the drive, or a
+    /// trimmed level left the DAC's range.
+    pub gave_up: Option<SimError>,
+    /// Time from power-up to the run's end.
+    pub simulated_s: f64,
 }
 
-/// Runs the course, then `options.cycles` feeding cycles. An identification the shared limits
-/// refuse, a course that stops and a plant file without an encoder are errors; an end stop
-/// ends the run.
+impl ClosedLoopRun {
+    /// The running cycles from the release on, as the verdict reads them.
+    pub fn fed(&self) -> Vec<JudgedCycle> {
+        self.cycles
+            .iter()
+            .filter(|c| !c.centring && !c.idle)
+            .map(|c| JudgedCycle {
+                time_s: c.time_s,
+                duration_s: c.duration_s,
+                mean_position_m: c.mean_position_m,
+                part_moved_m: c.part_moved_m,
+            })
+            .collect()
+    }
+
+    /// The feed rate over the last `cycles` cycles from the release on.
+    pub fn feed_rate_mps(&self, cycles: usize) -> Option<f64> {
+        verdict::feed_rate_mps(&self.fed(), cycles)
+    }
+
+    /// The run judged: `plate` its plant's, `ideal_feed_rate_mps` and `velocity_scale_mps` the
+    /// ideal plate's feed rate and `a_max·T/4` at the plan in force at the end.
+    pub fn verdict(
+        &self,
+        plate: &PlateParams,
+        options: &ClosedLoopOptions,
+        ideal_feed_rate_mps: f64,
+        velocity_scale_mps: f64,
+    ) -> Verdict {
+        let fed = self.fed();
+        let gave_up = self.gave_up.as_ref().map(ToString::to_string);
+        Verdict::judge(&RunFacts {
+            fed: &fed,
+            released: self.released,
+            ramp_cycles: u64::from(options.ramp_cycles),
+            feed_cycles: options.feed_cycles,
+            startup_peak_m: self.startup_peak_m,
+            peak_excursion_m: self.peak_excursion_m,
+            end_stop_m: plate.end_stop_m,
+            end_stop: self.end_stop,
+            gave_up: gave_up.as_deref(),
+            identified_gains: self
+                .identified
+                .map(|found| [found.gain_positive, found.gain_negative]),
+            plant_gains: [plate.gain_positive, plate.gain_negative],
+            ideal_feed_rate_mps,
+            velocity_scale_mps,
+        })
+    }
+
+    /// The worst `|mean position|` of a cycle from the release on, soft start included.
+    pub fn worst_mean_position_m(&self) -> f64 {
+        self.fed()
+            .iter()
+            .map(|c| c.mean_position_m.abs())
+            .fold(0.0, f64::max)
+    }
+}
+
+/// Runs the course, then `options.cycles` feeding cycles. A plant file without an encoder and a
+/// plate the solver cannot run are errors; where the loop gives up (a course that stops, an
+/// identification the shared limits refuse, a trimmed level beyond the DAC) or the plate hits
+/// an end stop, the run ends there and says so.
 pub fn run_closed_loop(
     plant: &PlantFile,
     contact: &Contact,
@@ -116,7 +187,7 @@ pub fn run_closed_loop(
         .sensors
         .encoder
         .ok_or(SimError::MissingSensor { sensor: "encoder" })?;
-    let mut plate = SampledPlate {
+    let plate = SampledPlate {
         stepper: Stepper::new(&plant.plate, contact)?,
         dac: options.dac,
         encoder,
@@ -131,109 +202,153 @@ pub fn run_closed_loop(
         loop_limits: options.limits,
         ..CourseConfig::new(encoder.resolution_m, 1.0 / options.dac.counts_per_mps2)
     };
-    let mut scheduler = Scheduler::new(plan, options.ramp_cycles);
-    let mut course = Course::new(config, scheduler.ramp_cycles());
-    scheduler.hold_step(course.probe_step());
-    let mut identified = None;
-    let mut records: Vec<CycleRecord> = Vec::new();
-    let mut worst_mean_position_m = 0.0_f64;
-    // The decision made at the last boundary, applied at the next segment begun.
-    let mut pending: Option<Decision> = None;
-    let mut cycle_trims = CycleTrims::NONE;
-    // The feeder comes up idle, the drive enabled at zero command, and is started at once: the
-    // probe begins one idle period later.
-    let mut queued = scheduler.next_segment();
-    scheduler.start();
-    let mut queued_trims = Trims::NONE;
-    let mut trims = Trims::NONE;
-    let mut feeding_cycles = 0;
-    let mut open: Option<OpenCycle> = None;
-    loop {
-        let playing = queued;
-        if let Some(decision) = pending.take() {
-            if decision.release {
-                scheduler.release_hold();
-            }
-            cycle_trims.take(&decision, course.feedforward());
-        }
-        if playing.starts_cycle() {
-            trims = queued_trims;
-            let start = plate.sample_now()?;
-            let samples = std::mem::take(&mut plate.samples);
-            if let Some(open) = open.take() {
-                let record = open.close(&plate);
-                if !record.centring && !record.idle && plate.stepper.end_stop().is_none() {
-                    worst_mean_position_m = worst_mean_position_m.max(record.mean_position_m.abs());
-                }
-                records.push(record);
-            }
-            if plate.stepper.end_stop().is_some()
-                || (course.stage() == Stage::Feeding && feeding_cycles >= options.cycles)
-            {
-                break;
-            }
-            let time_s = plate.time_s();
-            let fail = |error: CourseError| match error {
-                CourseError::Identify(error) => SimError::Identification(error),
-                error => SimError::Loop { time_s, error },
-            };
-            let decision = course
-                .boundary(&playing, &scheduler, start, &samples)
-                .map_err(fail)?;
-            if let Some(probe) = course.probe() {
-                let found = probe.identify();
-                course.set_identified(found).map_err(fail)?;
-                identified = course.identified().copied();
-            }
-            let feeding = course.stage() == Stage::Feeding;
-            let idle = playing.kind == SegmentKind::Idle;
-            if feeding && !idle {
-                if let Some((at, new_plan)) = options.plan_change {
-                    if feeding_cycles == at {
-                        scheduler.set_plan(new_plan)?;
-                    }
-                }
-                feeding_cycles += 1;
-            }
-            open = Some(OpenCycle {
-                record: CycleRecord {
-                    cycle: if feeding { feeding_cycles } else { 0 },
-                    time_s,
-                    start_m: start.position_m,
-                    mean_position_m: 0.0,
-                    part_m: plate.stepper.part_position_m(),
-                    positive_trim: trims.positive,
-                    negative_trim: trims.negative,
-                    bias_mps2: trims.bias_mps2,
-                    centring: !feeding,
-                    idle,
-                },
-                integral_ms: plate.stepper.position_integral_ms(),
-            });
-            pending = Some(decision);
-        }
-        queued = scheduler.next_segment();
-        if queued.starts_cycle() {
-            let after_idle = playing.kind == SegmentKind::Idle;
-            queued_trims = cycle_trims
-                .for_cycle(&queued, after_idle)
-                .map_err(|late| SimError::Request(format!("no trims for cycle {}", late.cycle)))?
-                .unwrap_or(Trims::NONE);
-        }
-        plate.play(&playing, &trims)?;
+    let scheduler = Scheduler::new(plan, options.ramp_cycles);
+    let course = Course::new(config, scheduler.ramp_cycles());
+    let mut runner = Runner {
+        plate,
+        scheduler,
+        course,
+        records: Vec::new(),
+        open: None,
+        startup_peak_m: None,
+    };
+    let gave_up = match runner.run(options) {
+        Ok(()) => None,
+        Err(error @ (SimError::Loop { .. } | SimError::Identification(_))) => Some(error),
+        Err(error @ SimError::TrimmedLevel { .. }) => Some(error),
+        Err(error) => return Err(error),
+    };
+    if let Some(open) = runner.open.take() {
+        let peak_m = runner
+            .plate
+            .samples
+            .iter()
+            .map(|sample| sample.position_m.abs())
+            .fold(open.record.start_m.abs(), f64::max);
+        runner.records.push(open.close(&runner.plate, peak_m));
     }
-    let identified = identified.ok_or(SimError::Loop {
-        time_s: plate.time_s(),
-        error: CourseError::Plan,
-    })?;
-    let feed_rate_mps = feed_rate(&records, &plate.stepper, options.average_cycles);
+    let stepper = &runner.plate.stepper;
     Ok(ClosedLoopRun {
-        identified,
-        cycles: records,
-        feed_rate_mps,
-        worst_mean_position_m,
-        end_stop: plate.stepper.end_stop(),
+        identified: runner.course.identified().copied(),
+        released: runner.startup_peak_m.is_some(),
+        startup_peak_m: runner
+            .startup_peak_m
+            .unwrap_or_else(|| stepper.peak_excursion_m()),
+        peak_excursion_m: stepper.peak_excursion_m(),
+        end_stop: stepper.end_stop(),
+        gave_up,
+        simulated_s: stepper.time_s(),
+        cycles: runner.records,
     })
+}
+
+/// The run's state: the plate, the scheduler and the course, and what is recorded.
+struct Runner {
+    plate: SampledPlate,
+    scheduler: Scheduler,
+    course: Course,
+    records: Vec<CycleRecord>,
+    /// The cycle playing, its record waiting for its end.
+    open: Option<OpenCycle>,
+    /// The peak `|x|` at the release, once released.
+    startup_peak_m: Option<f64>,
+}
+
+impl Runner {
+    fn run(&mut self, options: &ClosedLoopOptions) -> Result<(), SimError> {
+        self.scheduler.hold_step(self.course.probe_step());
+        // The decision made at the last boundary, applied at the next segment begun.
+        let mut pending: Option<Decision> = None;
+        let mut cycle_trims = CycleTrims::NONE;
+        // The feeder comes up idle, the drive enabled at zero command, and is started at once:
+        // the probe begins one idle period later.
+        let mut queued = self.scheduler.next_segment();
+        self.scheduler.start();
+        let mut queued_trims = Trims::NONE;
+        let mut trims = Trims::NONE;
+        let mut feeding_cycles = 0;
+        loop {
+            let playing = queued;
+            if let Some(decision) = pending.take() {
+                if decision.release {
+                    self.scheduler.release_hold();
+                    self.startup_peak_m = Some(self.plate.stepper.peak_excursion_m());
+                }
+                cycle_trims.take(&decision, self.course.feedforward());
+            }
+            if playing.starts_cycle() {
+                trims = queued_trims;
+                let start = self.plate.sample_now()?;
+                let samples = std::mem::take(&mut self.plate.samples);
+                if let Some(open) = self.open.take() {
+                    let peak_m = samples
+                        .iter()
+                        .chain([&start])
+                        .map(|sample| sample.position_m.abs())
+                        .fold(0.0, f64::max);
+                    self.records.push(open.close(&self.plate, peak_m));
+                }
+                if self.plate.stepper.end_stop().is_some()
+                    || (self.course.stage() == Stage::Feeding && feeding_cycles >= options.cycles)
+                {
+                    return Ok(());
+                }
+                let time_s = self.plate.time_s();
+                let fail = |error: CourseError| match error {
+                    CourseError::Identify(error) => SimError::Identification(error),
+                    error => SimError::Loop { time_s, error },
+                };
+                let decision = self
+                    .course
+                    .boundary(&playing, &self.scheduler, start, &samples)
+                    .map_err(fail)?;
+                if let Some(probe) = self.course.probe() {
+                    let found = probe.identify();
+                    self.course.set_identified(found).map_err(fail)?;
+                }
+                let feeding = self.course.stage() == Stage::Feeding;
+                let idle = playing.kind == SegmentKind::Idle;
+                if feeding && !idle {
+                    if let Some((at, new_plan)) = options.plan_change {
+                        if feeding_cycles == at {
+                            self.scheduler.set_plan(new_plan)?;
+                        }
+                    }
+                    feeding_cycles += 1;
+                }
+                self.open = Some(OpenCycle {
+                    record: CycleRecord {
+                        cycle: if feeding { feeding_cycles } else { 0 },
+                        time_s,
+                        duration_s: 0.0,
+                        start_m: start.position_m,
+                        mean_position_m: 0.0,
+                        peak_m: 0.0,
+                        part_m: self.plate.stepper.part_position_m(),
+                        part_moved_m: 0.0,
+                        positive_trim: trims.positive,
+                        negative_trim: trims.negative,
+                        bias_mps2: trims.bias_mps2,
+                        centring: !feeding,
+                        idle,
+                    },
+                    integral_ms: self.plate.stepper.position_integral_ms(),
+                });
+                pending = Some(decision);
+            }
+            queued = self.scheduler.next_segment();
+            if queued.starts_cycle() {
+                let after_idle = playing.kind == SegmentKind::Idle;
+                queued_trims = cycle_trims
+                    .for_cycle(&queued, after_idle)
+                    .map_err(|late| {
+                        SimError::Request(format!("no trims for cycle {}", late.cycle))
+                    })?
+                    .unwrap_or(Trims::NONE);
+            }
+            self.plate.play(&playing, &trims)?;
+        }
+    }
 }
 
 /// A cycle begun, its record waiting for the mean position at its end.
@@ -243,10 +358,20 @@ struct OpenCycle {
 }
 
 impl OpenCycle {
-    fn close(self, plate: &SampledPlate) -> CycleRecord {
-        let period_s = plate.time_s() - self.record.time_s;
+    /// The record at the cycle's end, `peak_m` the largest `|x|` sampled in it.
+    fn close(self, plate: &SampledPlate, peak_m: f64) -> CycleRecord {
+        let stepper = &plate.stepper;
+        let duration_s = stepper.time_s() - self.record.time_s;
+        let mean_position_m = if duration_s > 0.0 {
+            (stepper.position_integral_ms() - self.integral_ms) / duration_s
+        } else {
+            self.record.start_m
+        };
         CycleRecord {
-            mean_position_m: (plate.stepper.position_integral_ms() - self.integral_ms) / period_s,
+            duration_s,
+            mean_position_m,
+            peak_m,
+            part_moved_m: stepper.part_position_m() - self.record.part_m,
             ..self.record
         }
     }
@@ -316,20 +441,5 @@ impl SampledPlate {
             tick: self.tick,
             position_m: (count as f64 + 0.5) * self.encoder.resolution_m,
         })
-    }
-}
-
-/// Mean part velocity over the last `average_cycles` cycles recorded (to the stepper's end).
-fn feed_rate(records: &[CycleRecord], stepper: &Stepper, average_cycles: u64) -> f64 {
-    let window = (average_cycles as usize).min(records.len());
-    match records
-        .len()
-        .checked_sub(window)
-        .and_then(|i| records.get(i))
-    {
-        Some(first) if stepper.time_s() > first.time_s => {
-            (stepper.part_position_m() - first.part_m) / (stepper.time_s() - first.time_s)
-        }
-        _ => 0.0,
     }
 }

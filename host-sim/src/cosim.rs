@@ -6,9 +6,7 @@
 use feeder_emulator::plant::Plant;
 use feeder_shared::DacCalibration;
 
-use crate::closed_loop::{
-    FEED_RATE_CYCLES, FEED_RATE_TOLERANCE, GAIN_TOLERANCE, MEAN_POSITION_LIMIT_M,
-};
+use crate::closed_loop::{JudgedCycle, RunFacts, Verdict, FEED_RATE_CYCLES};
 use crate::error::SimError;
 use crate::hil::{parse_line, Event};
 use crate::plant::{Contact, PlateSegment};
@@ -29,6 +27,8 @@ pub struct PlateSample {
     pub position_integral_ms: f64,
     /// The part's displacement.
     pub part_m: f64,
+    /// Largest `|x|` since power-up.
+    pub peak_excursion_m: f64,
 }
 
 /// A real plate behind the link.
@@ -160,6 +160,7 @@ impl Plant for PlatePlant {
             count,
             position_integral_ms: self.stepper.position_integral_ms(),
             part_m: self.stepper.part_position_m(),
+            peak_excursion_m: self.stepper.peak_excursion_m(),
         });
         if self.pending.last().is_none_or(|&(last, _)| last < tick) {
             self.pending.push((tick, count));
@@ -281,138 +282,77 @@ pub fn cycles(samples: &[PlateSample], levels: &[(u64, f64)]) -> Vec<CosimCycle>
         .collect()
 }
 
-/// The closed loop of a co-simulated run, held to the figures above.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct LoopVerdict {
-    /// Worst `|mean position|` of a cycle from the release to the stop request.
-    pub worst_mean_position_m: Option<f64>,
-    /// After the soft start (`ramp_cycles` cycles after the release).
-    pub settled_mean_position_m: Option<f64>,
-    pub feed_rate_mps: Option<f64>,
+/// The closed loop of a co-simulated run held to the shared verdict ([`Verdict`]): `stop_tick`
+/// is the scheduler tick of the stop request (the end of the run if none),
+/// `ideal_feed_rate_mps` and `velocity_scale_mps` the ideal plate's feed rate and `a_max·T/4` at
+/// the plan in force then, `peak_excursion_m` the plate's over the whole run.
+pub struct CosimRun<'a> {
+    pub log: &'a LoopLog,
+    pub samples: &'a [PlateSample],
+    pub cycles: &'a [CosimCycle],
+    pub plant: &'a PlantFile,
+    pub end_stop: Option<EndStop>,
+    pub peak_excursion_m: f64,
+    pub stop_tick: Option<u64>,
+    pub ramp_cycles: u64,
     pub ideal_feed_rate_mps: f64,
-    /// The identified gains' relative errors `+`, `−`.
-    pub gain_errors: Option<[f64; 2]>,
-    /// Empty when the closed loop passed; else each figure it missed.
-    pub failures: Vec<String>,
+    pub velocity_scale_mps: f64,
 }
 
-impl LoopVerdict {
-    /// Judges the run: `stop_tick` is the scheduler tick of the stop request (the end of the
-    /// run if none), `ideal_feed_rate_mps` the ideal plate's at the plan in force then.
-    pub fn judge(
-        log: &LoopLog,
-        cycles: &[CosimCycle],
-        plant: &PlantFile,
-        end_stop: Option<EndStop>,
-        stop_tick: Option<u64>,
-        ramp_cycles: u64,
-        ideal_feed_rate_mps: f64,
-    ) -> Self {
-        let mut failures = Vec::new();
-        if let Some(stopped) = &log.stopped {
-            failures.push(format!("the firmware's closed loop stopped: {stopped}"));
-        }
-        if let Some(stop) = end_stop {
-            failures.push(format!(
-                "end stop at {:+.1} mm after {:.4} s",
-                stop.position_m * 1e3,
-                stop.time_s
-            ));
-        }
-        let gain_errors = log.identified.map(|[p, n, _]| {
-            [
-                p / plant.plate.gain_positive - 1.0,
-                n / plant.plate.gain_negative - 1.0,
-            ]
-        });
-        match gain_errors {
-            Some(errors) if errors.iter().any(|e| e.abs() > GAIN_TOLERANCE) => {
-                failures.push(format!(
-                    "identified gains off by {:+.2} % / {:+.2} %: over {} %",
-                    errors[0] * 100.0,
-                    errors[1] * 100.0,
-                    GAIN_TOLERANCE * 100.0
-                ))
-            }
-            Some(_) => {}
-            None => failures.push("the drive was not identified".into()),
-        }
-        let feeding_tick = log.feeding_cycle.and_then(|cycle| {
-            log.cycle_ticks
+impl CosimRun<'_> {
+    /// The verdict on the run.
+    pub fn judge(&self) -> Verdict {
+        let feeding_tick = self.log.feeding_cycle.and_then(|cycle| {
+            self.log
+                .cycle_ticks
                 .iter()
                 .find(|(c, _)| *c == cycle)
                 .map(|(_, tick)| *tick)
         });
-        let window: Vec<&CosimCycle> = match feeding_tick {
-            Some(from) => cycles
-                .iter()
-                .filter(|c| c.start_tick >= from && stop_tick.is_none_or(|to| c.start_tick < to))
+        let fed: Vec<JudgedCycle> = match feeding_tick {
+            Some(from) => self
+                .cycles
+                .windows(2)
+                .filter(|w| {
+                    w[0].start_tick >= from && self.stop_tick.is_none_or(|to| w[0].start_tick < to)
+                })
+                .map(|w| {
+                    let duration_s = w[1].time_s - w[0].time_s;
+                    JudgedCycle {
+                        time_s: w[0].time_s,
+                        duration_s,
+                        mean_position_m: w[0].mean_position_m,
+                        part_moved_m: w[0].part_velocity_mps * duration_s,
+                    }
+                })
                 .collect(),
-            None => {
-                failures.push("the course never released the soft start".into());
-                Vec::new()
-            }
+            None => Vec::new(),
         };
-        let worst = |cycles: &[&CosimCycle]| {
-            cycles
+        let startup_peak_m = match feeding_tick {
+            Some(from) => self
+                .samples
                 .iter()
-                .map(|c| c.mean_position_m.abs())
-                .reduce(f64::max)
+                .take_while(|s| s.tick <= from)
+                .map(|s| s.peak_excursion_m)
+                .fold(0.0, f64::max),
+            None => self.peak_excursion_m,
         };
-        let worst_mean_position_m = worst(&window);
-        let settled: Vec<&CosimCycle> = window.iter().skip(ramp_cycles as usize).copied().collect();
-        let settled_mean_position_m = worst(&settled);
-        if let Some(worst) = worst_mean_position_m.filter(|w| *w > MEAN_POSITION_LIMIT_M) {
-            failures.push(format!(
-                "worst mean position {:.1} µm: over {:.0} µm",
-                worst * 1e6,
-                MEAN_POSITION_LIMIT_M * 1e6
-            ));
-        }
-        let last = &window[window.len().saturating_sub(FEED_RATE_CYCLES)..];
-        let feed_rate_mps = (last.len() == FEED_RATE_CYCLES).then(|| {
-            let span_s: f64 = last
-                .windows(2)
-                .map(|w| w[1].time_s - w[0].time_s)
-                .sum::<f64>();
-            let moved_m: f64 = last
-                .windows(2)
-                .map(|w| w[0].part_velocity_mps * (w[1].time_s - w[0].time_s))
-                .sum();
-            moved_m / span_s
-        });
-        match feed_rate_mps {
-            Some(rate) if (rate / ideal_feed_rate_mps - 1.0).abs() > FEED_RATE_TOLERANCE => {
-                failures.push(format!(
-                    "feed rate {:.2} mm/s, {:+.2} % from the ideal plate's: over {} %",
-                    rate * 1e3,
-                    (rate / ideal_feed_rate_mps - 1.0) * 100.0,
-                    FEED_RATE_TOLERANCE * 100.0
-                ))
-            }
-            Some(_) => {}
-            None if feeding_tick.is_some() => failures.push(format!(
-                "fewer than {FEED_RATE_CYCLES} cycles fed before the stop"
-            )),
-            None => {}
-        }
-        LoopVerdict {
-            worst_mean_position_m,
-            settled_mean_position_m,
-            feed_rate_mps,
-            ideal_feed_rate_mps,
-            gain_errors,
-            failures,
-        }
-    }
-
-    /// The verdict line: `closed loop: PASSED` or `closed loop: FAILED (…)`.
-    pub fn line(&self) -> String {
-        if self.failures.is_empty() {
-            "closed loop: PASSED".into()
-        } else {
-            format!("closed loop: FAILED ({})", self.failures.join("; "))
-        }
+        let plate = &self.plant.plate;
+        Verdict::judge(&RunFacts {
+            fed: &fed,
+            released: feeding_tick.is_some(),
+            ramp_cycles: self.ramp_cycles,
+            feed_cycles: FEED_RATE_CYCLES,
+            startup_peak_m,
+            peak_excursion_m: self.peak_excursion_m,
+            end_stop_m: plate.end_stop_m,
+            end_stop: self.end_stop,
+            gave_up: self.log.stopped.as_deref(),
+            identified_gains: self.log.identified.map(|[p, n, _]| [p, n]),
+            plant_gains: [plate.gain_positive, plate.gain_negative],
+            ideal_feed_rate_mps: self.ideal_feed_rate_mps,
+            velocity_scale_mps: self.velocity_scale_mps,
+        })
     }
 }
 
@@ -425,7 +365,7 @@ pub fn judge(
     plate: &PlatePlant,
     plant: &PlantFile,
     contact: &Contact,
-) -> Result<(LoopLog, LoopVerdict), SimError> {
+) -> Result<(LoopLog, Verdict), SimError> {
     let events: Vec<Event> = log
         .lines()
         .filter_map(|line| parse_line(line).ok().flatten())
@@ -448,15 +388,20 @@ pub fn judge(
     ))?;
     let ideal = OperatingPoint::new(spec, *contact, Some(clock_hz))?;
     let loop_log = LoopLog::read(log);
-    let verdict = LoopVerdict::judge(
-        &loop_log,
-        &cycles(plate.samples(), plate.levels()),
+    let cycles = cycles(plate.samples(), plate.levels());
+    let verdict = CosimRun {
+        log: &loop_log,
+        samples: plate.samples(),
+        cycles: &cycles,
         plant,
-        plate.end_stop(),
+        end_stop: plate.end_stop(),
+        peak_excursion_m: plate.peak_excursion_m(),
         stop_tick,
-        u64::from(ramp_cycles),
-        ideal.steady().feed_rate_mps,
-    );
+        ramp_cycles: u64::from(ramp_cycles),
+        ideal_feed_rate_mps: ideal.steady().feed_rate_mps,
+        velocity_scale_mps: ideal.velocity_scale_mps(),
+    }
+    .judge();
     Ok((loop_log, verdict))
 }
 

@@ -113,3 +113,50 @@ fn sweep_on_a_real_plate_reports_each_point_s_end_stop() {
         assert_eq!(row.split(',').nth(column), Some(""), "{row}");
     }
 }
+
+/// A run the loop gives up on is an outcome too: exit code 2, and the JSON, the CSV and the
+/// chart are written with the reason, the start-up's peak and the cycles that ran. The plate is
+/// `realistic.toml` with a 1 % zero offset and gains 1.05 / 0.95.
+#[test]
+fn closed_loop_writes_its_report_when_the_loop_gives_up() {
+    let dir = scratch_dir("closed-loop-gives-up");
+    let realistic = std::fs::read_to_string(plant("realistic.toml")).unwrap();
+    let pushed = realistic
+        .replace(
+            "zero_offset_fraction = 0.005",
+            "zero_offset_fraction = 0.01",
+        )
+        .replace("gain_positive = 1.02", "gain_positive = 1.05")
+        .replace("gain_negative = 0.98", "gain_negative = 0.95");
+    let plant_path = dir.join("pushed.toml");
+    std::fs::write(&plant_path, pushed).unwrap();
+    let (csv, chart) = (dir.join("run.csv"), dir.join("run.svg"));
+    let outcome = run(
+        &[
+            "closed-loop",
+            "--plant",
+            plant_path.to_str().unwrap(),
+            "--cycles",
+            "100",
+            "--json",
+            "--csv",
+            csv.to_str().unwrap(),
+            "--plot",
+            chart.to_str().unwrap(),
+        ],
+        RUN_TIME,
+    );
+    assert_eq!(outcome.code(), Some(2), "{outcome:#?}");
+    let report: serde_json::Value = serde_json::from_str(&outcome.stdout).expect("JSON");
+    let reason = report["gave_up"].as_str().expect("a reason");
+    assert!(
+        reason.contains("the closed loop stopped at t ="),
+        "{reason}"
+    );
+    assert_eq!(report["passed"], false);
+    let peak_m = report["startup_peak_m"].as_f64().unwrap();
+    assert!(peak_m > 1e-3 && peak_m < 5e-3, "{peak_m}");
+    let rows = std::fs::read_to_string(&csv).unwrap();
+    assert!(rows.lines().count() > 2, "{rows}");
+    assert!(std::fs::read_to_string(&chart).unwrap().contains("<svg"));
+}

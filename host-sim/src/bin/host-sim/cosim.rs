@@ -10,8 +10,8 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use feeder_emulator::plant::TICK_HZ;
 use feeder_shared::DacCalibration;
-use host_sim::closed_loop::{FEED_RATE_CYCLES, MEAN_POSITION_LIMIT_M};
-use host_sim::cosim::{cycles, judge, CosimCycle, LoopLog, LoopVerdict, PlatePlant, PlateSample};
+use host_sim::closed_loop::{Verdict, MEAN_POSITION_LIMIT_M};
+use host_sim::cosim::{cycles, judge, CosimCycle, LoopLog, PlatePlant, PlateSample};
 use host_sim::plate::{EndStop, PlantFile};
 use host_sim::SimError;
 use serde::Serialize;
@@ -71,7 +71,7 @@ struct CosimReport {
 #[derive(Serialize)]
 struct ClosedLoopReport {
     log: LoopLog,
-    verdict: LoopVerdict,
+    verdict: Verdict,
 }
 
 /// Runs `host-sim cosim`; false when the closed loop failed its figures (the report is out).
@@ -108,7 +108,7 @@ pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
     };
     let passed = closed_loop
         .as_ref()
-        .is_none_or(|report| report.verdict.failures.is_empty());
+        .is_none_or(|report| report.verdict.passed);
     let report = CosimReport {
         plant: args.plant.clone(),
         open_loop: args.open_loop,
@@ -259,6 +259,11 @@ fn print_closed_loop(closed: &ClosedLoopReport) {
     if let Some(cycle) = closed.log.feeding_cycle {
         say!("course            soft start released at cycle {cycle}");
     }
+    say!(
+        "start-up          peak |x| {:.1} µm from power-up to the release (bound {:.0} µm)",
+        verdict.startup_peak_m * 1e6,
+        verdict.startup_limit_m * 1e6
+    );
     if let Some(worst) = verdict.worst_mean_position_m {
         say!(
             "mean position     worst |cycle mean| {:.1} µm from the release to the stop, {:.1} µm after the soft start",
@@ -270,7 +275,7 @@ fn print_closed_loop(closed: &ClosedLoopReport) {
         say!(
             "feed rate         {:.2} mm/s over the last {} cycles before the stop, ideal plate {:.2} mm/s ({:+.2} %)",
             rate * 1e3,
-            FEED_RATE_CYCLES,
+            verdict.feed_cycles,
             verdict.ideal_feed_rate_mps * 1e3,
             (rate / verdict.ideal_feed_rate_mps - 1.0) * 100.0
         );

@@ -85,8 +85,7 @@ fn main() -> ExitCode {
         // A run that fails its criteria is not a refusal: its report is out, and exit code 1
         // says so.
         Command::ClosedLoop(args) => match closed_loop::run(&args) {
-            Ok(true) => Ok(()),
-            Ok(false) => return ExitCode::FAILURE,
+            Ok(code) => return code,
             Err(error) => Err(error),
         },
     };
