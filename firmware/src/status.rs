@@ -52,9 +52,9 @@ pub fn publish_loop(report: LoopReport) {
     CLOSED_LOOP.lock(|published| published.set(Some(report)));
 }
 
-/// The closed loop's report as last published, for the console's `status`; `None` on a board
-/// that does not run one.
-#[cfg(feature = "console")]
+/// The closed loop's report as last published, for the console's `status` and the scripted
+/// operator; `None` on a board that does not run one.
+#[cfg(any(feature = "console", feature = "encoder"))]
 pub fn closed_loop() -> Option<LoopReport> {
     CLOSED_LOOP.lock(Cell::get)
 }

@@ -16,6 +16,7 @@ use crate::plant::{Contact, PlateSegment};
 use crate::plate::{EndStop, PlantFile, PlateParams, Stepper};
 use crate::sensors::EncoderConfig;
 
+pub mod family;
 pub mod verdict;
 
 pub use verdict::{

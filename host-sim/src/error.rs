@@ -3,7 +3,7 @@
 
 use core::fmt;
 
-use feeder_shared::closed_loop::{CourseError, IdentifyError};
+use feeder_shared::closed_loop::{Cause, CourseError, IdentifyError};
 use feeder_shared::number::Significant;
 use feeder_shared::DriveError;
 use feeder_shared::{Error, Quantity};
@@ -65,6 +65,17 @@ pub enum SimError {
     Loop { time_s: f64, error: CourseError },
     /// A level the closed loop trimmed does not fit the output's DAC.
     TrimmedLevel { time_s: f64, error: DriveError },
+}
+
+impl SimError {
+    /// The closed loop's envelope property a give-up names, if any.
+    pub fn cause(&self) -> Option<Cause> {
+        match self {
+            SimError::Identification(error) => error.cause(),
+            SimError::Loop { error, .. } => error.cause(),
+            _ => None,
+        }
+    }
 }
 
 impl fmt::Display for SimError {

@@ -1,9 +1,11 @@
-//! The closed loop on a real plate: the course from the first start to feeding ([`course`]),
+//! The closed loop on a real plate: the plants it is designed for ([`envelope`]), the course from the first start to feeding ([`course`]),
 //! identification of the drive at start-up ([`mod@identify`]), the cycle-rate loop that keeps the plate centred and its stroke right ([`cycle_loop`]) from the
 //! planned motion of a cycle ([`shape`]), and track control with a part sensor ([`track`]).
 
 pub mod course;
 pub mod cycle_loop;
+pub mod disturbance;
+pub mod envelope;
 pub mod identify;
 pub mod shape;
 pub mod track;
@@ -13,6 +15,7 @@ pub use course::{
     Probe, Stage,
 };
 pub use cycle_loop::{CycleLoop, LoopError, LoopLimits, Stroke, Trims};
+pub use envelope::{Cause, Envelope, ENVELOPE};
 pub use identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};
 pub use shape::{CommandSegment, CycleShape};
 pub use track::{Track, TrackConfig, TrackReport, TrackState};

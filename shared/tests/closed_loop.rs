@@ -3,8 +3,8 @@
 //! loop against the per-cycle linear plant it was designed on, and track control.
 
 use feeder_shared::closed_loop::{
-    identify, CommandSegment, CycleLoop, CycleShape, Identified, IdentifyError, IdentifyLimits,
-    Latch, LoopError, LoopLimits, Stroke, Track, TrackConfig, TrackState,
+    identify, Cause, CommandSegment, CycleLoop, CycleShape, Identified, IdentifyError,
+    IdentifyLimits, Latch, LoopError, LoopLimits, Stroke, Track, TrackConfig, TrackState,
 };
 use feeder_shared::{Drive, Limits, Waveform, WaveformSpec};
 use proptest::prelude::*;
@@ -302,7 +302,7 @@ fn identification_refuses_what_cannot_run() {
         viscous_per_s: 0.0,
     };
     let latches = plate.latches(&probe, 1e-6, 250);
-    let limits = IdentifyLimits::for_probe(0.3 * 146.0, 1e-6);
+    let limits = IdentifyLimits::for_probe(1e-6);
     assert!(identify(&probe, &latches, &limits).is_ok());
     // A motor that does not move the plate, or a sensor that does not count.
     let still: Vec<Latch> = latches
@@ -328,16 +328,34 @@ fn identification_refuses_what_cannot_run() {
         Err(IdentifyError::Gain { gain, .. }) => assert!(gain < 0.0),
         other => panic!("{other:?}"),
     }
-    // Too strong an offset for the probe.
-    let drifting = Plate {
-        offset_mps2: 5.0,
-        ..plate
+    // An offset or a gain beyond the envelope (2 % of 200 m/s², gains 0.9–1.1) is refused,
+    // its cause named; one just inside is not.
+    let offset = |offset_mps2: f64| {
+        let latches = Plate {
+            offset_mps2,
+            ..plate
+        }
+        .latches(&probe, 1e-6, 250);
+        identify(&probe, &latches, &limits)
     };
-    let latches_drift = drifting.latches(&probe, 1e-6, 250);
+    assert!(offset(3.9).is_ok());
+    let refused = offset(-5.0).unwrap_err();
+    assert!(matches!(refused, IdentifyError::Offset { .. }));
+    assert_eq!(refused.cause(), Some(Cause::Offset));
+    let gain = |gains: (f64, f64)| {
+        let latches = Plate { gains, ..plate }.latches(&probe, 1e-6, 250);
+        identify(&probe, &latches, &limits)
+    };
+    assert!(gain((1.09, 0.91)).is_ok());
+    let refused = gain((1.0, 0.85)).unwrap_err();
     assert!(matches!(
-        identify(&probe, &latches_drift, &limits),
-        Err(IdentifyError::Offset { .. })
+        refused,
+        IdentifyError::Gain {
+            positive: false,
+            ..
+        }
     ));
+    assert_eq!(refused.cause(), Some(Cause::Gain));
     // Latches out of order, too few, or outside the probe.
     let mut shuffled = latches.clone();
     shuffled.swap(3, 4);

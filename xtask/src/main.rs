@@ -59,6 +59,9 @@ enum Task {
     Console,
     /// The random-operator soak against the QEMU console image alone (also part of `test`).
     Soak(SoakArgs),
+    /// The closed loop on the seeded plant family across its envelope (`host-sim family`:
+    /// 500 plants inside, 50 just outside, each at four operating points); its flags after `--`.
+    Family(FamilyArgs),
     /// Makes the expected outputs anew after an intended change (tests/expected/: the QEMU
     /// golden log, the figures' CSVs; the command-line snapshots) and lists the files that
     /// changed.
@@ -73,6 +76,13 @@ struct SoakArgs {
     /// Seed of the operator's script (default: FEEDER_SOAK_SEED, else random).
     #[arg(long, value_name = "SEED")]
     seed: Option<u64>,
+}
+
+#[derive(Args)]
+struct FamilyArgs {
+    /// `host-sim family` flags (`-- --seed 7 --json`).
+    #[arg(last = true, value_name = "FLAGS", allow_hyphen_values = true)]
+    flags: Vec<String>,
 }
 
 #[derive(Args)]
@@ -121,6 +131,7 @@ fn main() -> ExitCode {
             Task::Size => firmware_size(),
             Task::Console => console::console(),
             Task::Soak(args) => soak_alone(&args),
+            Task::Family(args) => exec(host_sim().arg("family").args(&args.flags)),
             Task::Bless => bless::bless(),
         }
     });

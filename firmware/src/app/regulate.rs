@@ -89,8 +89,9 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
         let stage = course.stage();
         if let Some(result) = IDENTIFIED.try_take() {
             report(&result);
-            if let Err(error) = course.set_identified(result) {
-                status::publish_loop(course.report());
+            let identified = course.set_identified(result);
+            status::publish_loop(course.report());
+            if let Err(error) = identified {
                 stop(error);
                 return;
             }
@@ -118,6 +119,7 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
                         course.stage(),
                         boundary.begun.cycle
                     );
+                    status::publish_loop(course.report());
                 }
                 if decision.identify {
                     if let Some(probe) = course.probe() {

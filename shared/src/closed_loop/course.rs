@@ -23,6 +23,7 @@
 //! ([`Course::feedforward`]), and the loop starts its history afresh from its start.
 
 use super::cycle_loop::{CycleLoop, LoopError, LoopLimits, Stroke, Trims};
+use super::envelope::Cause;
 use super::identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};
 use super::shape::{CommandSegment, CycleShape};
 use crate::scheduler::{Scheduler, Segment};
@@ -67,8 +68,9 @@ pub struct CourseConfig {
 
 impl CourseConfig {
     /// 4 probe cycles at 30 % of the levels; centred within 25 µm for 3 cycles, in at most 250
-    /// cycles; the loop may add up to 10 m/s², trim the stroke by ±20 % and gives up 4 mm from
-    /// centre; levels in steps of `level_step_mps2`.
+    /// cycles; the loop may add up to 50 m/s² (a quarter of the envelope's full scale: a spring
+    /// or slide friction at its limit needs that much), trim the stroke by ±20 % and gives up
+    /// 4 mm from centre; levels in steps of `level_step_mps2`.
     pub fn new(resolution_m: f64, level_step_mps2: f64) -> Self {
         CourseConfig {
             probe_cycles: 4,
@@ -78,7 +80,7 @@ impl CourseConfig {
             centred_cycles: 3,
             centring_cycles_max: 250,
             loop_limits: LoopLimits {
-                correction_max_mps2: 10.0,
+                correction_max_mps2: 50.0,
                 amplitude_max: 0.2,
                 position_error_max_m: 4e-3,
             },
@@ -232,6 +234,16 @@ pub enum CourseError {
     },
 }
 
+impl CourseError {
+    /// The envelope's property it names, if any.
+    pub fn cause(&self) -> Option<Cause> {
+        match self {
+            CourseError::Identify(error) => error.cause(),
+            _ => None,
+        }
+    }
+}
+
 impl core::fmt::Display for CourseError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
@@ -260,8 +272,6 @@ impl core::fmt::Display for CourseError {
 pub struct Probe {
     start_tick: u64,
     clock_hz: u32,
-    /// The planned (untrimmed) level of the held cycles.
-    accel_mps2: f64,
     resolution_m: f64,
     positions: [Latch; PROBE_POSITIONS_MAX],
     position_count: usize,
@@ -270,7 +280,7 @@ pub struct Probe {
 }
 
 impl Probe {
-    fn new(start_tick: u64, clock_hz: u32, accel_mps2: f64, resolution_m: f64) -> Self {
+    fn new(start_tick: u64, clock_hz: u32, resolution_m: f64) -> Self {
         let latch = Latch {
             t_s: 0.0,
             position_m: 0.0,
@@ -282,7 +292,6 @@ impl Probe {
         Probe {
             start_tick,
             clock_hz,
-            accel_mps2,
             resolution_m,
             positions: [latch; PROBE_POSITIONS_MAX],
             position_count: 0,
@@ -328,7 +337,7 @@ impl Probe {
 
     /// The drive identified from the probe, within [`IdentifyLimits::for_probe`].
     pub fn identify(&self) -> Result<Identified, IdentifyError> {
-        let limits = IdentifyLimits::for_probe(self.accel_mps2, self.resolution_m);
+        let limits = IdentifyLimits::for_probe(self.resolution_m);
         identify(self.segments(), self.positions(), &limits)
     }
 }
@@ -503,7 +512,6 @@ impl Course {
                 self.probe = Some(Probe::new(
                     start.tick,
                     plan.clock_hz,
-                    begun.peak_accel_mps2 * begun.amplitude.fraction(),
                     self.config.resolution_m,
                 ));
             }

@@ -25,14 +25,13 @@
 
 use libm::fabs;
 
+use super::disturbance::Disturbance;
 use super::identify::Identified;
 use super::shape::{CommandSegment, CycleShape};
 
 /// `ũ = −A·x_p − B·w_p − d̂` with the predicted `x_p`, `w_p` (both poles at 0.3).
 const POSITION_GAIN: f64 = 0.245;
 const VELOCITY_GAIN: f64 = 0.5775;
-/// The disturbance estimate moves by this fraction of its difference from each measurement.
-const DISTURBANCE_GAIN: f64 = 0.5;
 /// The mean's offset moves by this fraction of each measured mean.
 const MEAN_GAIN: f64 = 0.05;
 /// The amplitude trim moves by this fraction of the relative stroke error each cycle.
@@ -167,8 +166,11 @@ pub struct CycleLoop {
     previous_x_m: Option<f64>,
     /// The start before the previous one.
     earlier_x_m: Option<f64>,
-    /// The disturbance `d̂` estimated so far, in units of `ũ`.
-    disturbance_m: f64,
+    /// The plans of the cycles that began at those two starts.
+    previous_shape: Option<CycleShape>,
+    earlier_shape: Option<CycleShape>,
+    /// What the feedforward leaves, estimated so far.
+    disturbance: Disturbance,
     /// How far the plate's measured mean has stood from the plan's: the targets move by it.
     mean_offset_m: f64,
     /// The output's smallest step of a level (0: continuous): the bias is rounded to it, and
@@ -195,7 +197,9 @@ impl CycleLoop {
             earlier: Input::NONE,
             previous_x_m: None,
             earlier_x_m: None,
-            disturbance_m: 0.0,
+            previous_shape: None,
+            earlier_shape: None,
+            disturbance: Disturbance::new(),
             mean_offset_m: 0.0,
             level_step_mps2: 0.0,
             trims: feedforward,
@@ -301,7 +305,7 @@ impl CycleLoop {
         let other = CycleLoop::new(identified, self.limits);
         self.feedforward = other.feedforward;
         self.friction_mps2 = other.friction_mps2;
-        self.disturbance_m = 0.0;
+        self.disturbance = Disturbance::new();
     }
 
     /// Forgets the cycle starts seen so far: the next [`CycleLoop::update`] takes its position
@@ -313,6 +317,8 @@ impl CycleLoop {
         self.earlier = Input::NONE;
         self.previous_x_m = None;
         self.earlier_x_m = None;
+        self.previous_shape = None;
+        self.earlier_shape = None;
         self.trims = self.feedforward();
     }
 
@@ -373,32 +379,36 @@ impl CycleLoop {
         }
         // `w = T·v` at this start, from the last two starts and the correction between them;
         // the first start only gives the position, and the next cycle runs the feedforward.
-        let Some(previous_x_m) = self.previous_x_m else {
+        let (Some(previous_x_m), Some(previous_shape)) = (self.previous_x_m, self.previous_shape)
+        else {
             self.previous_x_m = Some(start_m);
+            self.previous_shape = Some(*shape);
             self.amplitude = amplitude;
             return Ok(self.trims);
         };
-        // A disturbance `d` (what the feedforward left) adds to every `ũ`: the second difference
-        // of the starts is `ũ_{k−1} + ũ_{k−2} + 2d`.
-        let mut disturbance_m = self.disturbance_m;
-        if let Some(earlier_x_m) = self.earlier_x_m {
+        // What the feedforward leaves adds `d` to every `ũ`: the second difference of the starts
+        // is `ũ_{k−1} + ũ_{k−2} + d_{k−1} + d_{k−2}`.
+        let mut disturbance = self.disturbance;
+        if let (Some(earlier_x_m), Some(earlier_shape)) = (self.earlier_x_m, self.earlier_shape) {
             let measured =
                 (start_m - 2.0 * previous_x_m + earlier_x_m - self.earlier.w_m - self.previous.x_m
                     + self.earlier.x_m)
                     / 2.0;
-            disturbance_m += DISTURBANCE_GAIN * (measured - disturbance_m);
+            disturbance.measure(measured, [&previous_shape, &earlier_shape]);
         }
-        let w = start_m - previous_x_m + self.previous.w_m - self.previous.x_m + disturbance_m;
+        let w = start_m - previous_x_m + self.previous.w_m - self.previous.x_m
+            + disturbance.of(&previous_shape);
         // The plan's mean is not quite the plate's: friction and the current loop round every
         // segment. Where the plate's mean is measured, the target moves against its error.
         let mean_offset_m = self.mean_offset_m + MEAN_GAIN * measured_mean_m.unwrap_or(0.0);
         let [next_target_m, after_target_m] = next.map(|shape| -shape.mean_m - mean_offset_m);
         let target_w = after_target_m - next_target_m;
         // A cycle that starts at `x` with `w` has its mean at `x + mean + w/2 + (ũ + d)/3`.
-        let predicted_x =
-            start_m + w + self.running.x_m + disturbance_m - (next_target_m - target_w / 2.0);
-        let predicted_w = w + self.running.w_m + 2.0 * disturbance_m - target_w;
-        let correction = -POSITION_GAIN * predicted_x - VELOCITY_GAIN * predicted_w - disturbance_m;
+        let now_m = disturbance.of(shape);
+        let predicted_x = start_m + w + self.running.x_m + now_m - (next_target_m - target_w / 2.0);
+        let predicted_w = w + self.running.w_m + 2.0 * now_m - target_w;
+        let correction =
+            -POSITION_GAIN * predicted_x - VELOCITY_GAIN * predicted_w - disturbance.of(next[0]);
         let half_period_squared = next[0].period_s * next[0].period_s / 2.0;
         let correction_mps2 = correction / half_period_squared;
         if fabs(correction_mps2) > self.limits.correction_max_mps2 {
@@ -416,7 +426,9 @@ impl CycleLoop {
         self.mean_offset_m = mean_offset_m;
         self.earlier_x_m = Some(previous_x_m);
         self.previous_x_m = Some(start_m);
-        self.disturbance_m = disturbance_m;
+        self.earlier_shape = Some(previous_shape);
+        self.previous_shape = Some(*shape);
+        self.disturbance = disturbance;
         self.earlier = self.previous;
         self.previous = self.running;
         self.running = Input {

@@ -14,6 +14,7 @@
 
 use libm::{fabs, sqrt};
 
+use super::envelope::{Cause, ENVELOPE};
 use super::shape::{sign, CommandSegment};
 
 /// A plate position read at a time since the probe started.
@@ -71,13 +72,14 @@ pub struct IdentifyLimits {
 }
 
 impl IdentifyLimits {
-    /// Gains within ±30 %, an offset of at most 5 % of `probe_accel_mps2`, and a motion of at
-    /// least 20 `resolution_m`.
-    pub fn for_probe(probe_accel_mps2: f64, resolution_m: f64) -> Self {
+    /// The envelope's gains and offset ([`Envelope::identified_gains`],
+    /// [`Envelope::offset_max_mps2`]), and a motion of at least 20 `resolution_m`.
+    pub fn for_probe(resolution_m: f64) -> Self {
+        let (gain_min, gain_max) = ENVELOPE.identified_gains();
         IdentifyLimits {
-            gain_min: 0.7,
-            gain_max: 1.3,
-            offset_max_mps2: 0.05 * fabs(probe_accel_mps2),
+            gain_min,
+            gain_max,
+            offset_max_mps2: ENVELOPE.offset_max_mps2(),
             min_excursion_m: 20.0 * resolution_m,
         }
     }
@@ -101,6 +103,17 @@ pub enum IdentifyError {
     Offset { offset_mps2: f64, limit_mps2: f64 },
 }
 
+impl IdentifyError {
+    /// The envelope's property it names, if any.
+    pub fn cause(&self) -> Option<Cause> {
+        match self {
+            IdentifyError::Gain { .. } => Some(Cause::Gain),
+            IdentifyError::Offset { .. } => Some(Cause::Offset),
+            _ => None,
+        }
+    }
+}
+
 impl core::fmt::Display for IdentifyError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match *self {
@@ -118,23 +131,30 @@ impl core::fmt::Display for IdentifyError {
             IdentifyError::Singular => {
                 f.write_str("the probe's positions do not determine the drive's gains")
             }
-            IdentifyError::Gain { positive, gain } => write!(
-                f,
-                "the drive's {} gain is {gain}{}",
-                if positive { "positive" } else { "negative" },
+            IdentifyError::Gain { positive, gain } => {
+                let direction = if positive { "positive" } else { "negative" };
                 if gain < 0.0 {
-                    ": the motor or the position sensor is wired backwards"
+                    write!(
+                        f,
+                        "the drive's {direction} gain is {gain}: the motor or the position sensor \
+                         is wired backwards"
+                    )
                 } else {
-                    ", outside its range"
+                    let (min, max) = ENVELOPE.identified_gains();
+                    write!(
+                        f,
+                        "the drive's {direction} gain is {gain}, outside {min}–{max}: {}",
+                        Cause::Gain.remedy()
+                    )
                 }
-            ),
+            }
             IdentifyError::Offset {
                 offset_mps2,
                 limit_mps2,
             } => write!(
                 f,
-                "the drive's zero offset is {offset_mps2} m/s², beyond ±{limit_mps2} m/s²: trim \
-                 the drive's analog input"
+                "the drive's zero offset is {offset_mps2} m/s², beyond ±{limit_mps2} m/s²: {}",
+                Cause::Offset.remedy()
             ),
         }
     }

@@ -7,6 +7,7 @@ mod args;
 mod closed_loop;
 mod cosim;
 mod drift;
+mod family;
 mod hil;
 mod output;
 mod plot;
@@ -56,6 +57,8 @@ enum Command {
     ClosedLoop(closed_loop::ClosedLoopArgs),
     /// The emulated firmware (the QEMU `cosim` image) driving a real plate in lockstep.
     Cosim(cosim::CosimArgs),
+    /// The closed loop on a seeded family of plants across its envelope and just outside it.
+    Family(family::FamilyArgs),
 }
 
 fn main() -> ExitCode {
@@ -84,6 +87,11 @@ fn main() -> ExitCode {
         },
         // A run that fails its criteria is not a refusal: its report is out, and exit code 1
         // says so.
+        Command::Family(args) => match family::run(&args) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::FAILURE,
+            Err(error) => Err(error),
+        },
         Command::ClosedLoop(args) => match closed_loop::run(&args) {
             Ok(code) => return code,
             Err(error) => Err(error),

@@ -8,6 +8,7 @@
 //! | argument            | meaning                                         | default              |
 //! |---------------------|-------------------------------------------------|----------------------|
 //! | `cycles=N`          | request the soft stop once N cycles have begun  | 300                  |
+//! |                     | (with the closed loop: N cycles after its course released the soft start) | |
 //! | `freq_hz=F`         | waveform frequency                              | the firmware default |
 //! | `duty=D`            | duty at start                                   | the firmware default |
 //! | `stroke_m=X`        | stroke (peak-to-peak plate travel)              | the firmware default |
@@ -21,7 +22,9 @@
 //! | `seed=S`            | seed of the random changes (`changes`)          | 1                    |
 //!
 //! The run starts (soft), changes the duty at N/2, stops (soft) at N, and exits with code 0 once
-//! the output is idle again, with the work per edge (`EVT work`) and `EVT end`. The missed edge
+//! the output is idle again; an image with the closed loop counts N from the cycle at which its
+//! course (probe, identification, centring) released the soft start, so that the change and
+//! the stop fall in the feeding it is judged on, with the work per edge (`EVT work`) and `EVT end`. The missed edge
 //! of `late_preload_at` halts the output with the driver disabled; the operator then resets and
 //! starts again, once. Any other fault ends the run with a failure code.
 //!
@@ -41,6 +44,8 @@ use embassy_executor::SendSpawner;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::signal::Signal;
 use embassy_time::{Instant, Timer};
+#[cfg(feature = "encoder")]
+use feeder_shared::closed_loop::Stage;
 use feeder_shared::scenario::parse_setting;
 use feeder_shared::{
     Drive, RunState, ScenarioError, ScenarioSetting, SupervisorEvent, TickClock, WaveformSpec,
@@ -295,6 +300,25 @@ impl Run {
         }
     }
 
+    /// The cycle from which the scenario counts: where the closed loop's course released the
+    /// soft start (or gave up, or the feeder stopped), 0 on an image without one.
+    async fn feeding_cycle(&mut self) -> u32 {
+        #[cfg(feature = "encoder")]
+        loop {
+            self.watch_faults().await;
+            let stage = status::closed_loop().map(|report| report.stage);
+            let stopped = cycle() > 0 && status::get().state == RunState::Stopped;
+            if stopped || matches!(stage, Some(Stage::Feeding | Stage::Failed)) {
+                let origin = cycle();
+                info!("scenario: counting cycles from {=u32}, after the course", origin);
+                return origin;
+            }
+            Timer::after_millis(POLL_MS).await;
+        }
+        #[cfg(not(feature = "encoder"))]
+        0
+    }
+
     async fn until_cycle(&mut self, until: u32) {
         loop {
             self.watch_faults().await;
@@ -369,6 +393,8 @@ async fn operator_task(clock: TickClock, spawner: SendSpawner) {
     };
     offer(first);
     request(SupervisorEvent::StartRequested);
+    let origin = operator.feeding_cycle().await;
+    let (half, stop_after) = (origin + half, origin + stop_after);
     if count == 0 {
         operator.until_cycle(half).await;
         offer(second);
