@@ -12,7 +12,12 @@ const OUTSIDE: usize = 60;
 fn beyond(member: &Member) -> Vec<Cause> {
     let e = ENVELOPE;
     let p: &PlateParams = &member.plant.plate;
-    let resolution_m = member.plant.sensors.encoder.expect("an encoder").resolution_m;
+    let resolution_m = member
+        .plant
+        .sensors
+        .encoder
+        .expect("an encoder")
+        .resolution_m;
     let mut causes = Vec::new();
     if p.spring_npm > e.spring_max_npm {
         causes.push(Cause::Spring);
@@ -27,7 +32,9 @@ fn beyond(member: &Member) -> Vec<Cause> {
     if !gains.contains(&p.gain_positive) || !gains.contains(&p.gain_negative) {
         causes.push(Cause::Gain);
     }
-    if p.current_bandwidth_hz.is_some_and(|hz| hz < e.current_bandwidth_min_hz) {
+    if p.current_bandwidth_hz
+        .is_some_and(|hz| hz < e.current_bandwidth_min_hz)
+    {
         causes.push(Cause::Lag);
     }
     if resolution_m > e.resolution_max_m {

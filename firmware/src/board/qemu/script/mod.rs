@@ -310,7 +310,10 @@ impl Run {
             let stopped = cycle() > 0 && status::get().state == RunState::Stopped;
             if stopped || matches!(stage, Some(Stage::Feeding | Stage::Failed)) {
                 let origin = cycle();
-                info!("scenario: counting cycles from {=u32}, after the course", origin);
+                info!(
+                    "scenario: counting cycles from {=u32}, after the course",
+                    origin
+                );
                 return origin;
             }
             Timer::after_millis(POLL_MS).await;
