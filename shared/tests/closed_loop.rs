@@ -154,6 +154,8 @@ struct Plate {
     lag_s: f64,
     coulomb_mps2: f64,
     viscous_per_s: f64,
+    /// A centring spring `k/M`, pulling the plate back to 0.
+    spring_per_s2: f64,
 }
 
 impl Plate {
@@ -186,7 +188,12 @@ impl Plate {
                 0.0
             };
             let _ = t;
-            [v, f - friction - self.viscous_per_s * v, f_dot]
+            let [x, ..] = s;
+            [
+                v,
+                f - friction - self.viscous_per_s * v - self.spring_per_s2 * x,
+                f_dot,
+            ]
         };
         let length: f64 = probe.iter().map(|s| s.duration_s).sum();
         let steps = (length / dt).round() as usize;
@@ -246,6 +253,7 @@ const WIDE: IdentifyLimits = IdentifyLimits {
     gain_max: 1.5,
     offset_max_mps2: 10.0,
     min_excursion_m: 1e-6,
+    spring_max_per_s2: 1e9,
 };
 
 /// The segments are whole multiples of `dt` only approximately, so the RK4 plate switches its
@@ -258,6 +266,7 @@ fn identification_recovers_the_drive_of_a_plate_without_friction() {
         lag_s: 1.0 / (2.0 * std::f64::consts::PI * 1000.0),
         coulomb_mps2: 0.0,
         viscous_per_s: 3.3,
+        spring_per_s2: 0.0,
     };
     let probe = probe(3, 0.3);
     let latches = plate.latches(&probe, 1e-6, 250);
@@ -280,6 +289,7 @@ fn identification_recovers_the_gains_of_a_plate_with_slide_friction() {
         lag_s: 1.0 / (2.0 * std::f64::consts::PI * 1000.0),
         coulomb_mps2: 4.0 / 3.0,
         viscous_per_s: 10.0 / 3.0,
+        spring_per_s2: 0.0,
     };
     let probe = probe(3, 0.3);
     let latches = plate.latches(&probe, 1e-6, 250);
@@ -291,6 +301,40 @@ fn identification_recovers_the_gains_of_a_plate_with_slide_friction() {
     assert!((found.coulomb_mps2 - 4.0 / 3.0).abs() < 0.1);
 }
 
+/// A flexure mount of 22.5 Hz (30 kN/m on 1.5 kg) and a soft one of 2.9 Hz (500 N/m): the
+/// spring is found to 1 %, the drive's gains to 0.2 %, and a slide without a spring is found
+/// to have none.
+#[test]
+fn identification_finds_a_centring_spring() {
+    let probe = probe(3, 0.3);
+    for spring_per_s2 in [20_000.0, 333.3] {
+        let plate = Plate {
+            gains: (1.02, 0.98),
+            offset_mps2: 1.0,
+            lag_s: 1.0 / (2.0 * std::f64::consts::PI * 1000.0),
+            coulomb_mps2: 0.0,
+            viscous_per_s: 3.3,
+            spring_per_s2,
+        };
+        let latches = plate.latches(&probe, 1e-6, 250);
+        let found = identify(&probe, &latches, &WIDE).unwrap();
+        println!("{found:?}");
+        assert!((found.spring_per_s2 / spring_per_s2 - 1.0).abs() < 0.01);
+        assert!((found.gain_positive / 1.02 - 1.0).abs() < 2e-3);
+        assert!((found.gain_negative / 0.98 - 1.0).abs() < 2e-3);
+    }
+    let bare = Plate {
+        gains: (1.02, 0.98),
+        offset_mps2: 1.0,
+        lag_s: 1.0 / (2.0 * std::f64::consts::PI * 1000.0),
+        coulomb_mps2: 0.0,
+        viscous_per_s: 3.3,
+        spring_per_s2: 0.0,
+    };
+    let found = identify(&probe, &bare.latches(&probe, 1e-6, 250), &WIDE).unwrap();
+    assert_eq!(found.spring_per_s2, 0.0);
+}
+
 #[test]
 fn identification_refuses_what_cannot_run() {
     let probe = probe(3, 0.3);
@@ -300,9 +344,10 @@ fn identification_refuses_what_cannot_run() {
         lag_s: 0.0,
         coulomb_mps2: 0.0,
         viscous_per_s: 0.0,
+        spring_per_s2: 0.0,
     };
     let latches = plate.latches(&probe, 1e-6, 250);
-    let limits = IdentifyLimits::for_probe(1e-6);
+    let limits = IdentifyLimits::for_probe(1e-6, 0.02);
     assert!(identify(&probe, &latches, &limits).is_ok());
     // A motor that does not move the plate, or a sensor that does not count.
     let still: Vec<Latch> = latches

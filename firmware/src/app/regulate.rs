@@ -165,13 +165,14 @@ fn report(result: &Result<Identified, IdentifyError>) {
     match result {
         Ok(drive) => info!(
             "drive identified: gain + {=f64}, gain − {=f64}, offset {=f64} m/s², lag {=f64} s, \
-             Coulomb {=f64} m/s², viscous {=f64} 1/s, residual {=f64} m",
+             Coulomb {=f64} m/s², viscous {=f64} 1/s, spring {=f64} 1/s², residual {=f64} m",
             drive.gain_positive,
             drive.gain_negative,
             drive.offset_mps2,
             drive.lag_s,
             drive.coulomb_mps2,
             drive.viscous_per_s,
+            drive.spring_per_s2,
             drive.residual_m
         ),
         Err(error) => error!("drive identification refused: {}", Display2Format(error)),

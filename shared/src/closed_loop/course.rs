@@ -272,6 +272,8 @@ impl core::fmt::Display for CourseError {
 pub struct Probe {
     start_tick: u64,
     clock_hz: u32,
+    /// The plan's period.
+    period_s: f64,
     resolution_m: f64,
     positions: [Latch; PROBE_POSITIONS_MAX],
     position_count: usize,
@@ -280,7 +282,7 @@ pub struct Probe {
 }
 
 impl Probe {
-    fn new(start_tick: u64, clock_hz: u32, resolution_m: f64) -> Self {
+    fn new(start_tick: u64, clock_hz: u32, period_s: f64, resolution_m: f64) -> Self {
         let latch = Latch {
             t_s: 0.0,
             position_m: 0.0,
@@ -292,6 +294,7 @@ impl Probe {
         Probe {
             start_tick,
             clock_hz,
+            period_s,
             resolution_m,
             positions: [latch; PROBE_POSITIONS_MAX],
             position_count: 0,
@@ -337,7 +340,7 @@ impl Probe {
 
     /// The drive identified from the probe, within [`IdentifyLimits::for_probe`].
     pub fn identify(&self) -> Result<Identified, IdentifyError> {
-        let limits = IdentifyLimits::for_probe(self.resolution_m);
+        let limits = IdentifyLimits::for_probe(self.resolution_m, self.period_s);
         identify(self.segments(), self.positions(), &limits)
     }
 }
@@ -512,6 +515,7 @@ impl Course {
                 self.probe = Some(Probe::new(
                     start.tick,
                     plan.clock_hz,
+                    plan.ticks_to_s(u64::from(plan.period_ticks)),
                     self.config.resolution_m,
                 ));
             }

@@ -118,7 +118,9 @@ impl Cause {
     /// What the operator can do about it.
     pub const fn remedy(self) -> &'static str {
         match self {
-            Cause::Spring => "use a softer mount or a stronger drive",
+            Cause::Spring => {
+                "mount the plate on a softer suspension, or run the feeder in open loop"
+            }
             Cause::Friction => "check the slide's preload, seals and lubrication",
             Cause::Offset => "trim the drive's analog input offset",
             Cause::Gain => "check the drive's scaling and the DAC calibration",

@@ -16,6 +16,7 @@ use libm::{fabs, sqrt};
 
 use super::envelope::{Cause, ENVELOPE};
 use super::shape::{sign, CommandSegment};
+use crate::number::Significant;
 
 /// A plate position read at a time since the probe started.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,8 +40,10 @@ pub struct Identified {
     pub lag_s: f64,
     /// Slide friction as a deceleration `F_c/M`.
     pub coulomb_mps2: f64,
-    /// Viscous friction as a rate `b/M`.
+    /// Viscous friction (and a spring's damping) as a rate `b/M`.
     pub viscous_per_s: f64,
+    /// A centring spring's stiffness as `k/M`, the square of its natural angular frequency.
+    pub spring_per_s2: f64,
     /// Root-mean-square difference between the fitted and the latched positions.
     pub residual_m: f64,
 }
@@ -54,6 +57,7 @@ impl Identified {
         lag_s: 0.0,
         coulomb_mps2: 0.0,
         viscous_per_s: 0.0,
+        spring_per_s2: 0.0,
         residual_m: 0.0,
     };
 }
@@ -69,20 +73,32 @@ pub struct IdentifyLimits {
     pub offset_max_mps2: f64,
     /// The plate must move at least this far from its first position.
     pub min_excursion_m: f64,
+    /// A centring spring's `k/M` at most this.
+    pub spring_max_per_s2: f64,
 }
 
 impl IdentifyLimits {
     /// The envelope's gains and offset ([`Envelope::identified_gains`],
-    /// [`Envelope::offset_max_mps2`]), and a motion of at least 20 `resolution_m`.
-    pub fn for_probe(resolution_m: f64) -> Self {
+    /// [`Envelope::offset_max_mps2`]), a motion of at least 20 `resolution_m`, and a spring
+    /// the cycle-rate loop holds at a period of `period_s` ([`spring_max_per_s2`]).
+    pub fn for_probe(resolution_m: f64, period_s: f64) -> Self {
         let (gain_min, gain_max) = ENVELOPE.identified_gains();
         IdentifyLimits {
             gain_min,
             gain_max,
             offset_max_mps2: ENVELOPE.offset_max_mps2(),
             min_excursion_m: 20.0 * resolution_m,
+            spring_max_per_s2: spring_max_per_s2(period_s),
         }
     }
+}
+
+/// The stiffest spring (`k/M`) the cycle-rate loop holds at a period of `period_s`: one whose
+/// pull over a cycle, `(k/M)·T²/2` of the plate's offset from centre, is at most a tenth of it.
+/// The loop's per-cycle model is a free mass; a stiffer mount turns the plate back within the
+/// cycle, which that model does not describe.
+pub fn spring_max_per_s2(period_s: f64) -> f64 {
+    0.1 * 2.0 / (period_s * period_s)
 }
 
 /// Why an identification was refused.
@@ -101,6 +117,11 @@ pub enum IdentifyError {
     Gain { positive: bool, gain: f64 },
     /// The zero offset is beyond its limit.
     Offset { offset_mps2: f64, limit_mps2: f64 },
+    /// A centring spring stiffer than the loop holds.
+    Spring {
+        spring_per_s2: f64,
+        limit_per_s2: f64,
+    },
 }
 
 impl IdentifyError {
@@ -109,6 +130,7 @@ impl IdentifyError {
         match self {
             IdentifyError::Gain { .. } => Some(Cause::Gain),
             IdentifyError::Offset { .. } => Some(Cause::Offset),
+            IdentifyError::Spring { .. } => Some(Cause::Spring),
             _ => None,
         }
     }
@@ -156,12 +178,24 @@ impl core::fmt::Display for IdentifyError {
                 "the drive's zero offset is {offset_mps2} m/s², beyond ±{limit_mps2} m/s²: {}",
                 Cause::Offset.remedy()
             ),
+            IdentifyError::Spring {
+                spring_per_s2,
+                limit_per_s2,
+            } => write!(
+                f,
+                "the plate's mount is a spring of k/M = {} 1/s² (natural frequency {} Hz), \
+                 stiffer than the {} 1/s² the loop holds at this frequency: {}",
+                Significant(spring_per_s2),
+                Significant(sqrt(spring_per_s2.max(0.0)) / (2.0 * core::f64::consts::PI)),
+                Significant(limit_per_s2),
+                Cause::Spring.remedy()
+            ),
         }
     }
 }
 
-/// Unknowns of the fit: `x₀, v₀, e, g₊, g₋, F_c/M, b/M`.
-const UNKNOWNS: usize = 7;
+/// Unknowns of the fit: `x₀, v₀, e, g₊, g₋, F_c/M, b/M, k/M`.
+const UNKNOWNS: usize = 8;
 
 /// Longest current-loop lag searched.
 const LAG_MAX_S: f64 = 5e-3;
@@ -255,23 +289,26 @@ fn lagged_rows(
     }
 }
 
-/// The friction regressors at each latch from the latched motion: `C`, the double integral of
-/// the sign of the velocity, and `X`, the integral of the displacement from the first latch
-/// (trapezoids). The velocity at each latch is the central difference of its neighbours; where
-/// it changes sign between two latches, it does so where its linear interpolation does.
-fn friction_rows(latches: &[Latch], mut each: impl FnMut(usize, [f64; 2])) {
+/// The regressors at each latch from the latched motion: `C`, the double integral of the sign
+/// of the velocity (Coulomb friction), `X`, the integral of the displacement from the first
+/// latch (viscous friction and the spring's damping), and `S`, the double integral of the
+/// position (a centring spring), each by trapezoids on the latches. The velocity at each latch
+/// is the central difference of its neighbours; where it changes sign between two latches, it
+/// does so where its linear interpolation does.
+fn motion_rows(latches: &[Latch], mut each: impl FnMut(usize, [f64; 3])) {
     let n = latches.len();
     let velocity = |i: usize| {
         let (a, b) = (latches[i.saturating_sub(1)], latches[(i + 1).min(n - 1)]);
         (b.position_m - a.position_m) / (b.t_s - a.t_s)
     };
     let (mut c1, mut c, mut x) = (0.0, 0.0, 0.0);
+    let (mut s1, mut spring) = (0.0, 0.0);
     let integrate = |sign: f64, s: f64, c1: &mut f64, c: &mut f64| {
         *c += *c1 * s + sign * s * s / 2.0;
         *c1 += sign * s;
     };
     let first_m = latches[0].position_m;
-    each(0, [0.0, 0.0]);
+    each(0, [0.0; 3]);
     for i in 0..n - 1 {
         let (a, b) = (latches[i], latches[i + 1]);
         let s = b.t_s - a.t_s;
@@ -284,24 +321,52 @@ fn friction_rows(latches: &[Latch], mut each: impl FnMut(usize, [f64; 2])) {
             integrate(sign(va + vb), s, &mut c1, &mut c);
         }
         x += s * ((a.position_m - first_m) + (b.position_m - first_m)) / 2.0;
-        each(i + 1, [c, x]);
+        spring += s1 * s + s * s * (2.0 * a.position_m + b.position_m) / 6.0;
+        s1 += s * (a.position_m + b.position_m) / 2.0;
+        each(i + 1, [c, x, spring]);
     }
 }
 
-/// The least-squares fit for one lag, with its residual sum of squares; `friction` holds the
-/// friction regressors of the latches, which do not depend on the lag.
+/// Which drive the fit describes.
+#[derive(Clone, Copy, PartialEq)]
+enum Model {
+    /// A bare slide: every unknown but the spring (`k/M = 0`).
+    Slide,
+    /// A slide on a centring spring.
+    Sprung,
+}
+
+impl Model {
+    /// The unknowns it fits, the first of [`UNKNOWNS`].
+    fn columns(self) -> usize {
+        match self {
+            Model::Slide => UNKNOWNS - 1,
+            Model::Sprung => UNKNOWNS,
+        }
+    }
+}
+
+/// A spring softer than this (`k/M`, 1/s²: 1.6 Hz) is taken for none: over a probe of a few
+/// cycles it moves the plate less than the fit's other unknowns can tell apart, and the loop
+/// holds it as the disturbance it is.
+const SPRING_MIN_PER_S2: f64 = 100.0;
+
+/// The least-squares fit of `model` for one lag, with its residual sum of squares; `motion`
+/// holds the friction and spring regressors of the latches, which do not depend on the lag.
 fn fit(
     probe: &[CommandSegment],
     latches: &[Latch],
-    friction: &[[f64; 2]; MAX_LATCHES],
+    motion: &[[f64; 3]; MAX_LATCHES],
     lag_s: f64,
+    model: Model,
 ) -> Option<([f64; UNKNOWNS], f64)> {
+    let columns = model.columns();
     let mut lagged = [[0.0; 3]; MAX_LATCHES];
     lagged_rows(probe, latches, lag_s, |i, r| lagged[i] = r);
     let row = |i: usize| -> [f64; UNKNOWNS] {
         let [p, n, e] = lagged[i];
-        let [c, x] = friction[i];
-        [1.0, latches[i].t_s, e, p, n, c, x]
+        let [c, x, spring] = motion[i];
+        [1.0, latches[i].t_s, e, p, n, c, x, spring]
     };
     // Columns scaled to a largest value of 1.
     let mut scale = [0.0_f64; UNKNOWNS];
@@ -322,9 +387,10 @@ fn fit(
         for (r, s) in r.iter_mut().zip(scale) {
             *r /= s;
         }
-        for a in 0..UNKNOWNS {
+        r[columns..].fill(0.0);
+        for a in 0..columns {
             right[a] += r[a] * latch.position_m;
-            for b in a..UNKNOWNS {
+            for b in a..columns {
                 normal[a][b] += r[a] * r[b];
             }
         }
@@ -335,7 +401,7 @@ fn fit(
             *entry = upper[b][a];
         }
     }
-    let mut theta = cholesky_solve(normal, right)?;
+    let mut theta = cholesky_solve(normal, right, columns)?;
     for (t, s) in theta.iter_mut().zip(scale) {
         *t /= s;
     }
@@ -348,6 +414,40 @@ fn fit(
         })
         .sum();
     Some((theta, squares))
+}
+
+/// The lag whose fit of `model` leaves the least residual (a golden-section search over
+/// `[0, LAG_MAX_S]`), with that fit.
+fn best_lag(
+    probe: &[CommandSegment],
+    latches: &[Latch],
+    motion: &[[f64; 3]; MAX_LATCHES],
+    model: Model,
+) -> Result<(f64, ([f64; UNKNOWNS], f64)), IdentifyError> {
+    let residual =
+        |lag_s: f64| fit(probe, latches, motion, lag_s, model).map_or(f64::INFINITY, |(_, r)| r);
+    let golden = 0.5 * (sqrt(5.0) - 1.0);
+    let (mut lo, mut hi) = (0.0, LAG_MAX_S);
+    let (mut a, mut b) = (hi - golden * (hi - lo), lo + golden * (hi - lo));
+    let (mut fa, mut fb) = (residual(a), residual(b));
+    for _ in 0..LAG_STEPS {
+        if fa <= fb {
+            hi = b;
+            b = a;
+            fb = fa;
+            a = hi - golden * (hi - lo);
+            fa = residual(a);
+        } else {
+            lo = a;
+            a = b;
+            fa = fb;
+            b = lo + golden * (hi - lo);
+            fb = residual(b);
+        }
+    }
+    let lag_s = if fa <= fb { a } else { b };
+    let fitted = fit(probe, latches, motion, lag_s, model).ok_or(IdentifyError::Singular)?;
+    Ok((lag_s, fitted))
 }
 
 /// Latches a fit takes at most.
@@ -388,32 +488,17 @@ pub fn identify(
     if excursion_m.is_nan() || excursion_m < limits.min_excursion_m {
         return Err(IdentifyError::NoMotion { excursion_m });
     }
-    let mut friction = [[0.0; 2]; MAX_LATCHES];
-    friction_rows(latches, |i, r| friction[i] = r);
-    let residual =
-        |lag_s: f64| fit(probe, latches, &friction, lag_s).map_or(f64::INFINITY, |(_, r)| r);
-    let golden = 0.5 * (sqrt(5.0) - 1.0);
-    let (mut lo, mut hi) = (0.0, LAG_MAX_S);
-    let (mut a, mut b) = (hi - golden * (hi - lo), lo + golden * (hi - lo));
-    let (mut fa, mut fb) = (residual(a), residual(b));
-    for _ in 0..LAG_STEPS {
-        if fa <= fb {
-            hi = b;
-            b = a;
-            fb = fa;
-            a = hi - golden * (hi - lo);
-            fa = residual(a);
-        } else {
-            lo = a;
-            a = b;
-            fa = fb;
-            b = lo + golden * (hi - lo);
-            fb = residual(b);
-        }
+    let mut motion = [[0.0; 3]; MAX_LATCHES];
+    motion_rows(latches, |i, r| motion[i] = r);
+    // The lag of a bare slide first; a spring found at that lag is searched for again with it.
+    let (mut lag_s, mut fitted) = best_lag(probe, latches, &motion, Model::Slide)?;
+    let (sprung, _) =
+        fit(probe, latches, &motion, lag_s, Model::Sprung).ok_or(IdentifyError::Singular)?;
+    if -sprung[UNKNOWNS - 1] >= SPRING_MIN_PER_S2 {
+        (lag_s, fitted) = best_lag(probe, latches, &motion, Model::Sprung)?;
     }
-    let lag_s = if fa <= fb { a } else { b };
-    let (theta, squares) = fit(probe, latches, &friction, lag_s).ok_or(IdentifyError::Singular)?;
-    let [_, _, offset_mps2, gain_positive, gain_negative, friction, viscous] = theta;
+    let (theta, squares) = fitted;
+    let [_, _, offset_mps2, gain_positive, gain_negative, friction, viscous, spring] = theta;
     let identified = Identified {
         gain_positive,
         gain_negative,
@@ -421,6 +506,7 @@ pub fn identify(
         lag_s,
         coulomb_mps2: -friction,
         viscous_per_s: -viscous,
+        spring_per_s2: 0.0 - spring,
         residual_m: sqrt(squares / latches.len() as f64),
     };
     for (positive, gain) in [(true, gain_positive), (false, gain_negative)] {
@@ -434,34 +520,42 @@ pub fn identify(
             limit_mps2: limits.offset_max_mps2,
         });
     }
+    if identified.spring_per_s2.is_nan() || identified.spring_per_s2 > limits.spring_max_per_s2 {
+        return Err(IdentifyError::Spring {
+            spring_per_s2: identified.spring_per_s2,
+            limit_per_s2: limits.spring_max_per_s2,
+        });
+    }
     Ok(identified)
 }
 
-/// Solves the symmetric positive definite `a·x = b`; `None` if a pivot is not clearly positive
-/// (or not a number).
+/// Solves the symmetric positive definite `a·x = b` in its first `n` unknowns (the rest stay
+/// 0); `None` if a pivot is not clearly positive (or not a number).
 fn cholesky_solve(
     mut a: [[f64; UNKNOWNS]; UNKNOWNS],
     mut b: [f64; UNKNOWNS],
+    n: usize,
 ) -> Option<[f64; UNKNOWNS]> {
-    let largest = (0..UNKNOWNS).map(|i| a[i][i]).fold(0.0, f64::max);
+    let largest = (0..n).map(|i| a[i][i]).fold(0.0, f64::max);
     let dot = |x: &[f64], y: &[f64]| -> f64 { x.iter().zip(y).map(|(p, q)| p * q).sum() };
-    for j in 0..UNKNOWNS {
+    for j in 0..n {
         let d = a[j][j] - dot(&a[j][..j], &a[j][..j]);
         if d.is_nan() || d <= 1e-13 * largest {
             return None;
         }
         let d = sqrt(d);
         a[j][j] = d;
-        for i in j + 1..UNKNOWNS {
+        for i in j + 1..n {
             a[i][j] = (a[i][j] - dot(&a[i][..j], &a[j][..j])) / d;
         }
     }
-    for i in 0..UNKNOWNS {
+    for i in 0..n {
         b[i] = (b[i] - dot(&a[i][..i], &b[..i])) / a[i][i];
     }
-    for i in (0..UNKNOWNS).rev() {
-        let later: f64 = (i + 1..UNKNOWNS).map(|k| a[k][i] * b[k]).sum();
+    for i in (0..n).rev() {
+        let later: f64 = (i + 1..n).map(|k| a[k][i] * b[k]).sum();
         b[i] = (b[i] - later) / a[i][i];
     }
+    b[n..].fill(0.0);
     Some(b)
 }

@@ -93,8 +93,10 @@ struct Drive {
     lag_s: f64,
     /// Slide Coulomb friction as a deceleration.
     coulomb_mps2: f64,
-    /// Slide viscous friction as a rate.
+    /// Slide viscous friction (and the spring's damping) as a rate.
     viscous_per_s: f64,
+    /// The centring spring as `k/M`.
+    spring_per_s2: f64,
     /// The identification's root-mean-square fit residual; null for the plant file.
     residual_m: Option<f64>,
 }
@@ -108,6 +110,7 @@ impl Drive {
             lag_s: found.lag_s,
             coulomb_mps2: found.coulomb_mps2,
             viscous_per_s: found.viscous_per_s,
+            spring_per_s2: found.spring_per_s2,
             residual_m: Some(found.residual_m),
         }
     }
@@ -122,7 +125,9 @@ impl Drive {
                 .current_bandwidth_hz
                 .map_or(0.0, |hz| 1.0 / (2.0 * std::f64::consts::PI * hz)),
             coulomb_mps2: plate.coulomb_friction_n / plate.mass_kg,
-            viscous_per_s: plate.viscous_friction_nspm / plate.mass_kg,
+            viscous_per_s: (plate.viscous_friction_nspm + plate.spring_damping_nspm)
+                / plate.mass_kg,
+            spring_per_s2: plate.spring_npm / plate.mass_kg,
             residual_m: None,
         }
     }
@@ -369,6 +374,12 @@ fn print_report(report: &ClosedLoopReport, output: &OutputArgs) {
             row("lag", found.lag_s * 1e3, truth.lag_s * 1e3, "ms");
             row("Coulomb", found.coulomb_mps2, truth.coulomb_mps2, "m/s²");
             row("viscous", found.viscous_per_s, truth.viscous_per_s, "1/s");
+            row(
+                "spring k/M",
+                found.spring_per_s2,
+                truth.spring_per_s2,
+                "1/s²",
+            );
             if let Some(residual_m) = found.residual_m {
                 say!("  fit residual    {:.2} µm", residual_m * 1e6);
             }

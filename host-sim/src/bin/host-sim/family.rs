@@ -140,7 +140,7 @@ fn criterion(failure: &str) -> &'static str {
         ("feed rate", "feed rate"),
         ("fewer than", "feed rate"),
         ("gain", "identified gain"),
-        ("not identified", "identified gain"),
+        ("not identified", "not identified"),
         ("never released", "not released"),
     ]
     .into_iter()
