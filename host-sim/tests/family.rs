@@ -96,3 +96,36 @@ fn a_member_run_is_deterministic_and_judged_by_the_verdict() {
     );
     assert!(!first.refused_by_cause);
 }
+
+/// A fixed sample of the family (seed 1: 12 plants inside, 6 outside, one of each cause, at
+/// every operating point) keeps the outcomes in `tests/expected/family-sample.txt`: a change to
+/// the loop that holds a plant more or fewer shows there, and `cargo xtask bless` writes it anew.
+#[test]
+fn a_fixed_sample_of_the_family_keeps_its_expected_outcomes() {
+    let mut lines = String::new();
+    for member in members(1, 12, 6) {
+        for point in POINTS {
+            let run = run_member(&member, point).unwrap();
+            lines.push_str(&run.line());
+            lines.push('\n');
+        }
+    }
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../tests/expected/family-sample.txt");
+    if std::env::var_os("FEEDER_BLESS").is_some_and(|value| value == "overwrite") {
+        std::fs::write(&path, &lines).expect("the expected file is writable");
+        return;
+    }
+    let expected = std::fs::read_to_string(&path).expect("the expected file exists");
+    for (number, (expected, actual)) in expected.lines().zip(lines.lines()).enumerate() {
+        assert_eq!(
+            expected,
+            actual,
+            "{} differs at line {} (if the change is intended, run `cargo xtask bless` and \
+             review the diff)",
+            path.display(),
+            number + 1
+        );
+    }
+    assert_eq!(expected.lines().count(), lines.lines().count());
+}

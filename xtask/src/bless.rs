@@ -1,6 +1,6 @@
 //! `cargo xtask bless`: makes every expected output anew and says which changed. The QEMU logs
 //! come from the scripted image started by `feeder-emulator`, as the QEMU tests start it; the
-//! closed-loop co-simulation's log from its test; the figures' CSVs from the `host-sim` CLI; the
+//! closed-loop co-simulation's log and the plant family's sample from their tests; the figures' CSVs from the `host-sim` CLI; the
 //! command-line snapshots from their `trycmd` runners.
 
 use std::collections::BTreeMap;
@@ -48,6 +48,7 @@ pub fn bless() -> Result {
     let before = contents(&watched)?;
     qemu_logs()?;
     closed_loop_log()?;
+    family_sample()?;
     figures()?;
     for (package, _) in snapshot_packages() {
         exec(
@@ -132,6 +133,16 @@ fn closed_loop_log() -> Result {
                 "the_closed_loop_log_matches_the_golden_file",
             ])
             .env("FEEDER_CLOSED_LOOP_ELF", &elf)
+            .env("FEEDER_BLESS", "overwrite"),
+    )
+}
+
+/// The plant family's fixed sample, written by its own test.
+fn family_sample() -> Result {
+    exec(
+        cargo()
+            .args(["test", "--locked", "--release", "--package", "host-sim"])
+            .args(["--test", "family", "--", "a_fixed_sample"])
             .env("FEEDER_BLESS", "overwrite"),
     )
 }

@@ -207,9 +207,82 @@ pub struct FamilyRun {
     pub point: FamilyPoint,
     /// The run held every criterion and kept the start-up within its bound.
     pub passed: bool,
+    /// The envelope property the loop named where it gave up, if any.
+    #[serde(serialize_with = "cause_name")]
+    pub refused_for: Option<Cause>,
     /// An outside plant refused before it moved 0.5 mm, with its cause named.
     pub refused_by_cause: bool,
     pub verdict: Verdict,
+}
+
+impl FamilyRun {
+    /// The criteria the run missed, by name, each once: those of its verdict's failures and
+    /// the start-up's bound.
+    pub fn missed(&self) -> Vec<&'static str> {
+        let verdict = &self.verdict;
+        let mut missed: Vec<&'static str> = verdict.failures.iter().map(|f| criterion(f)).collect();
+        if verdict.startup_peak_m > verdict.startup_limit_m {
+            missed.push("start-up peak");
+        }
+        missed.sort_unstable();
+        missed.dedup();
+        missed
+    }
+
+    /// The run in one line, its figures rounded: for a summary a person reads or a golden file
+    /// compares.
+    pub fn line(&self) -> String {
+        let verdict = &self.verdict;
+        let outside = self.outside.map_or("inside".into(), |cause| {
+            format!("outside: {}", cause.name())
+        });
+        let figure = |value: Option<f64>, scale: f64, unit: &str| {
+            value.map_or("—".into(), |v| format!("{:.1} {unit}", v * scale))
+        };
+        format!(
+            "member {} ({outside}) at {} Hz, d = {}: {}{}; start-up {}; worst mean {}; feed {}; \
+             missed: {}",
+            self.member,
+            self.point.freq_hz,
+            self.point.duty,
+            if self.passed {
+                "passed"
+            } else if self.refused_by_cause {
+                "refused by cause"
+            } else {
+                "failed"
+            },
+            self.refused_for.map_or(String::new(), |cause| format!(
+                ", refused for its {}",
+                cause.name()
+            )),
+            figure(Some(verdict.startup_peak_m), 1e6, "µm"),
+            figure(verdict.worst_mean_position_m, 1e6, "µm"),
+            figure(verdict.feed_rate_difference, 1e2, "%"),
+            if self.missed().is_empty() {
+                "nothing".into()
+            } else {
+                self.missed().join(", ")
+            },
+        )
+    }
+}
+
+/// The criterion a failure names, for a tally.
+fn criterion(failure: &str) -> &'static str {
+    [
+        ("the loop gave up", "gave up"),
+        ("end stop", "end stop"),
+        ("worst mean position", "mean position"),
+        ("feed rate", "feed rate"),
+        ("fewer than", "feed rate"),
+        ("not identified", "not identified"),
+        ("gain", "identified gain"),
+        ("never released", "not released"),
+    ]
+    .into_iter()
+    .find(|(start, _)| failure.contains(start))
+    .map_or("other", |(_, name)| name)
 }
 
 /// A cause by its name.
@@ -244,8 +317,9 @@ pub fn run_member(member: &Member, point: FamilyPoint) -> Result<FamilyRun, SimE
         ideal.steady().feed_rate_mps,
         ideal.velocity_scale_mps(),
     );
+    let refused_for = run.gave_up.as_ref().and_then(SimError::cause);
     let refused_by_cause = member.outside.is_some()
-        && member.outside == run.gave_up.as_ref().and_then(SimError::cause)
+        && member.outside == refused_for
         && verdict.peak_excursion_m <= REFUSAL_TRAVEL_M;
     let passed = verdict.passed && verdict.startup_peak_m <= verdict.startup_limit_m;
     Ok(FamilyRun {
@@ -253,6 +327,7 @@ pub fn run_member(member: &Member, point: FamilyPoint) -> Result<FamilyRun, SimE
         outside: member.outside,
         point,
         passed,
+        refused_for,
         refused_by_cause,
         verdict,
     })

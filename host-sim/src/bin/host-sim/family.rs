@@ -131,23 +131,6 @@ impl FamilyRow {
     }
 }
 
-/// The criterion a failure names, for the tally.
-fn criterion(failure: &str) -> &'static str {
-    [
-        ("the loop gave up", "gave up"),
-        ("end stop", "end stop"),
-        ("worst mean position", "mean position"),
-        ("feed rate", "feed rate"),
-        ("fewer than", "feed rate"),
-        ("gain", "identified gain"),
-        ("not identified", "not identified"),
-        ("never released", "not released"),
-    ]
-    .into_iter()
-    .find(|(start, _)| failure.contains(start))
-    .map_or("other", |(_, name)| name)
-}
-
 /// Runs `host-sim family`; false when a plant misses its expectation.
 pub fn run(args: &FamilyArgs) -> Result<bool, SimError> {
     args.output.check()?;
@@ -244,13 +227,7 @@ fn summary<'a>(point: FamilyPoint, runs: impl Iterator<Item = &'a FamilyRun>) ->
         if let Some(error) = verdict.feed_rate_difference {
             summary.worst_feed_error = summary.worst_feed_error.max(error.abs());
         }
-        let mut missed: Vec<&'static str> = verdict.failures.iter().map(|f| criterion(f)).collect();
-        if verdict.startup_peak_m > verdict.startup_limit_m {
-            missed.push("start-up peak");
-        }
-        missed.sort_unstable();
-        missed.dedup();
-        for name in missed {
+        for name in run.missed() {
             *summary.missed.entry(name).or_default() += 1;
         }
     }
