@@ -31,6 +31,14 @@ pub struct PlateSample {
     pub peak_excursion_m: f64,
 }
 
+/// The plate at one instant.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct PlateState {
+    pub time_s: f64,
+    pub position_m: f64,
+    pub velocity_mps: f64,
+}
+
 /// A real plate behind the link.
 #[derive(Debug)]
 pub struct PlatePlant {
@@ -133,6 +141,15 @@ impl PlatePlant {
     /// Largest `|x|` so far.
     pub fn peak_excursion_m(&self) -> f64 {
         self.stepper.peak_excursion_m()
+    }
+
+    /// Where the plate is and how fast it moves at the last tick the firmware reached.
+    pub fn last_state(&self) -> PlateState {
+        PlateState {
+            time_s: self.stepper.time_s(),
+            position_m: self.stepper.plate_position_m(),
+            velocity_mps: self.stepper.plate_velocity_mps(),
+        }
     }
 
     /// A plate the solver could not continue (it then stands still), if any.

@@ -146,8 +146,8 @@ fn a_stroke_latched_on_a_drifting_plate_reads_the_plate_at_rest() {
     assert_eq!(stroke.planned_m, shape.stroke_m);
 }
 
-/// A plate `x'' = g±·lag(u) + e·lag(1) − (F_c/M)·sign(x') − (b/M)·x'` with a first-order lag of
-/// `τ`, by RK4 at `dt`, read at every `every`-th step.
+/// A plate `x'' = g±·lag(u) + e·lag(1) − (F_c/M)·sign(x') − (b/M)·x' − (k/M)·x` with a
+/// first-order lag of `τ`, by RK4 at `dt`, read at every `every`-th step.
 struct Plate {
     gains: (f64, f64),
     offset_mps2: f64,
@@ -256,18 +256,22 @@ const WIDE: IdentifyLimits = IdentifyLimits {
     spring_max_per_s2: 1e9,
 };
 
+/// A drive with ±2 % gains, a 1 m/s² offset, a 1 kHz current loop and viscous friction, on a
+/// bare slide.
+const DRIVE: Plate = Plate {
+    gains: (1.02, 0.98),
+    offset_mps2: 1.0,
+    lag_s: 1.0 / (2.0 * std::f64::consts::PI * 1000.0),
+    coulomb_mps2: 0.0,
+    viscous_per_s: 3.3,
+    spring_per_s2: 0.0,
+};
+
 /// The segments are whole multiples of `dt` only approximately, so the RK4 plate switches its
 /// command up to `dt` late: `dt = 1 µs` keeps that below the tolerances.
 #[test]
 fn identification_recovers_the_drive_of_a_plate_without_friction() {
-    let plate = Plate {
-        gains: (1.02, 0.98),
-        offset_mps2: 1.0,
-        lag_s: 1.0 / (2.0 * std::f64::consts::PI * 1000.0),
-        coulomb_mps2: 0.0,
-        viscous_per_s: 3.3,
-        spring_per_s2: 0.0,
-    };
+    let plate = DRIVE;
     let probe = probe(3, 0.3);
     let latches = plate.latches(&probe, 1e-6, 250);
     let found = identify(&probe, &latches, &WIDE).unwrap();
@@ -309,12 +313,8 @@ fn identification_finds_a_centring_spring() {
     let probe = probe(3, 0.3);
     for spring_per_s2 in [20_000.0, 333.3] {
         let plate = Plate {
-            gains: (1.02, 0.98),
-            offset_mps2: 1.0,
-            lag_s: 1.0 / (2.0 * std::f64::consts::PI * 1000.0),
-            coulomb_mps2: 0.0,
-            viscous_per_s: 3.3,
             spring_per_s2,
+            ..DRIVE
         };
         let latches = plate.latches(&probe, 1e-6, 250);
         let found = identify(&probe, &latches, &WIDE).unwrap();
@@ -323,14 +323,7 @@ fn identification_finds_a_centring_spring() {
         assert!((found.gain_positive / 1.02 - 1.0).abs() < 2e-3);
         assert!((found.gain_negative / 0.98 - 1.0).abs() < 2e-3);
     }
-    let bare = Plate {
-        gains: (1.02, 0.98),
-        offset_mps2: 1.0,
-        lag_s: 1.0 / (2.0 * std::f64::consts::PI * 1000.0),
-        coulomb_mps2: 0.0,
-        viscous_per_s: 3.3,
-        spring_per_s2: 0.0,
-    };
+    let bare = DRIVE;
     let found = identify(&probe, &bare.latches(&probe, 1e-6, 250), &WIDE).unwrap();
     assert_eq!(found.spring_per_s2, 0.0);
 }

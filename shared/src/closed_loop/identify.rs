@@ -417,7 +417,7 @@ fn fit(
 }
 
 /// The lag whose fit of `model` leaves the least residual (a golden-section search over
-/// `[0, LAG_MAX_S]`), with that fit.
+/// `[0, LAG_MAX_S]`, and 0 itself), with that fit.
 fn best_lag(
     probe: &[CommandSegment],
     latches: &[Latch],
@@ -445,7 +445,10 @@ fn best_lag(
             fb = residual(b);
         }
     }
-    let lag_s = if fa <= fb { a } else { b };
+    // The search closes in on its interval's end without reaching it: a drive without a lag
+    // (an ideal one, or a current loop far faster than the latches) is tried at 0 itself.
+    let (lag_s, inside) = if fa <= fb { (a, fa) } else { (b, fb) };
+    let lag_s = if residual(0.0) <= inside { 0.0 } else { lag_s };
     let fitted = fit(probe, latches, motion, lag_s, model).ok_or(IdentifyError::Singular)?;
     Ok((lag_s, fitted))
 }

@@ -23,6 +23,11 @@ pub fn set_timeline(ticks: u64) {
     critical_section::with(|cs| TIMELINE_TICKS.borrow(cs).set(ticks));
 }
 
+/// Whether the driver is enabled, as the output's register holds it.
+pub fn driver_enabled() -> bool {
+    register_read(DRIVER_ENABLE as usize) != 0
+}
+
 /// Ends the emulation with a failure code, so a panic or fault fails the run: interrupts off,
 /// then the output's state as its registers hold it (`EVT zero` if it holds the zero code,
 /// `EVT enable`), then the exit.
@@ -38,7 +43,7 @@ pub fn after_fault() -> ! {
         } else {
             defmt::error!("the output holds code {=u32} at the end", code);
         }
-        trace::enable(actual_tick, register_read(DRIVER_ENABLE as usize) != 0);
+        trace::enable(actual_tick, driver_enabled());
     }
     debug::exit(EXIT_FAILURE);
     sleep_forever()

@@ -11,7 +11,7 @@ use clap::Args;
 use feeder_emulator::plant::TICK_HZ;
 use feeder_shared::DacCalibration;
 use host_sim::closed_loop::{Verdict, MEAN_POSITION_LIMIT_M};
-use host_sim::cosim::{cycles, judge, CosimCycle, LoopLog, PlatePlant, PlateSample};
+use host_sim::cosim::{cycles, judge, CosimCycle, LoopLog, PlatePlant, PlateSample, PlateState};
 use host_sim::plate::{EndStop, PlantFile};
 use host_sim::SimError;
 use serde::Serialize;
@@ -60,6 +60,8 @@ struct CosimReport {
     simulated_s: f64,
     wall_s: f64,
     plate_peak_excursion_m: f64,
+    /// The plate where the run ended: at rest once a stop has been carried out.
+    plate_at_end: PlateState,
     /// When the plate hit an end stop; null if it never did.
     end_stop_after_s: Option<f64>,
     end_stop: Option<EndStop>,
@@ -118,6 +120,7 @@ pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
             .map_or(0.0, |s| s.tick as f64 / f64::from(TICK_HZ)),
         wall_s,
         plate_peak_excursion_m: plate.peak_excursion_m(),
+        plate_at_end: plate.last_state(),
         end_stop_after_s: plate.end_stop().map(|stop| stop.time_s),
         end_stop: plate.end_stop(),
         firmware_exit_code: run.run.status.code(),
@@ -223,6 +226,13 @@ fn print_report(report: &CosimReport, samples: &[PlateSample]) {
             report.plate_peak_excursion_m * 1e3
         );
     }
+    let end = report.plate_at_end;
+    say!(
+        "plate at the end  {:.1} µm, {:.1} mm/s at {:.3} s",
+        end.position_m * 1e6,
+        end.velocity_mps * 1e3,
+        end.time_s
+    );
     say!(
         "firmware          exit code {}",
         report

@@ -52,7 +52,7 @@ use feeder_shared::{
 };
 
 use super::edge_work::{edge_work, provoke_late_preload};
-use super::exit::{after_fault, sleep_forever};
+use super::exit::{self, after_fault, sleep_forever};
 use super::time_driver::{self, CYCLES_PER_TICK};
 use crate::mailbox::{ReadyPlan, NEXT_PLAN, REQUESTS};
 use crate::status;
@@ -269,6 +269,19 @@ fn offer(ready: ReadyPlan) {
     NEXT_PLAN.lock(|next| next.set(Some(ready)));
 }
 
+/// Cycles a fault's stop may take to bring the plate to rest and disable the driver: a
+/// controlled stop ends the cycle in progress, idles, then disables it.
+const AT_REST_CYCLES: u32 = 4;
+
+/// Waits until the fault's stop has disabled the driver (at once for an immediate stop), or
+/// [`AT_REST_CYCLES`] have begun, so that the run ends with the stop carried out.
+async fn until_at_rest() {
+    let deadline = cycle() + AT_REST_CYCLES;
+    while exit::driver_enabled() && cycle() <= deadline {
+        Timer::after_millis(POLL_MS).await;
+    }
+}
+
 /// The scripted operator during the run.
 struct Run {
     scenario: Scenario,
@@ -289,6 +302,7 @@ impl Run {
             .is_some_and(|late_cycle| cycle() >= late_cycle);
         if !provoked || self.restarted {
             defmt::error!("scenario: the firmware faulted");
+            until_at_rest().await;
             after_fault();
         }
         info!("scenario: the provoked missed edge halted the output; reset and start");
