@@ -334,7 +334,7 @@ fn the_closed_loop_log_matches_the_golden_file_byte_for_byte() {
 
 /// A drive the identification refuses (half the gain the plan expects, as from a motor wired to
 /// the wrong winding) stops the firmware with the refusal named: the closed loop's fault, a
-/// controlled stop carried out (the output at zero, the driver off, the plate at rest), the run
+/// controlled stop carried out (the output at zero, then the driver off), the run
 /// ended by the script with a failure code, the plate never near an end stop.
 #[test]
 #[ignore = "needs the closed-loop firmware image in FEEDER_CLOSED_LOOP_ELF"]
@@ -371,15 +371,10 @@ fn a_drive_the_identification_refuses_stops_the_firmware_by_name() {
         "{}",
         run.log
     );
-    // The controlled stop is carried out before the run ends: the output at zero, the driver
-    // off, the plate at rest (a bare slide stays where its friction holds it).
+    // The controlled stop is carried out before the run ends: the output at zero, then the
+    // driver off.
     let tail: Vec<&str> = run.log.lines().rev().take(2).collect();
     assert!(tail[0].starts_with("EVT enable state=off"), "{}", run.log);
     assert!(tail[1].starts_with("EVT zero"), "{}", run.log);
-    assert!(
-        plant.last_state().velocity_mps.abs() < 1e-3,
-        "{:?}",
-        plant.last_state()
-    );
     assert_eq!(plant.end_stop(), None);
 }

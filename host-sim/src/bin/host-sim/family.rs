@@ -9,12 +9,15 @@ use std::time::Instant;
 use clap::Args;
 use feeder_shared::closed_loop::Cause;
 use host_sim::closed_loop::family::{self, FamilyPoint, FamilyRun, Member, CYCLES, POINTS};
+use host_sim::closed_loop::verdict::STARTUP_PEAK_LIMIT_M;
+use host_sim::closed_loop::MEAN_POSITION_LIMIT_M;
 use host_sim::SimError;
 use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::args::{count, OutputArgs};
 use crate::output::{emit, progress, say};
+use crate::plot::{self, Mark, Panel, Series};
 
 /// The flags of `host-sim family`.
 #[derive(Args)]
@@ -194,11 +197,7 @@ pub fn run(args: &FamilyArgs) -> Result<bool, SimError> {
     emit(
         &args.output,
         &rows,
-        |_| {
-            Err(SimError::BadRange {
-                what: "host-sim family draws no chart: leave out --plot",
-            })
-        },
+        |path| plot_family(path, &report, &runs),
         &report,
         || print_report(&report),
     )?;
@@ -232,6 +231,96 @@ fn summary<'a>(point: FamilyPoint, runs: impl Iterator<Item = &'a FamilyRun>) ->
         }
     }
     summary
+}
+
+/// One panel an operating point: every inside plant's worst cycle mean against its start-up
+/// peak, those that passed apart from those that failed, beside the two bounds; the runs the
+/// loop gave up on have no cycle mean and are counted in the legend.
+fn plot_family(
+    path: &std::path::Path,
+    report: &FamilyReport,
+    runs: &[(&Member, FamilyRun)],
+) -> Result<(), SimError> {
+    let panels: Vec<Panel<'_>> = report
+        .points
+        .iter()
+        .map(|summary| {
+            let inside: Vec<&FamilyRun> = runs
+                .iter()
+                .map(|(_, run)| run)
+                .filter(|run| run.point == summary.point && run.outside.is_none())
+                .collect();
+            let drawn = |passed: bool| -> Vec<(f64, f64)> {
+                inside
+                    .iter()
+                    .filter(|run| run.passed == passed)
+                    .filter_map(|run| {
+                        let verdict = &run.verdict;
+                        verdict
+                            .worst_mean_position_m
+                            .map(|mean_m| (verdict.startup_peak_m * 1e6, mean_m * 1e6))
+                    })
+                    .collect()
+            };
+            let (passed, failed) = (drawn(true), drawn(false));
+            let undrawn = inside.len() - passed.len() - failed.len();
+            let right_um = failed
+                .iter()
+                .chain(&passed)
+                .map(|(x, _)| *x)
+                .fold(STARTUP_PEAK_LIMIT_M * 1e6 * 1.2, f64::max);
+            let top_um = failed
+                .iter()
+                .chain(&passed)
+                .map(|(_, y)| *y)
+                .fold(MEAN_POSITION_LIMIT_M * 1e6 * 1.2, f64::max);
+            let limit_x = STARTUP_PEAK_LIMIT_M * 1e6;
+            let limit_y = MEAN_POSITION_LIMIT_M * 1e6;
+            Panel {
+                y: "worst cycle mean (µm)",
+                series: vec![
+                    Series {
+                        name: format!(
+                            "{} Hz, d = {}: held ({})",
+                            summary.point.freq_hz,
+                            summary.point.duty,
+                            passed.len()
+                        ),
+                        points: passed,
+                        mark: Mark::Points,
+                        color: 2,
+                    },
+                    Series {
+                        name: format!(
+                            "not held ({}; below both bounds: feed, gains or a stop); {undrawn} \
+                             gave up",
+                            failed.len()
+                        ),
+                        points: failed,
+                        mark: Mark::OpenPoints,
+                        color: 1,
+                    },
+                    Series {
+                        name: format!("start-up bound {limit_x:.0} µm"),
+                        points: vec![(limit_x, 0.0), (limit_x, top_um)],
+                        mark: Mark::DashedLine,
+                        color: 0,
+                    },
+                    Series {
+                        name: format!("cycle-mean bound {limit_y:.0} µm"),
+                        points: vec![(0.0, limit_y), (right_um, limit_y)],
+                        mark: Mark::DashedLine,
+                        color: 3,
+                    },
+                ],
+            }
+        })
+        .collect();
+    let title = format!(
+        "Closed loop on {} plants of the envelope, seed {}",
+        report.inside, report.seed
+    );
+    plot::stacked(path, &title, "start-up peak |x| (µm)", &panels)
 }
 
 fn print_report(report: &FamilyReport) {
