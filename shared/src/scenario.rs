@@ -12,7 +12,11 @@ use crate::number::split_decimal;
 
 /// The keys, each with its meaning, in the order a help text lists them.
 pub const SCENARIO_KEYS: [(&str, &str); 14] = [
-    ("cycles", "request the soft stop once N cycles have begun (N ≥ 1)"),
+    (
+        "cycles",
+        "request the soft stop once N cycles have begun, with the closed loop counted from the \
+         release of its soft start (N ≥ 1)",
+    ),
     ("freq_hz", "waveform frequency"),
     ("duty", "duty at start"),
     ("stroke_m", "stroke (peak-to-peak plate travel)"),
@@ -31,7 +35,8 @@ pub const SCENARIO_KEYS: [(&str, &str); 14] = [
 /// One setting of the scripted operator.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ScenarioSetting {
-    /// `cycles=N`: request the soft stop once `N` cycles have begun.
+    /// `cycles=N`: request the soft stop once `N` cycles have begun (with the closed loop, from
+    /// the cycle at which its course released the soft start).
     Cycles(u32),
     /// `freq_hz=F`: the waveform frequency.
     FreqHz(f64),
