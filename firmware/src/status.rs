@@ -54,7 +54,7 @@ pub fn publish_loop(report: LoopReport) {
 
 /// The closed loop's report as last published, for the console's `status` and the scripted
 /// operator; `None` on a board that does not run one.
-#[cfg(any(feature = "console", feature = "encoder"))]
+#[cfg(any(feature = "console", all(feature = "board-qemu", feature = "encoder")))]
 pub fn closed_loop() -> Option<LoopReport> {
     CLOSED_LOOP.lock(Cell::get)
 }
