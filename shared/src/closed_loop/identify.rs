@@ -254,12 +254,13 @@ impl Lagged {
     }
 }
 
-/// The lagged regressors `P, N, E` at each latch, for one `τ`, passed to `each` in order.
+/// The lagged regressors `P, N, E` at each latch, for one `τ`, and their first integrals
+/// (their rates), passed to `each` in order.
 fn lagged_rows(
     probe: &[CommandSegment],
     latches: &[Latch],
     lag_s: f64,
-    mut each: impl FnMut(usize, [f64; 3]),
+    mut each: impl FnMut(usize, [f64; 3], [f64; 3]),
 ) {
     let mut index = 0;
     let mut start_s = 0.0;
@@ -284,23 +285,23 @@ fn lagged_rows(
         }
         let u = inputs(probe[index].accel_mps2);
         let step = LagStep::new(latch.t_s - start_s, lag_s);
-        let [p, n, e] = [0, 1, 2].map(|k| at_start[k].advance(u[k], &step).twice);
-        each(i, [p, n, e]);
+        let [p, n, e] = [0, 1, 2].map(|k| at_start[k].advance(u[k], &step));
+        each(i, [p.twice, n.twice, e.twice], [p.once, n.once, e.once]);
     }
 }
 
 /// The regressors at each latch from the latched motion: `C`, the double integral of the sign
 /// of the velocity (Coulomb friction), `X`, the integral of the displacement from the first
 /// latch (viscous friction and the spring's damping), and `S`, the double integral of the
-/// position (a centring spring), each by trapezoids on the latches. The velocity at each latch
-/// is the central difference of its neighbours; where it changes sign between two latches, it
-/// does so where its linear interpolation does.
-fn motion_rows(latches: &[Latch], mut each: impl FnMut(usize, [f64; 3])) {
+/// position (a centring spring), each by trapezoids on the latches, with their rates. The
+/// velocity at each latch is `velocity(i)`; where it changes sign between two latches, it does
+/// so where its linear interpolation does.
+fn motion_rows(
+    latches: &[Latch],
+    velocity: impl Fn(usize) -> f64,
+    mut each: impl FnMut(usize, [f64; 3], [f64; 3]),
+) {
     let n = latches.len();
-    let velocity = |i: usize| {
-        let (a, b) = (latches[i.saturating_sub(1)], latches[(i + 1).min(n - 1)]);
-        (b.position_m - a.position_m) / (b.t_s - a.t_s)
-    };
     let (mut c1, mut c, mut x) = (0.0, 0.0, 0.0);
     let (mut s1, mut spring) = (0.0, 0.0);
     let integrate = |sign: f64, s: f64, c1: &mut f64, c: &mut f64| {
@@ -308,7 +309,7 @@ fn motion_rows(latches: &[Latch], mut each: impl FnMut(usize, [f64; 3])) {
         *c1 += sign * s;
     };
     let first_m = latches[0].position_m;
-    each(0, [0.0; 3]);
+    each(0, [0.0; 3], [0.0; 3]);
     for i in 0..n - 1 {
         let (a, b) = (latches[i], latches[i + 1]);
         let s = b.t_s - a.t_s;
@@ -323,8 +324,17 @@ fn motion_rows(latches: &[Latch], mut each: impl FnMut(usize, [f64; 3])) {
         x += s * ((a.position_m - first_m) + (b.position_m - first_m)) / 2.0;
         spring += s1 * s + s * s * (2.0 * a.position_m + b.position_m) / 6.0;
         s1 += s * (a.position_m + b.position_m) / 2.0;
-        each(i + 1, [c, x, spring]);
+        each(i + 1, [c, x, spring], [c1, b.position_m - first_m, s1]);
     }
+}
+
+/// The velocity at latch `i` from the central difference of its neighbours.
+fn latched_velocity(latches: &[Latch], i: usize) -> f64 {
+    let (a, b) = (
+        latches[i.saturating_sub(1)],
+        latches[(i + 1).min(latches.len() - 1)],
+    );
+    (b.position_m - a.position_m) / (b.t_s - a.t_s)
 }
 
 /// Which drive the fit describes.
@@ -362,7 +372,7 @@ fn fit(
 ) -> Option<([f64; UNKNOWNS], f64)> {
     let columns = model.columns();
     let mut lagged = [[0.0; 3]; MAX_LATCHES];
-    lagged_rows(probe, latches, lag_s, |i, r| lagged[i] = r);
+    lagged_rows(probe, latches, lag_s, |i, r, _| lagged[i] = r);
     let row = |i: usize| -> [f64; UNKNOWNS] {
         let [p, n, e] = lagged[i];
         let [c, x, spring] = motion[i];
@@ -453,6 +463,26 @@ fn best_lag(
     Ok((lag_s, fitted))
 }
 
+/// The velocity of the motion `theta` describes (at a lag of `lag_s`) at each latch.
+fn fitted_velocity(
+    probe: &[CommandSegment],
+    latches: &[Latch],
+    theta: &[f64; UNKNOWNS],
+    lag_s: f64,
+) -> [f64; MAX_LATCHES] {
+    let [_, v0, e, gain_positive, gain_negative, friction, viscous, spring] = *theta;
+    let mut velocity = [v0; MAX_LATCHES];
+    lagged_rows(probe, latches, lag_s, |i, _, [p, n, e1]| {
+        velocity[i] += gain_positive * p + gain_negative * n + e * e1;
+    });
+    motion_rows(
+        latches,
+        |i| latched_velocity(latches, i),
+        |i, _, [c, x, s]| velocity[i] += friction * c + viscous * x + spring * s,
+    );
+    velocity
+}
+
 /// Latches a fit takes at most.
 pub const MAX_LATCHES: usize = 512;
 
@@ -492,13 +522,30 @@ pub fn identify(
         return Err(IdentifyError::NoMotion { excursion_m });
     }
     let mut motion = [[0.0; 3]; MAX_LATCHES];
-    motion_rows(latches, |i, r| motion[i] = r);
+    motion_rows(
+        latches,
+        |i| latched_velocity(latches, i),
+        |i, r, _| motion[i] = r,
+    );
     // The lag of a bare slide first; a spring found at that lag is searched for again with it.
     let (mut lag_s, mut fitted) = best_lag(probe, latches, &motion, Model::Slide)?;
     let (sprung, _) =
         fit(probe, latches, &motion, lag_s, Model::Sprung).ok_or(IdentifyError::Singular)?;
-    if -sprung[UNKNOWNS - 1] >= SPRING_MIN_PER_S2 {
+    let model = if -sprung[UNKNOWNS - 1] >= SPRING_MIN_PER_S2 {
         (lag_s, fitted) = best_lag(probe, latches, &motion, Model::Sprung)?;
+        Model::Sprung
+    } else {
+        Model::Slide
+    };
+    // Differences of quantised latches read a slow plate as standing, or as turning, where it
+    // does not: the friction's signs are taken again from the fitted motion's velocity, and
+    // that fit is kept where it explains the latches better.
+    let velocity = fitted_velocity(probe, latches, &fitted.0, lag_s);
+    motion_rows(latches, |i| velocity[i], |i, r, _| motion[i] = r);
+    if let Some(refit) = fit(probe, latches, &motion, lag_s, model) {
+        if refit.1 < fitted.1 {
+            fitted = refit;
+        }
     }
     let (theta, squares) = fitted;
     let [_, _, offset_mps2, gain_positive, gain_negative, friction, viscous, spring] = theta;
