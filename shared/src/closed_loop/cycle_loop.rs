@@ -12,7 +12,8 @@
 //! `δ·T`; in units of `ũ = δ·T²/2` the cycle-start position `x` and `w = T·v` obey
 //! `x⁺ = x + w + ũ + d`, `w⁺ = w + 2(ũ + d)` with `d` what the feedforward leaves. The correction
 //! decided at boundary `k` runs in cycle `k + 1`, so the loop estimates `d` from the second
-//! difference of the starts (`x_k − 2x_{k−1} + x_{k−2} = ũ_{k−1} + ũ_{k−2} + 2d`, filtered),
+//! difference of the starts (`x_k − 2x_{k−1} + x_{k−2} = ũ_{k−1} + ũ_{k−2} + d_{k−1} + d_{k−2}`,
+//! taken by [`Disturbance`], which tells an offset from a gain error that grows with the levels),
 //! reconstructs `w_k`, predicts the state at `k + 1`, cancels `d̂` and places both poles of the
 //! prediction at 0.3 (`ũ = −0.245·x − 0.5775·w − d̂`). The target is each cycle's mean
 //! position at the centre: a start at `−mean − w/2`, known two cycles ahead, so a soft start or
@@ -20,7 +21,7 @@
 //! quite the plate's (the current loop and friction round every segment): the mean measured from
 //! positions latched through each full-amplitude cycle moves the target by 0.05 of its error a
 //! cycle. On the per-cycle linear
-//! model the loop is stable for a drive gain from 0.45 to 1.25 times the identified one
+//! model the loop is stable for a drive gain from 0.5 to 1.25 times the identified one
 //! (`shared/tests/closed_loop.rs`), far wider than the identification's error.
 
 use libm::fabs;

@@ -78,8 +78,8 @@ pub struct IdentifyLimits {
 }
 
 impl IdentifyLimits {
-    /// The envelope's gains and offset ([`Envelope::identified_gains`],
-    /// [`Envelope::offset_max_mps2`]), a motion of at least 20 `resolution_m`, and a spring
+    /// The envelope's gains and offset ([`super::Envelope::identified_gains`],
+    /// [`super::Envelope::offset_max_mps2`]), a motion of at least 20 `resolution_m`, and a spring
     /// the cycle-rate loop holds at a period of `period_s` ([`spring_max_per_s2`]).
     pub fn for_probe(resolution_m: f64, period_s: f64) -> Self {
         let (gain_min, gain_max) = ENVELOPE.identified_gains();
