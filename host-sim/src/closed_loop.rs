@@ -130,11 +130,6 @@ impl ClosedLoopRun {
             .collect()
     }
 
-    /// The feed rate over the last `cycles` cycles from the release on.
-    pub fn feed_rate_mps(&self, cycles: usize) -> Option<f64> {
-        verdict::feed_rate_mps(&self.fed(), cycles)
-    }
-
     /// The run judged: `plate` its plant's, `ideal_feed_rate_mps` and `velocity_scale_mps` the
     /// ideal plate's feed rate and `a_max·T/4` at the plan in force at the end.
     pub fn verdict(
@@ -163,14 +158,6 @@ impl ClosedLoopRun {
             ideal_feed_rate_mps,
             velocity_scale_mps,
         })
-    }
-
-    /// The worst `|mean position|` of a cycle from the release on, soft start included.
-    pub fn worst_mean_position_m(&self) -> f64 {
-        self.fed()
-            .iter()
-            .map(|c| c.mean_position_m.abs())
-            .fold(0.0, f64::max)
     }
 }
 
@@ -220,12 +207,7 @@ pub fn run_closed_loop(
         Err(error) => return Err(error),
     };
     if let Some(open) = runner.open.take() {
-        let peak_m = runner
-            .plate
-            .samples
-            .iter()
-            .map(|sample| sample.position_m.abs())
-            .fold(open.record.start_m.abs(), f64::max);
+        let peak_m = sampled_peak_m(&runner.plate.samples, open.record.start_m);
         runner.records.push(open.close(&runner.plate, peak_m));
     }
     let stepper = &runner.plate.stepper;
@@ -282,11 +264,7 @@ impl Runner {
                 let start = self.plate.sample_now()?;
                 let samples = std::mem::take(&mut self.plate.samples);
                 if let Some(open) = self.open.take() {
-                    let peak_m = samples
-                        .iter()
-                        .chain([&start])
-                        .map(|sample| sample.position_m.abs())
-                        .fold(0.0, f64::max);
+                    let peak_m = sampled_peak_m(&samples, start.position_m);
                     self.records.push(open.close(&self.plate, peak_m));
                 }
                 if self.plate.stepper.end_stop().is_some()
@@ -350,6 +328,14 @@ impl Runner {
             self.plate.play(&playing, &trims)?;
         }
     }
+}
+
+/// The largest `|x|` among `samples` and the position `also_m`.
+fn sampled_peak_m(samples: &[PositionSample], also_m: f64) -> f64 {
+    samples
+        .iter()
+        .map(|sample| sample.position_m.abs())
+        .fold(also_m.abs(), f64::max)
 }
 
 /// A cycle begun, its record waiting for the mean position at its end.
