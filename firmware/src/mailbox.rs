@@ -8,6 +8,7 @@ use defmt::info;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
+use feeder_shared::closed_loop::ENVELOPE;
 use feeder_shared::{Error, SupervisorEvent, TickClock, TickPlan, Waveform, WaveformSpec};
 
 use crate::config;
@@ -31,9 +32,14 @@ pub struct ReadyPlan {
 }
 
 impl ReadyPlan {
-    /// Validates `spec` against the machine's limits and plans it on the output's `clock`.
+    /// Validates `spec` against the machine's limits and, in a build with the encoder (where the
+    /// closed loop runs), against the room the loop keeps in the DAC's linear range; plans it
+    /// on the output's `clock`.
     pub fn new(clock: TickClock, spec: &WaveformSpec, ramp_cycles: u16) -> Result<Self, Error> {
         let waveform = Waveform::new(*spec, &config::LIMITS)?;
+        if cfg!(feature = "encoder") {
+            ENVELOPE.check_loop_accel(waveform.accel_mps2, config::DAC.linear_limit_mps2())?;
+        }
         let plan = TickPlan::new(&waveform, clock)?;
         info!(
             "plan: {=f64} Hz ({=u32} ticks of {=u32} Hz), d = {=f64}, a_max = {=f64} m/s², \

@@ -7,7 +7,7 @@
 
 use feeder_shared::closed_loop::{
     Course, CourseConfig, CourseError, CycleTrims, Decision, Identified, LoopLimits,
-    PositionSample, Stage, Trims,
+    PositionSample, Stage, Trims, ENVELOPE,
 };
 use feeder_shared::{DacCalibration, Scheduler, Segment, SegmentKind, TickPlan};
 
@@ -161,8 +161,10 @@ impl ClosedLoopRun {
     }
 }
 
-/// Runs the course, then `options.cycles` feeding cycles. A plant file without an encoder and a
-/// plate the solver cannot run are errors; where the loop gives up (a course that stops, an
+/// Runs the course, then `options.cycles` feeding cycles. A plant file without an encoder, a
+/// plan whose levels leave the loop no room in the DAC's linear range
+/// ([`feeder_shared::closed_loop::Envelope::check_loop_accel`]) and a plate the solver cannot
+/// run are errors, refused before anything runs; where the loop gives up (a course that stops, an
 /// identification the shared limits refuse, a trimmed level beyond the DAC) or the plate hits
 /// an end stop, the run ends there and says so.
 pub fn run_closed_loop(
@@ -175,6 +177,10 @@ pub fn run_closed_loop(
         .sensors
         .encoder
         .ok_or(SimError::MissingSensor { sensor: "encoder" })?;
+    let linear_mps2 = options.dac.linear_limit_mps2();
+    for planned in core::iter::once(&plan).chain(options.plan_change.as_ref().map(|(_, p)| p)) {
+        ENVELOPE.check_loop_accel(planned.waveform.accel_mps2, linear_mps2)?;
+    }
     let plate = SampledPlate {
         stepper: Stepper::new(&plant.plate, contact)?,
         dac: options.dac,

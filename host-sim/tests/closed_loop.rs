@@ -88,7 +88,7 @@ fn the_realistic_plate_is_identified_centred_and_feeds_as_the_ideal_one() {
 #[test]
 fn a_live_duty_change_keeps_the_plate_centred() {
     let mut options = ClosedLoopOptions::new(500);
-    options.plan_change = Some((200, plan(0.62)));
+    options.plan_change = Some((200, plan(0.615)));
     let run = run(&options);
     assert_eq!(run.end_stop, None);
     let running: Vec<_> = run.cycles.iter().filter(|c| !c.centring).collect();
@@ -101,35 +101,37 @@ fn a_live_duty_change_keeps_the_plate_centred() {
     assert!(worst_m < 50e-6, "{worst_m}");
     // Nearer saturation the feed rate is more sensitive to the waveform's shape, which the
     // slide's lag and friction round inside every segment where the loop's levels cannot reach:
-    // the plate with only the 1 kHz current loop and the 5 N·s/m feeds 2.5 % below the ideal one.
-    let ideal = ideal_feed_rate_mps(0.62);
+    // the plate with only the 1 kHz current loop and the 5 N·s/m feeds 2.5 % below the ideal one
+    // at d = 0.62 (whose 2.5 mm stroke the closed loop no longer takes: 173 m/s²).
+    let ideal = ideal_feed_rate_mps(0.615);
     let feed_rate_mps = feed_rate_mps(&run.fed(), 50).unwrap();
     let difference = feed_rate_mps / ideal - 1.0;
-    println!("feed rate at d = 0.62: {feed_rate_mps} m/s, ideal {ideal} m/s ({difference:+e})");
+    println!("feed rate at d = 0.615: {feed_rate_mps} m/s, ideal {ideal} m/s ({difference:+e})");
     assert!(difference.abs() < 0.05, "{difference}");
 }
 
-/// At d = 0.65 the 2.5 mm stroke needs 204 m/s², beyond the drive's 300 N on 1.5 kg: the
-/// loop raises the levels until the DAC's linear range ends, and the run stops there by name
-/// instead of running on with a clipped level; what ran before is kept.
+/// At d = 0.65 the 2.5 mm stroke needs 204 m/s²: with the room the loop keeps in the DAC's
+/// linear range for the envelope's drives (at most 171.675 m/s² on the default DAC) the run is
+/// refused before anything runs, the first plan and a live change alike, with both figures.
 #[test]
-fn a_plan_beyond_the_drives_force_stops_the_loop_by_name() {
+fn a_plan_that_leaves_the_loop_no_room_is_refused_before_the_run() {
+    let expected = |accel_mps2| {
+        SimError::Shared(feeder_shared::Error::AccelAboveLoopRoom {
+            accel_mps2,
+            limit_mps2: 171.675,
+            linear_mps2: 224.75,
+        })
+    };
+    let beyond = plan(0.65);
+    let accel_mps2 = beyond.waveform.accel_mps2;
+    assert!((accel_mps2 - 204.08).abs() < 0.01, "{accel_mps2}");
+    let options = ClosedLoopOptions::new(500);
+    let refused = run_closed_loop(&realistic(), &contact(), beyond, &options);
+    assert_eq!(refused.err(), Some(expected(accel_mps2)));
     let mut options = ClosedLoopOptions::new(500);
-    options.plan_change = Some((100, plan(0.65)));
-    let first = plan(0.586);
-    let run = run_closed_loop(&realistic(), &contact(), first, &options).unwrap();
-    assert!(
-        matches!(
-            run.gave_up,
-            Some(SimError::TrimmedLevel {
-                error: feeder_shared::DriveError::BeyondLinearRange { .. },
-                ..
-            })
-        ),
-        "{:?}",
-        run.gave_up
-    );
-    assert!(run.cycles.iter().filter(|c| !c.centring).count() > 100);
+    options.plan_change = Some((100, beyond));
+    let refused = run_closed_loop(&realistic(), &contact(), plan(0.586), &options);
+    assert_eq!(refused.err(), Some(expected(accel_mps2)));
 }
 
 #[test]

@@ -90,6 +90,14 @@ pub enum Error {
         min_ticks: u32,
         clock_hz: u32,
     },
+    /// The closed loop runs this waveform, and its peak acceleration leaves the loop no room in
+    /// the output's linear range for the drives it is designed for
+    /// ([`crate::closed_loop::Envelope::loop_accel_max_mps2`]).
+    AccelAboveLoopRoom {
+        accel_mps2: f64,
+        limit_mps2: f64,
+        linear_mps2: f64,
+    },
     /// The period or a segment needs more ticks than the timer can count.
     TicksOverflow {
         segment: SegmentKind,
@@ -166,6 +174,14 @@ impl fmt::Display for Error {
                 Significant(1e6 * f64::from(ticks) / f64::from(clock_hz)),
                 min_ticks,
                 Significant(1e6 * f64::from(min_ticks) / f64::from(clock_hz))
+            ),
+            Error::AccelAboveLoopRoom { accel_mps2, limit_mps2, linear_mps2 } => write!(
+                f,
+                "peak acceleration {} m/s² is more than the closed loop can hold: the output's \
+                 linear range reaches {} m/s², and undoing the weakest drive gain, the largest \
+                 offset and the slide friction the loop is designed for leaves at most {} m/s²; \
+                 choose a shorter stroke or a lower frequency",
+                Significant(accel_mps2), Significant(linear_mps2), Significant(limit_mps2)
             ),
             Error::TicksOverflow { segment, exact_ticks, max_ticks } => write!(
                 f,

@@ -4,7 +4,7 @@
 
 use feeder_shared::closed_loop::{
     identify, Cause, CommandSegment, CycleLoop, CycleShape, Identified, IdentifyError,
-    IdentifyLimits, Latch, LoopError, LoopLimits, Stroke, Track, TrackConfig, TrackState,
+    IdentifyLimits, Latch, LoopError, LoopLimits, Stroke, Track, TrackConfig, TrackState, ENVELOPE,
 };
 use feeder_shared::{Drive, Limits, Waveform, WaveformSpec};
 use proptest::prelude::*;
@@ -535,6 +535,39 @@ fn the_loop_gives_up_beyond_its_limits_and_on_a_sensor_fault() {
         weak.update(-shape.mean_m, Some(stroke), None, &shape, [&shape, &shape]),
         Err(LoopError::Amplitude { .. })
     ));
+}
+
+/// At the envelope's corner (the weakest gain, the largest offset against the `+a` level, the
+/// friction of the lightest plate on the stiffest slide fed forward with it) the loop's own
+/// feedforward puts the `+a` level of the highest peak acceleration it takes exactly at the end
+/// of the output's linear range, and any higher one beyond it.
+#[test]
+fn the_closed_loop_takes_a_peak_acceleration_whose_levels_fit_the_envelopes_worst_drive() {
+    let linear_mps2 = feeder_shared::DacCalibration::DEFAULT.linear_limit_mps2();
+    let limit_mps2 = ENVELOPE.loop_accel_max_mps2(linear_mps2);
+    let corner = Identified {
+        gain_positive: ENVELOPE.gain_min,
+        gain_negative: ENVELOPE.gain_min,
+        offset_mps2: -ENVELOPE.zero_offset_fraction_max * ENVELOPE.full_scale_mps2,
+        ..Identified::NOMINAL
+    };
+    let friction_mps2 = ENVELOPE.coulomb_max_n / ENVELOPE.mass_min_kg;
+    let trims = CycleLoop::new(&corner, LOOSE).trims();
+    let level_mps2 = |accel_mps2: f64| trims.apply(accel_mps2) + friction_mps2;
+    assert!((level_mps2(limit_mps2) - linear_mps2).abs() < 1e-9);
+    assert_eq!(ENVELOPE.check_loop_accel(limit_mps2, linear_mps2), Ok(()));
+    let above_mps2 = limit_mps2 + 0.01;
+    assert!(level_mps2(above_mps2) > linear_mps2);
+    assert_eq!(
+        ENVELOPE.check_loop_accel(above_mps2, linear_mps2),
+        Err(feeder_shared::Error::AccelAboveLoopRoom {
+            accel_mps2: above_mps2,
+            limit_mps2,
+            linear_mps2,
+        })
+    );
+    // The machine's default waveform (150 m/s²) and the family's points (140 m/s²) fit.
+    assert!(limit_mps2 > 150.0);
 }
 
 #[test]

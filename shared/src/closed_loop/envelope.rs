@@ -2,6 +2,8 @@
 //! feeders (`shared/notes/real-plate.md`), written down once. The host's plant family draws from
 //! it, and a plant outside it is to be refused with the [`Cause`] named.
 
+use crate::error::Error;
+
 /// The envelope of plants and operating points.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -63,6 +65,30 @@ impl Envelope {
     /// The largest `|offset|` an identification may find, m/s².
     pub fn offset_max_mps2(&self) -> f64 {
         self.zero_offset_fraction_max * self.full_scale_mps2 * (1.0 + 8.0 * IDENTIFIED_MARGIN)
+    }
+
+    /// The highest planned peak acceleration the closed loop takes on an output whose linear
+    /// range reaches `linear_mps2`: its `+a` level, divided by the weakest gain, with the
+    /// largest offset and the friction of the lightest plate on the stiffest slide fed forward
+    /// on top, stays within the range: `a/g_min + |e|_max + (F_c/M)_max ≤ linear`.
+    pub const fn loop_accel_max_mps2(&self, linear_mps2: f64) -> f64 {
+        let offset_mps2 = self.zero_offset_fraction_max * self.full_scale_mps2;
+        let friction_mps2 = self.coulomb_max_n / self.mass_min_kg;
+        (linear_mps2 - offset_mps2 - friction_mps2) * self.gain_min
+    }
+
+    /// Whether the closed loop takes a waveform of peak acceleration `accel_mps2` on an output
+    /// whose linear range reaches `linear_mps2` ([`Envelope::loop_accel_max_mps2`]).
+    pub fn check_loop_accel(&self, accel_mps2: f64, linear_mps2: f64) -> Result<(), Error> {
+        let limit_mps2 = self.loop_accel_max_mps2(linear_mps2);
+        if accel_mps2 > limit_mps2 {
+            return Err(Error::AccelAboveLoopRoom {
+                accel_mps2,
+                limit_mps2,
+                linear_mps2,
+            });
+        }
+        Ok(())
     }
 
     /// The gains an identification may find.

@@ -87,6 +87,7 @@ const fn rejected_code(error: &Error) -> u16 {
         Error::FeedRateAboveReach { .. } => 53,
         Error::FeedRateBelowReach { .. } => 54,
         Error::SegmentBelowFloor { .. } => 55,
+        Error::AccelAboveLoopRoom { .. } => 56,
     }
 }
 

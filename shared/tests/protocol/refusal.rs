@@ -196,6 +196,16 @@ fn error_codes_are_stable_and_explained() {
             55,
             "accelerate segment lasts 95 ticks of the 1000000 Hz clock (95 us), shorter than the 120 ticks (120 us)",
         ),
+        (
+            Error::AccelAboveLoopRoom {
+                accel_mps2: 180.0,
+                limit_mps2: 171.675,
+                linear_mps2: 224.75,
+            }
+            .into(),
+            56,
+            "peak acceleration 180 m/s2 is more than the closed loop can hold: the output's linear range reaches 224.75 m/s2",
+        ),
         (ReplyError::NotStopped, 60, "only allowed while stopped"),
         (ReplyError::FaultLatched, 61, "send reset"),
         (ReplyError::StorageFailed, 62, "could not be written"),
