@@ -97,6 +97,12 @@ enum Layout<'a> {
     },
 }
 
+/// The space around a chart's plot: its margin, the axes' label areas and a caption.
+const MARGIN_PX: u32 = 16;
+const X_LABEL_AREA_PX: u32 = 48;
+const Y_LABEL_AREA_PX: u32 = 72;
+const CAPTION_PX: f64 = 30.0;
+
 /// Height of each panel of a [`stacked`] chart.
 const PANEL_HEIGHT: u32 = 300;
 
@@ -171,14 +177,22 @@ fn draw<DB: DrawingBackend>(
 ) -> Result<(), String> {
     let text = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     let (x_range, y_range) = bounds(series);
+    let (width_px, height_px) = root.dim_in_pixel();
+    let plot_px = (
+        f64::from(width_px) - f64::from(Y_LABEL_AREA_PX + 2 * MARGIN_PX),
+        f64::from(height_px)
+            - f64::from(X_LABEL_AREA_PX + 2 * MARGIN_PX)
+            - if caption.is_some() { CAPTION_PX } else { 0.0 },
+    );
+    let (legend, y_range) = legend_position(series, &x_range, y_range, plot_px);
     let mut builder = ChartBuilder::on(root);
     if let Some(caption) = caption {
         builder.caption(caption, (FONT, 22));
     }
     let mut chart = builder
-        .margin(16)
-        .x_label_area_size(48)
-        .y_label_area_size(72)
+        .margin(MARGIN_PX)
+        .x_label_area_size(X_LABEL_AREA_PX)
+        .y_label_area_size(Y_LABEL_AREA_PX)
         .build_cartesian_2d(x_range, y_range)
         .map_err(text)?;
     chart
@@ -213,12 +227,91 @@ fn draw<DB: DrawingBackend>(
     }
     chart
         .configure_series_labels()
+        .position(legend)
         .label_font((FONT, 14))
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .draw()
         .map_err(text)?;
     Ok(())
+}
+
+/// The legend's corner or edge of the plot that hides none of the drawn points (lines counted
+/// along their length), the upper right first among equals; where every one would hide some, the
+/// y axis grows upwards by the legend's height and the legend goes in the upper right, above
+/// the data. Returns the position and the y range. The legend's size is estimated from its
+/// entries and the label font: a line of 20 px each, 8 px a character.
+fn legend_position(
+    series: &[Series],
+    x_range: &std::ops::Range<f64>,
+    y_range: std::ops::Range<f64>,
+    plot_px: (f64, f64),
+) -> (SeriesLabelPosition, std::ops::Range<f64>) {
+    use SeriesLabelPosition::{
+        LowerLeft, LowerMiddle, LowerRight, MiddleLeft, MiddleRight, UpperLeft, UpperMiddle,
+        UpperRight,
+    };
+    let longest = series
+        .iter()
+        .map(|s| s.name.chars().count())
+        .max()
+        .unwrap_or(0);
+    let width = ((40.0 + 8.0 * longest as f64) / plot_px.0.max(1.0)).min(1.0);
+    let height = ((10.0 + 20.0 * series.len() as f64) / plot_px.1.max(1.0)).min(1.0);
+    // Where each candidate's box starts, as fractions of the plot from its lower left corner.
+    let (left, centre_x, right) = (0.0, (1.0 - width) / 2.0, 1.0 - width);
+    let (low, middle, high) = (0.0, (1.0 - height) / 2.0, 1.0 - height);
+    let candidates = [
+        (UpperRight, right, high),
+        (UpperLeft, left, high),
+        (LowerRight, right, low),
+        (LowerLeft, left, low),
+        (MiddleRight, right, middle),
+        (MiddleLeft, left, middle),
+        (UpperMiddle, centre_x, high),
+        (LowerMiddle, centre_x, low),
+    ];
+    let fraction = |(x, y): (f64, f64)| {
+        (
+            (x - x_range.start) / (x_range.end - x_range.start),
+            (y - y_range.start) / (y_range.end - y_range.start),
+        )
+    };
+    let mut drawn: Vec<(f64, f64)> = Vec::new();
+    for one in series {
+        let points = one.points.iter().map(|&p| fraction(p));
+        match one.mark {
+            Mark::Points | Mark::OpenPoints => drawn.extend(points),
+            Mark::Line | Mark::ThinLine | Mark::DashedLine => {
+                let points: Vec<_> = points.collect();
+                drawn.extend(points.first());
+                for pair in points.windows(2) {
+                    let ((x0, y0), (x1, y1)) = (pair[0], pair[1]);
+                    let steps = ((x1 - x0).hypot(y1 - y0) * 100.0).ceil().clamp(1.0, 1000.0);
+                    drawn.extend((1..=steps as usize).map(|k| {
+                        let t = k as f64 / steps;
+                        (x0 + t * (x1 - x0), y0 + t * (y1 - y0))
+                    }));
+                }
+            }
+        }
+    }
+    let hidden = |x0: f64, y0: f64| {
+        drawn
+            .iter()
+            .filter(|(x, y)| (x0..=x0 + width).contains(x) && (y0..=y0 + height).contains(y))
+            .count()
+    };
+    match candidates
+        .into_iter()
+        .find(|&(_, x0, y0)| hidden(x0, y0) == 0)
+    {
+        Some((position, _, _)) => (position, y_range),
+        None => {
+            let span = (y_range.end - y_range.start) / (1.0 - height.min(0.5));
+            (UpperRight, y_range.start..y_range.start + span)
+        }
+    }
 }
 
 /// Axis ranges covering every finite point, with a little margin.
@@ -246,4 +339,44 @@ fn bounds(series: &[Series]) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
         (low - 0.04 * span)..(high + 0.04 * span)
     };
     (pad(x0, x1), pad(y0, y1))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn points(name: &str, points: Vec<(f64, f64)>) -> Series {
+        Series {
+            name: name.into(),
+            points,
+            mark: Mark::Points,
+            color: 0,
+        }
+    }
+
+    /// A grid of points over the unit square, less those in `[x0, x1] × [y0, y1]`.
+    fn grid_without(x0: f64, x1: f64, y0: f64, y1: f64) -> Vec<(f64, f64)> {
+        (0..=20)
+            .flat_map(|i| (0..=20).map(move |j| (f64::from(i) / 20.0, f64::from(j) / 20.0)))
+            .filter(|&(x, y)| !((x0..=x1).contains(&x) && (y0..=y1).contains(&y)))
+            .collect()
+    }
+
+    #[test]
+    fn the_legend_goes_where_it_hides_no_point() {
+        let plot_px = (800.0, 500.0);
+        let range = 0.0..1.0;
+        // The upper right is taken, the upper left free.
+        let series = [points("a", grid_without(0.0, 0.6, 0.7, 1.0))];
+        let (position, y_range) = legend_position(&series, &range, range.clone(), plot_px);
+        assert!(matches!(position, SeriesLabelPosition::UpperLeft));
+        assert_eq!(y_range, range);
+        // Points everywhere: the y axis grows and the legend's band above the data is empty.
+        let series = [points("a", grid_without(2.0, 2.0, 2.0, 2.0))];
+        let (position, y_range) = legend_position(&series, &range, range.clone(), plot_px);
+        assert!(matches!(position, SeriesLabelPosition::UpperRight));
+        let height = (10.0 + 20.0) / plot_px.1;
+        let highest = 1.0 / (y_range.end - y_range.start);
+        assert!(highest <= 1.0 - height + 1e-12, "{highest} {height}");
+    }
 }
