@@ -339,12 +339,18 @@ fn a_passing_hil_log_still_passes() {
     assert_eq!(json(&outcome)["passed"], true);
 }
 
+/// The plant file most commands' plate runs take.
+fn realistic_plant() -> String {
+    concat!(env!("CARGO_MANIFEST_DIR"), "/plants/realistic.toml").to_string()
+}
+
 #[test]
-fn unwritable_outputs_end_with_one_line() {
+fn unwritable_outputs_are_refused_before_anything_runs() {
     let dir = scratch_dir("outputs");
     let directory = dir.to_str().expect("UTF-8 path").to_string();
     let log = golden_log();
     let log = log.to_str().expect("UTF-8 path");
+    let plant = realistic_plant();
     let missing_dir = dir.join("no/such/dir");
     let missing_dir = missing_dir.to_str().expect("UTF-8 path");
     let plot_in_missing = format!("{missing_dir}/x.svg");
@@ -359,33 +365,67 @@ fn unwritable_outputs_end_with_one_line() {
         &["viscosity", "--points", "3", "--exact-times"][..],
         &["saturation", "--points", "2", "--mu", "1"][..],
         &["hil", "--input", log][..],
+        &["hil", "--input", log, "--plant", &plant][..],
+        &["drift"][..],
+        &["closed-loop", "--plant", &plant][..],
+        &["family", "--inside", "1", "--outside", "0"][..],
+        &["cosim", "--elf", log, "--plant", &plant][..],
     ] {
         for (flag, path, words) in [
             (
                 "--csv",
                 &csv_in_missing,
-                &["cannot write", "No such file"][..],
+                &["cannot write", "does not exist"][..],
             ),
             (
                 "--plot",
                 &plot_in_missing,
-                &["cannot write", "No such file"][..],
+                &["cannot write", "does not exist"][..],
             ),
             ("--plot", &plot_is_dir, &["cannot write", "directory"][..]),
             ("--plot", &wrong_format, &["x.jpg", ".svg or .png"][..]),
-            ("--csv", &directory, &["cannot write"][..]),
+            ("--csv", &directory, &["cannot write", "directory"][..]),
         ] {
             let mut args = command.to_vec();
             args.extend([flag, path.as_str()]);
-            let outcome = run(&args, RUN_TIME);
-            assert_eq!(outcome.code(), Some(2), "{outcome:#?}");
-            let lines = outcome.stderr_lines();
-            assert_eq!(lines.len(), 1, "{outcome:#?}");
-            assert!(lines[0].starts_with("error: "), "{outcome:#?}");
-            for word in words {
-                assert!(lines[0].contains(word), "no {word:?} in {:?}", lines[0]);
-            }
+            run(&args, RUN_TIME).assert_refused(words);
         }
+    }
+    let log_in_missing = format!("{missing_dir}/cosim.log");
+    run(
+        &["cosim", "--elf", log, "--plant", &plant, "--log", &log_in_missing],
+        RUN_TIME,
+    )
+    .assert_refused(&["cosim.log", "does not exist"]);
+}
+
+/// A file that passes the check but cannot take the data (`/dev/full`): the finished report is
+/// printed all the same, then the error, with exit code 2.
+#[test]
+fn a_finished_report_survives_an_output_that_fails() {
+    let dir = scratch_dir("full");
+    let full_chart = dir.join("full.svg");
+    std::os::unix::fs::symlink("/dev/full", &full_chart).expect("a chart path on /dev/full");
+    let full_chart = full_chart.to_str().expect("UTF-8 path");
+    let plant = realistic_plant();
+    for (args, report) in [
+        (
+            &["closed-loop", "--plant", &plant, "--cycles", "60", "--csv", "/dev/full"][..],
+            "closed loop: ",
+        ),
+        (
+            &["closed-loop", "--plant", &plant, "--cycles", "60", "--plot", full_chart][..],
+            "closed loop: ",
+        ),
+        (&["simulate", "--csv", "/dev/full"][..], "feed rate"),
+        (&["simulate", "--csv", "/dev/full", "--json"][..], "\"feed_rate_mps\""),
+    ] {
+        let outcome = run(args, RUN_TIME);
+        assert_eq!(outcome.code(), Some(2), "{outcome:#?}");
+        assert!(outcome.stdout.contains(report), "{outcome:#?}");
+        let lines = outcome.stderr_lines();
+        assert_eq!(lines.len(), 1, "{outcome:#?}");
+        assert!(lines[0].starts_with("error: cannot write "), "{outcome:#?}");
     }
 }
 

@@ -12,6 +12,7 @@ use host_sim::plant::PAPER_PART_MASS_KG;
 use host_sim::plate::{PlateParams, PlateRunOptions};
 use host_sim::{Contact, SimError};
 
+use crate::output::check_writable;
 use crate::plot;
 
 /// Timer clock of the tick plan when neither `--clock-hz` nor `--exact-times` is given.
@@ -196,9 +197,17 @@ pub struct OutputArgs {
 }
 
 impl OutputArgs {
-    /// Refuses a plot file format that cannot be written, before anything is computed.
+    /// Refuses an output file that cannot be written (see [`check_writable`]) and a chart format
+    /// that cannot be drawn, before anything is computed.
     pub fn check(&self) -> Result<(), SimError> {
-        self.plot.as_deref().map_or(Ok(()), plot::check_path)
+        if let Some(path) = &self.csv {
+            check_writable(path)?;
+        }
+        if let Some(path) = &self.plot {
+            plot::check_path(path)?;
+            check_writable(path)?;
+        }
+        Ok(())
     }
 }
 

@@ -17,7 +17,7 @@ use host_sim::SimError;
 use serde::Serialize;
 
 use crate::args::{ContactArgs, OutputArgs};
-use crate::output::{emit, file_name, say};
+use crate::output::{check_writable, emit, file_name, join_failures, say};
 use crate::plot::{self, Mark, Panel, Series};
 
 /// The longest co-simulation before it is stopped.
@@ -79,6 +79,9 @@ struct ClosedLoopReport {
 /// Runs `host-sim cosim`; false when the closed loop failed its figures (the report is out).
 pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
     args.output.check()?;
+    if let Some(path) = &args.log {
+        check_writable(path)?;
+    }
     let plant_file = PlantFile::from_path(&args.plant)?;
     let plant = PlatePlant::new(
         &plant_file,
@@ -90,15 +93,15 @@ pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
     let run = feeder_emulator::run_with_plant(&args.elf, &args.scenario, LIMIT, plant)
         .map_err(|error| SimError::Request(format!("the co-simulation failed: {error}")))?;
     let wall_s = started.elapsed().as_secs_f64();
-    if let Some(path) = &args.log {
+    let log_written = args.log.as_deref().map_or(Ok(()), |path| {
         std::fs::write(path, &run.run.log).map_err(|error| SimError::Output {
             path: path.display().to_string(),
             reason: error.to_string(),
-        })?;
-    }
+        })
+    });
     let plate = &run.plant;
     if let Some(error) = plate.error() {
-        return Err(error.clone());
+        return join_failures([Err(error.clone()), log_written]).map(|()| false);
     }
     let samples = plate.samples();
     let closed_loop = match args.open_loop {
@@ -127,14 +130,14 @@ pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
         closed_loop,
     };
     let cycles = cycles(samples, plate.levels());
-    emit(
+    let emitted = emit(
         &args.output,
         &cycles,
         |path| plot_run(path, &report, &cycles),
         &report,
         || print_report(&report, samples),
-    )?;
-    Ok(passed)
+    );
+    join_failures([emitted, log_written]).map(|()| passed)
 }
 
 /// The plate's cycle mean position and the levels the firmware applied, cycle by cycle: the

@@ -1,7 +1,9 @@
 //! What every command writes, in one order: the CSV file, the chart, then the JSON document or
-//! the human-readable report; and the progress bar of the long ones.
+//! the human-readable report; the check that an output file can be written before a run; and
+//! the progress bar of the long ones.
 
-use std::io::IsTerminal;
+use std::fs::OpenOptions;
+use std::io::{ErrorKind, IsTerminal};
 use std::path::Path;
 
 use host_sim::SimError;
@@ -20,7 +22,8 @@ macro_rules! say {
 pub(crate) use say;
 
 /// Writes `rows` to the CSV file and draws the chart with `plot`, each if asked for, then prints
-/// `json` for `--json` and the human-readable `report` otherwise.
+/// `json` for `--json` and the human-readable `report` otherwise. The report is printed whatever
+/// happened to the files; a file that could not be written is the error returned after it.
 pub fn emit<R: Serialize, J: Serialize + ?Sized>(
     output: &OutputArgs,
     rows: &[R],
@@ -28,17 +31,71 @@ pub fn emit<R: Serialize, J: Serialize + ?Sized>(
     json: &J,
     report: impl FnOnce(),
 ) -> Result<(), SimError> {
-    if let Some(path) = &output.csv {
-        write_csv(path, rows)?;
-    }
-    if let Some(path) = &output.plot {
-        plot(path)?;
-    }
-    if output.json {
+    let csv = output
+        .csv
+        .as_deref()
+        .map_or(Ok(()), |path| write_csv(path, rows));
+    let chart = output.plot.as_deref().map_or(Ok(()), plot);
+    let printed = if output.json {
         print_json(json)
     } else {
         report();
         Ok(())
+    };
+    printed.and(join_failures([csv, chart]))
+}
+
+/// One error for the outputs that failed, each named; `Ok` if none did.
+pub fn join_failures<const N: usize>(results: [Result<(), SimError>; N]) -> Result<(), SimError> {
+    let mut failures = results.into_iter().filter_map(Result::err);
+    let Some(first) = failures.next() else {
+        return Ok(());
+    };
+    let rest: Vec<String> = failures.map(|failure| failure.to_string()).collect();
+    if rest.is_empty() {
+        return Err(first);
+    }
+    Err(SimError::Request(
+        std::iter::once(first.to_string())
+            .chain(rest)
+            .collect::<Vec<_>>()
+            .join("; "),
+    ))
+}
+
+/// Refuses an output file that cannot be written, before anything runs: its directory must
+/// exist and the file must be creatable there (a file already there is left as it is).
+pub fn check_writable(path: &Path) -> Result<(), SimError> {
+    let refusal = |reason: String| SimError::Output {
+        path: path.display().to_string(),
+        reason,
+    };
+    let directory = match path.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent,
+        _ => Path::new("."),
+    };
+    if !directory.is_dir() {
+        return Err(refusal(format!(
+            "its directory {} does not exist",
+            directory.display()
+        )));
+    }
+    match std::fs::metadata(path) {
+        Ok(metadata) if metadata.is_dir() => Err(refusal("it is a directory".into())),
+        Ok(_) => OpenOptions::new()
+            .append(true)
+            .open(path)
+            .map(drop)
+            .map_err(|error| refusal(error.to_string())),
+        Err(error) if error.kind() == ErrorKind::NotFound => {
+            OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(path)
+                .map_err(|error| refusal(error.to_string()))?;
+            std::fs::remove_file(path).map_err(|error| refusal(error.to_string()))
+        }
+        Err(error) => Err(refusal(error.to_string())),
     }
 }
 
