@@ -172,31 +172,83 @@ fn is_root() -> bool {
         .is_ok_and(|output| output.stdout.trim_ascii() == b"0")
 }
 
+/// Whether dpkg lists `package` as installed.
+fn package_installed(package: &str) -> bool {
+    Command::new("dpkg-query")
+        .args(["--show", "--showformat=${Status}", package])
+        .output()
+        .is_ok_and(|output| output.status.success() && output.stdout == b"install ok installed")
+}
+
+/// `apt-get install` of `packages` and what they depend on, and nothing else: no recommended
+/// packages, and no removal (apt-get refuses the whole install instead); with `simulate`, only
+/// what it would do.
+fn apt_install(packages: &[&str], simulate: bool) -> Command {
+    let mut command = Command::new("apt-get");
+    command
+        .args(["install", "--yes", "--no-install-recommends", "--no-remove"])
+        .args(simulate.then_some("--simulate"))
+        .args(packages)
+        .env("DEBIAN_FRONTEND", "noninteractive");
+    command
+}
+
+/// The packages an `apt-get --simulate` run would install (its `Inst` lines).
+fn simulated_installs(simulation: &str) -> Vec<&str> {
+    simulation
+        .lines()
+        .filter_map(|line| line.strip_prefix("Inst "))
+        .filter_map(|rest| rest.split_whitespace().next())
+        .collect()
+}
+
 fn ensure_apt_tool(tool: &AptTool) -> Result {
     if answers(tool.program, "--version") {
         return Ok(());
     }
+    if package_installed(tool.package) {
+        return Err(format!(
+            "{} is installed but `{} --version` does not run; it is needed for {}",
+            tool.package, tool.program, tool.needed_by
+        ));
+    }
     let by_hand = format!(
-        "{} is needed for {}: install it with `sudo apt-get install {}` (Debian/Ubuntu)",
+        "{} is needed for {}: install it with `sudo apt-get install --no-install-recommends \
+         --no-remove {}` (Debian/Ubuntu)",
         tool.program, tool.needed_by, tool.package
     );
     if !is_root() {
         return Err(format!("{by_hand}; xtask installs it itself only as root"));
     }
-    exec(Command::new("apt-get").arg("update"))
-        .and_then(|()| {
-            exec(
-                Command::new("apt-get")
-                    .args(["install", "-y", "--no-install-recommends", tool.package])
-                    .env("DEBIAN_FRONTEND", "noninteractive"),
-            )
-        })
-        .map_err(|error| format!("{by_hand} ({error})"))?;
+    install_packages(&[tool.package]).map_err(|error| format!("{by_hand} ({error})"))?;
     if answers(tool.program, "--version") {
         Ok(())
     } else {
         Err(by_hand)
     }
+}
+
+/// Installs `packages` with apt-get after saying on standard error what that installs; a plan
+/// that would remove any package is refused by apt-get, and nothing is installed.
+fn install_packages(packages: &[&str]) -> Result {
+    exec(Command::new("apt-get").arg("update"))?;
+    let simulation = apt_install(packages, true)
+        .stderr(Stdio::inherit())
+        .output()
+        .map_err(|error| format!("cannot run apt-get: {error}"))?;
+    if !simulation.status.success() {
+        return Err(format!(
+            "apt-get cannot install {} without removing packages or otherwise ({})",
+            packages.join(" "),
+            simulation.status
+        ));
+    }
+    let simulation = String::from_utf8_lossy(&simulation.stdout);
+    eprintln!(
+        "xtask: installing with apt-get, removing nothing: {}",
+        simulated_installs(&simulation).join(" ")
+    );
+    exec(&mut apt_install(packages, false))
 }
 
 /// The linker every firmware build needs.
@@ -208,4 +260,57 @@ pub fn ensure_linker() -> Result {
 pub fn ensure_emulation() -> Result {
     ensure_apt_tool(&QEMU)?;
     ensure_cargo_tool(&DEFMT_PRINT)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn arguments(command: &Command) -> Vec<String> {
+        command
+            .get_args()
+            .map(|argument| argument.to_string_lossy().into_owned())
+            .collect()
+    }
+
+    #[test]
+    fn apt_get_installs_only_the_packages_asked_for_and_removes_nothing() {
+        let install = apt_install(&["qemu-system-arm"], false);
+        assert_eq!(install.get_program(), "apt-get");
+        assert_eq!(
+            arguments(&install),
+            [
+                "install",
+                "--yes",
+                "--no-install-recommends",
+                "--no-remove",
+                "qemu-system-arm"
+            ]
+        );
+        let simulate = arguments(&apt_install(&["qemu-system-arm"], true));
+        assert!(simulate.contains(&"--no-remove".to_string()));
+        assert!(simulate.contains(&"--simulate".to_string()));
+        assert!(install
+            .get_envs()
+            .any(|(key, value)| key == "DEBIAN_FRONTEND"
+                && value.is_some_and(|value| value == "noninteractive")));
+    }
+
+    #[test]
+    fn the_packages_to_install_are_read_from_the_simulation() {
+        let simulation = "Reading package lists...\n\
+            The following NEW packages will be installed:\n  qemu-system-arm qemu-system-common\n\
+            Inst qemu-system-common (1:7.2+dfsg-7 Debian:12 [amd64])\n\
+            Inst qemu-system-arm (1:7.2+dfsg-7 Debian:12 [amd64])\n\
+            Conf qemu-system-common (1:7.2+dfsg-7 Debian:12 [amd64])\n";
+        assert_eq!(
+            simulated_installs(simulation),
+            ["qemu-system-common", "qemu-system-arm"]
+        );
+    }
+
+    #[test]
+    fn a_package_that_is_not_installed_is_not_taken_for_installed() {
+        assert!(!package_installed("feeder-no-such-package"));
+    }
 }
