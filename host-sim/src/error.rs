@@ -29,8 +29,13 @@ pub enum SimError {
         source: String,
         firmware_error: Option<String>,
     },
-    /// A plant file that is not valid TOML or holds an unknown key (the parser's message names it).
-    PlantFile { source: String, reason: String },
+    /// A plant file refused: not valid TOML, an unknown key, a value of the wrong type or out of
+    /// its range; the place names the key (with its table) and the line and column.
+    PlantFile {
+        source: String,
+        place: Option<PlantPlace>,
+        reason: String,
+    },
     /// A plant file's value outside its physical range.
     PlantValue {
         key: &'static str,
@@ -42,7 +47,8 @@ pub enum SimError {
     Chatter { time_s: f64 },
     /// A firmware-in-the-loop run did not match the shared plan (details in the report).
     CheckFailed { problems: usize },
-    /// A sensors table that is not valid TOML or holds an unknown key (the parser's message names it).
+    /// A sensors table on its own that is not valid TOML or holds an unknown key (the parser's
+    /// message names it).
     SensorFile { source: String, reason: String },
     /// A sensor's configuration value outside its range.
     SensorValue {
@@ -114,18 +120,21 @@ impl fmt::Display for SimError {
                 f,
                 "{source} holds no segments; the firmware reported: {line}"
             ),
-            SimError::PlantFile { source, reason } => {
-                write!(f, "cannot load the plant from {source}: {reason}")
-            }
+            SimError::PlantFile {
+                source,
+                place: None,
+                reason,
+            } => write!(f, "cannot load the plant from {source}: {reason}"),
+            SimError::PlantFile {
+                source,
+                place: Some(place),
+                reason,
+            } => write!(f, "cannot load the plant from {source}, {place}: {reason}"),
             SimError::PlantValue {
                 key,
                 value,
                 allowed,
-            } => write!(
-                f,
-                "plant key `{key}` must be {allowed}, got {}",
-                Significant(*value)
-            ),
+            } => write!(f, "plant key `{key}` {}", out_of_range(allowed, *value)),
             SimError::Chatter { time_s } => write!(
                 f,
                 "the plate or part changed contact state without end at t = {} s",
@@ -145,8 +154,8 @@ impl fmt::Display for SimError {
                 allowed,
             } => write!(
                 f,
-                "sensor `{sensor}` key `{key}` must be {allowed}, got {}",
-                Significant(*value)
+                "sensor `{sensor}` key `{key}` {}",
+                out_of_range(allowed, *value)
             ),
             SimError::SensorInput {
                 sensor,
@@ -178,6 +187,44 @@ impl fmt::Display for SimError {
 }
 
 impl std::error::Error for SimError {}
+
+/// Why a value is refused: the range it must lie in and the value it has.
+pub(crate) fn out_of_range(allowed: &str, value: f64) -> String {
+    format!("must be {allowed}, got {}", Significant(value))
+}
+
+/// Where a plant file holds a fault: the key with its table, and the line and column of the
+/// fault (none where the key is absent and takes its default).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum PlantPlace {
+    /// A fault at a line and column (from 1, in characters), inside a key's entry or, for a
+    /// syntax error between entries, outside every key.
+    At {
+        line: usize,
+        column: usize,
+        key: Option<String>,
+    },
+    /// A key the file leaves out, refused at its default.
+    Absent { key: String },
+}
+
+impl fmt::Display for PlantPlace {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PlantPlace::At {
+                line,
+                column,
+                key: Some(key),
+            } => write!(f, "line {line}, column {column}, key `{key}`"),
+            PlantPlace::At {
+                line,
+                column,
+                key: None,
+            } => write!(f, "line {line}, column {column}"),
+            PlantPlace::Absent { key } => write!(f, "key `{key}` (absent, at its default)"),
+        }
+    }
+}
 
 impl From<Error> for SimError {
     fn from(error: Error) -> Self {

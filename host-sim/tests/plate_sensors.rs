@@ -48,23 +48,25 @@ fn a_plant_without_sensors_has_none() {
 fn sensor_keys_and_values_are_refused_by_name() {
     let unknown = "[sensors.encoder]\nresolution_m = 1e-6\nbogus = 1\n";
     match PlantFile::from_toml_str("test", unknown) {
-        Err(SimError::SensorFile { reason, .. }) => assert!(reason.contains("bogus"), "{reason}"),
+        Err(SimError::PlantFile { reason, .. }) => assert!(reason.contains("bogus"), "{reason}"),
         other => panic!("{other:?}"),
     }
     let unknown_sensor = "[sensors.camera]\nfps = 30\n";
     match PlantFile::from_toml_str("test", unknown_sensor) {
-        Err(SimError::SensorFile { reason, .. }) => assert!(reason.contains("camera"), "{reason}"),
+        Err(SimError::PlantFile { reason, .. }) => assert!(reason.contains("camera"), "{reason}"),
         other => panic!("{other:?}"),
     }
     let negative = "[sensors.encoder]\nresolution_m = -1e-6\n";
     match PlantFile::from_toml_str("test", negative) {
-        Err(SimError::SensorValue { key, .. }) => assert_eq!(key, "resolution_m"),
+        Err(error @ SimError::PlantFile { .. }) => {
+            assert!(error.to_string().contains("resolution_m"), "{error}")
+        }
         other => panic!("{other:?}"),
     }
     let not_a_table = "sensors = 3\n";
     assert!(matches!(
         PlantFile::from_toml_str("test", not_a_table),
-        Err(SimError::SensorFile { .. })
+        Err(SimError::PlantFile { .. })
     ));
     let plate_key = "mass_kg = 1.0\nbogus_kg = 2.0\n[sensors.encoder]\nresolution_m = 1e-6\n";
     match PlantFile::from_toml_str("test", plate_key) {

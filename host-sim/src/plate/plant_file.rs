@@ -1,14 +1,20 @@
 //! A plant file: the plate's keys ([`PlateParams`]) at the top level and the sensors it carries
 //! in an optional `[sensors]` table ([`SensorsConfig`]). Unknown keys are refused in either.
+//! Every refusal names the key, with its table, and the line and column that hold the fault.
 
+use std::ops::Range;
 use std::path::Path;
 
 use serde::Deserialize;
+use toml::de::{DeTable, DeValue, Deserializer, ValueDeserializer};
 
-use crate::error::SimError;
+use crate::error::{out_of_range, PlantPlace, SimError};
 use crate::sensors::SensorsConfig;
 
 use super::params::PlateParams;
+
+/// The table a plant file lists its sensors in.
+const SENSORS: &str = "sensors";
 
 /// The plate and its sensors, as a plant file describes them.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -20,27 +26,27 @@ pub struct PlantFile {
 impl PlantFile {
     /// Parses and validates a plant file's text; `source` names it in errors.
     pub fn from_toml_str(source: &str, text: &str) -> Result<Self, SimError> {
-        let plant_error = |reason: String| SimError::PlantFile {
-            source: source.to_owned(),
-            reason,
-        };
-        let mut table: toml::Table =
-            toml::from_str(text).map_err(|error| plant_error(error.message().to_owned()))?;
-        let sensors = match table.remove("sensors") {
-            None => SensorsConfig::default(),
-            Some(value) => {
-                let sensors =
-                    SensorsConfig::deserialize(value).map_err(|error| SimError::SensorFile {
-                        source: source.to_owned(),
-                        reason: error.message().to_owned(),
-                    })?;
-                sensors.validate()?;
-                sensors
+        let mut document = match DeTable::parse(text) {
+            Ok(document) => document,
+            Err(error) => {
+                let (partial, _) = DeTable::parse_recoverable(text);
+                return Err(Entries::of(text, partial.get_ref()).refuse(source, &error));
             }
         };
-        let plate = PlateParams::deserialize(toml::Value::Table(table))
-            .map_err(|error| plant_error(error.message().to_owned()))?;
-        plate.validate()?;
+        let entries = Entries::of(text, document.get_ref());
+        let refuse = |error: toml::de::Error| entries.refuse(source, &error);
+        let sensors = document.get_mut().remove(SENSORS);
+        let plate = PlateParams::deserialize(Deserializer::from(document)).map_err(refuse)?;
+        let sensors = match sensors {
+            None => SensorsConfig::default(),
+            Some(value) => {
+                SensorsConfig::deserialize(ValueDeserializer::from(value)).map_err(refuse)?
+            }
+        };
+        plate
+            .validate()
+            .and_then(|()| sensors.validate())
+            .map_err(|error| entries.refuse_value(source, error))?;
         Ok(PlantFile { plate, sensors })
     }
 
@@ -53,4 +59,164 @@ impl PlantFile {
         })?;
         Self::from_toml_str(&source, &text)
     }
+}
+
+/// One key of a plant file, at any depth, where the text holds it.
+struct Entry {
+    /// The key's path from the top level: `["sensors", "accelerometer", "adc", "bits"]`.
+    path: Vec<String>,
+    /// How many of the path's first keys a `[table]` header names.
+    header_depth: usize,
+    key: Range<usize>,
+    value: Range<usize>,
+}
+
+impl Entry {
+    /// The key as the file writes it: `[sensors.encoder] resolution_m`, `mass_kg`,
+    /// `[sensors.encoder]` for a table opened by its header.
+    fn name(&self) -> String {
+        let (table, key) = self.path.split_at(self.header_depth);
+        match (table.is_empty(), key.is_empty()) {
+            (true, _) => key.join("."),
+            (false, true) => format!("[{}]", table.join(".")),
+            (false, false) => format!("[{}] {}", table.join("."), key.join(".")),
+        }
+    }
+}
+
+/// Every key of a plant file with its place, to name the key and the line of a fault.
+struct Entries<'t> {
+    text: &'t str,
+    entries: Vec<Entry>,
+}
+
+impl<'t> Entries<'t> {
+    fn of(text: &'t str, document: &DeTable) -> Self {
+        let mut entries = Vec::new();
+        collect(text, document, &[], 0, &mut entries);
+        Entries { text, entries }
+    }
+
+    /// The entry a fault at byte `at` belongs to: the narrowest key or value that holds it, or
+    /// else the last key before it on its line (a syntax error after a key's `=`).
+    fn at(&self, at: usize) -> Option<&Entry> {
+        let holds = |range: &Range<usize>| range.contains(&at) || range.start == at;
+        self.entries
+            .iter()
+            .flat_map(|entry| {
+                [&entry.key, &entry.value]
+                    .into_iter()
+                    .filter(|range| holds(range))
+                    .map(move |range| (range.len(), entry))
+            })
+            .min_by_key(|(len, _)| *len)
+            .map(|(_, entry)| entry)
+            .or_else(|| {
+                self.entries
+                    .iter()
+                    .filter(|entry| {
+                        self.text
+                            .get(entry.key.start..at)
+                            .is_some_and(|between| !between.contains('\n'))
+                    })
+                    .max_by_key(|entry| entry.key.start)
+            })
+    }
+
+    /// A parser's or a deserializer's refusal, at its key and place.
+    fn refuse(&self, source: &str, error: &toml::de::Error) -> SimError {
+        let place = error.span().map(|span| {
+            let (line, column) = line_column(self.text, span.start);
+            PlantPlace::At {
+                line,
+                column,
+                key: self.at(span.start).map(Entry::name),
+            }
+        });
+        SimError::PlantFile {
+            source: source.to_owned(),
+            place,
+            reason: error.message().to_owned(),
+        }
+    }
+
+    /// A value out of its range, at its key's value (or named as absent where the file leaves
+    /// the key at its default).
+    fn refuse_value(&self, source: &str, error: SimError) -> SimError {
+        let (path, value, allowed) = match &error {
+            SimError::PlantValue {
+                key,
+                value,
+                allowed,
+            } => (vec![*key], *value, *allowed),
+            SimError::SensorValue {
+                sensor,
+                key,
+                value,
+                allowed,
+            } => {
+                let mut path = vec![SENSORS, sensor];
+                path.extend(key.split('.'));
+                (path, *value, *allowed)
+            }
+            _ => return error,
+        };
+        let place = match self.entries.iter().find(|entry| entry.path == path) {
+            Some(entry) => {
+                let (line, column) = line_column(self.text, entry.value.start);
+                PlantPlace::At {
+                    line,
+                    column,
+                    key: Some(entry.name()),
+                }
+            }
+            None => PlantPlace::Absent {
+                key: path.join("."),
+            },
+        };
+        SimError::PlantFile {
+            source: source.to_owned(),
+            place: Some(place),
+            reason: out_of_range(allowed, value),
+        }
+    }
+}
+
+/// Lists every key of `table` and of the tables within it, below `prefix` (not the keys a
+/// syntax error leaves without text).
+fn collect(
+    text: &str,
+    table: &DeTable,
+    prefix: &[String],
+    header_depth: usize,
+    entries: &mut Vec<Entry>,
+) {
+    for (key, value) in table.iter().filter(|(key, _)| !key.span().is_empty()) {
+        let mut path = prefix.to_vec();
+        path.push(key.get_ref().to_string());
+        let is_header = matches!(value.get_ref(), DeValue::Table(_))
+            && text
+                .get(value.span().start..)
+                .is_some_and(|rest| rest.starts_with('['));
+        let depth = if is_header { path.len() } else { header_depth };
+        if let DeValue::Table(inner) = value.get_ref() {
+            collect(text, inner, &path, depth, entries);
+        }
+        entries.push(Entry {
+            path,
+            header_depth: depth,
+            key: key.span(),
+            value: value.span(),
+        });
+    }
+}
+
+/// The line and column, both from 1 and the column in characters, of byte `at` of `text`.
+fn line_column(text: &str, at: usize) -> (usize, usize) {
+    let before = text.get(..at).unwrap_or(text);
+    let line_start = before.rfind('\n').map_or(0, |newline| newline + 1);
+    (
+        before.matches('\n').count() + 1,
+        before[line_start..].chars().count() + 1,
+    )
 }
