@@ -35,7 +35,8 @@ const MAX_RAMP_CYCLES: u16 = 1_000;
                   50 µm from the release on, feed rate within 1 % of the ideal plate's, both \
                   identified gains within 1 % of the plant file's, no end stop), 1 when it fails \
                   them, 2 when the loop gives up (its report, --json and --csv are written all \
-                  the same) or the run cannot be made."
+                  the same), the run cannot be made or an output file could not be written \
+                  (after the report)."
 )]
 pub struct ClosedLoopArgs {
     /// The plate as a TOML plant file (host-sim/plants/); the loop reads its `[sensors.encoder]`.
