@@ -14,7 +14,7 @@ fn plant(name: &str) -> String {
 }
 
 /// `hil --plant` with a plate that is not ideal writes the trace of that plate on the actual
-/// edges, ending where the JSON says it hit its end stop.
+/// edges, ending where the JSON says it hit its end stop; the end stop fails the run.
 #[test]
 fn hil_on_a_real_plate_writes_the_real_plate_s_trace() {
     let dir = scratch_dir("hil-plant");
@@ -36,9 +36,14 @@ fn hil_on_a_real_plate_writes_the_real_plate_s_trace() {
         ],
         RUN_TIME,
     );
-    assert_eq!(outcome.code(), Some(0), "{outcome:#?}");
+    assert_eq!(outcome.code(), Some(1), "{outcome:#?}");
     let report: serde_json::Value = serde_json::from_str(&outcome.stdout).expect("JSON");
     let end_stop_s = report["end_stop_after_s"].as_f64().expect("an end stop");
+    assert_eq!(report["passed"], false);
+    assert_eq!(
+        report["failures"][0],
+        "end stop at +5.0 mm after 0.1108 s, at +0.230 m/s on the actual edges"
+    );
     let text = std::fs::read_to_string(&csv).expect("the CSV");
     let mut lines = text.lines();
     assert_eq!(

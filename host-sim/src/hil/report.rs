@@ -85,15 +85,42 @@ impl CheckReport {
             .unwrap_or(0)
     }
 
-    /// True when every edge was present, exact, on time and glitch-free and the run ended.
+    /// True when [`CheckReport::failures`] finds nothing.
     pub fn passed(&self) -> bool {
-        (self.ended || !self.end_required)
-            && self.edges > 0
-            && self.missed.is_empty()
-            && self.missing == 0
-            && self.unexpected == 0
-            && self.glitches == 0
-            && self.problems.is_empty()
+        self.failures().is_empty()
+    }
+
+    /// Each criterion the run missed, in words: it must report edges, each one present, as
+    /// planned (kind, length, level, amplitude), not missed, with no change away from a cycle
+    /// boundary and taking effect on its planned tick (no deviation after the last restart's
+    /// shift), with no other problem, and end (where an end is required).
+    pub fn failures(&self) -> Vec<String> {
+        let mut failures = Vec::new();
+        let mut count = |number: u64, what: &str| {
+            if number > 0 {
+                failures.push(format!("{number} {what}"));
+            }
+        };
+        count(self.missing, "missing edge(s)");
+        count(self.unexpected, "unexpected edge(s)");
+        count(self.glitches, "change(s) away from a cycle boundary");
+        count(self.missed.len() as u64, "missed edge(s)");
+        if self.edges == 0 {
+            failures.push("no edges reported".into());
+        }
+        let deviation_ticks = self.max_deviation_ticks();
+        if deviation_ticks != 0 {
+            failures.push(format!(
+                "edges off their planned tick by up to {deviation_ticks} ticks"
+            ));
+        }
+        if failures.is_empty() && !self.problems.is_empty() {
+            failures.push(format!("{} problem(s)", self.problems.len()));
+        }
+        if self.end_required && !self.ended {
+            failures.push("the run did not end (no `end` event)".into());
+        }
+        failures
     }
 }
 
@@ -104,5 +131,54 @@ pub fn slack_bucket(slack_ticks: i64) -> i64 {
         0
     } else {
         1 << slack_ticks.ilog2()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn clean() -> CheckReport {
+        CheckReport {
+            edges: 4,
+            matched: 4,
+            deviation_histogram: BTreeMap::from([(0, 4)]),
+            ended: true,
+            end_required: true,
+            ..CheckReport::default()
+        }
+    }
+
+    #[test]
+    fn a_run_whose_edges_are_all_as_planned_passes() {
+        assert_eq!(clean().failures(), Vec::<String>::new());
+        assert!(clean().passed());
+    }
+
+    #[test]
+    fn an_edge_off_its_planned_tick_fails_the_run() {
+        let late = CheckReport {
+            deviation_histogram: BTreeMap::from([(0, 3), (-2, 1)]),
+            ..clean()
+        };
+        assert!(!late.passed());
+        assert_eq!(
+            late.failures(),
+            ["edges off their planned tick by up to 2 ticks"]
+        );
+    }
+
+    #[test]
+    fn a_run_without_its_end_fails_unless_cut_off_by_hand() {
+        let cut = CheckReport {
+            ended: false,
+            ..clean()
+        };
+        assert_eq!(cut.failures(), ["the run did not end (no `end` event)"]);
+        let by_hand = CheckReport {
+            end_required: false,
+            ..cut
+        };
+        assert!(by_hand.passed());
     }
 }

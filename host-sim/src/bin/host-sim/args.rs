@@ -146,30 +146,23 @@ impl TimingArgs {
     }
 }
 
-/// The plate a command drives.
+/// The plate a command drives, with the open-loop command: the command exactly as planned, with
+/// no correction (`closed-loop` and `cosim` run the closed loop).
 #[derive(Args, Clone)]
 pub struct PlantArgs {
-    /// The plate as a TOML plant file (host-sim/plants/); without it, the ideal plate. A plate
-    /// with any non-ideality runs until its command ends or it hits an end stop.
+    /// The plate as a TOML plant file (host-sim/plants/), driven open loop; without it, the ideal
+    /// plate. A plate with any non-ideality runs until its command ends or it hits an end stop.
     #[arg(long, value_name = "FILE")]
     pub plant: Option<PathBuf>,
-    /// The command exactly as planned, with no correction (the only mode of a plant so far).
-    #[arg(long)]
-    pub open_loop: bool,
 }
 
 impl PlantArgs {
-    /// The plant file and its plate, read and checked; `None` without `--plant`, whose
-    /// `--open-loop` alone is refused.
+    /// The plant file and its plate, read and checked; `None` without `--plant`.
     pub fn plate(&self) -> Result<Option<(&Path, PlateParams)>, SimError> {
-        match &self.plant {
-            Some(path) => Ok(Some((path.as_path(), PlateParams::from_path(path)?))),
-            None if self.open_loop => Err(SimError::BadRange {
-                what: "--open-loop says how the plate of a plant file is driven: give it with \
-                       --plant FILE",
-            }),
-            None => Ok(None),
-        }
+        self.plant
+            .as_deref()
+            .map(|path| Ok((path, PlateParams::from_path(path)?)))
+            .transpose()
     }
 }
 

@@ -2,7 +2,8 @@
 //! lockstep: every level its output applies moves the plate from its tick on, and at every cycle
 //! start the firmware reads the plate's encoder. The image with the plant's encoder (`--features
 //! encoder`) runs the closed loop, judged at the end (`closed loop: PASSED` or `FAILED (…)`);
-//! without it (`--open-loop`) the command runs as planned.
+//! without it (`--open-loop`) the command runs as planned, and the run fails where the plate hit
+//! an end stop (`open loop: FAILED (end stop …)`). Exit code 1 for a failed run.
 
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -18,6 +19,7 @@ use serde::Serialize;
 
 use crate::args::{ContactArgs, OutputArgs};
 use crate::output::{check_writable, emit, file_name, join_failures, say};
+use crate::simulate::end_stop_failure;
 use crate::plot::{self, Mark, Panel, Series};
 
 /// The longest co-simulation before it is stopped.
@@ -25,6 +27,11 @@ const LIMIT: Duration = Duration::from_secs(3600);
 
 /// The flags of `host-sim cosim`.
 #[derive(Args)]
+#[command(
+    after_help = "Exit code 0 when the run passes (the closed loop's criteria, as closed-loop \
+                  judges them; with --open-loop, no end stop), 1 when it fails them, 2 when it \
+                  cannot be run or an output file could not be written (after the report)."
+)]
 pub struct CosimArgs {
     /// The firmware image: an ELF built with `--features cosim-encoder` (the closed loop) or, with
     /// `--open-loop`, `--features cosim`.
@@ -52,6 +59,10 @@ pub struct CosimArgs {
 
 #[derive(Serialize)]
 struct CosimReport {
+    /// The closed loop's verdict; in open loop, true unless the plate hit an end stop.
+    passed: bool,
+    /// The verdict as one line.
+    verdict_line: String,
     plant: PathBuf,
     open_loop: bool,
     /// Cycle starts at which the firmware read the encoder.
@@ -111,16 +122,20 @@ pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
             Some(ClosedLoopReport { log, verdict })
         }
     };
-    let passed = closed_loop
-        .as_ref()
-        .is_none_or(|report| report.verdict.passed);
+    let simulated_s = samples
+        .last()
+        .map_or(0.0, |s| s.tick as f64 / f64::from(TICK_HZ));
+    let (passed, verdict_line) = match &closed_loop {
+        Some(report) => (report.verdict.passed, report.verdict.line()),
+        None => open_loop_verdict(plate.end_stop(), simulated_s, plate.peak_excursion_m()),
+    };
     let report = CosimReport {
+        passed,
+        verdict_line,
         plant: args.plant.clone(),
         open_loop: args.open_loop,
         samples: samples.len(),
-        simulated_s: samples
-            .last()
-            .map_or(0.0, |s| s.tick as f64 / f64::from(TICK_HZ)),
+        simulated_s,
         wall_s,
         plate_peak_excursion_m: plate.peak_excursion_m(),
         plate_at_end: plate.last_state(),
@@ -242,21 +257,30 @@ fn print_report(report: &CosimReport, samples: &[PlateSample]) {
             .firmware_exit_code
             .map_or("none (killed)".to_string(), |code| code.to_string())
     );
-    match &report.closed_loop {
-        Some(closed) => print_closed_loop(closed),
-        None => match report.end_stop {
-            Some(stop) => say!(
-                "open loop: end stop at {:+.1} mm after {:.4} s, at {:.3} m/s",
-                stop.position_m * 1e3,
-                stop.time_s,
-                stop.velocity_mps
+    if let Some(closed) = &report.closed_loop {
+        print_closed_loop(closed);
+    }
+    say!("{}", report.verdict_line);
+}
+
+/// The open-loop run's verdict and its line: it fails where the plate hit an end stop.
+fn open_loop_verdict(
+    end_stop: Option<EndStop>,
+    simulated_s: f64,
+    peak_excursion_m: f64,
+) -> (bool, String) {
+    match end_stop {
+        Some(stop) => (
+            false,
+            format!("open loop: FAILED ({})", end_stop_failure(&stop)),
+        ),
+        None => (
+            true,
+            format!(
+                "open loop: PASSED (no end stop in {simulated_s:.3} s, peak |x| {:.3} mm)",
+                peak_excursion_m * 1e3
             ),
-            None => say!(
-                "open loop: no end stop in {:.3} s (peak |x| {:.3} mm)",
-                report.simulated_s,
-                report.plate_peak_excursion_m * 1e3
-            ),
-        },
+        ),
     }
 }
 
@@ -293,5 +317,32 @@ fn print_closed_loop(closed: &ClosedLoopReport) {
             (rate / verdict.ideal_feed_rate_mps - 1.0) * 100.0
         );
     }
-    say!("{}", verdict.line());
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_open_loop_run_into_an_end_stop_fails_naming_it() {
+        let stop = EndStop {
+            time_s: 0.1828,
+            position_m: 0.005,
+            velocity_mps: 0.157,
+        };
+        assert_eq!(
+            open_loop_verdict(Some(stop), 2.0, 0.005),
+            (
+                false,
+                "open loop: FAILED (end stop at +5.0 mm after 0.1828 s, at +0.157 m/s)".into()
+            )
+        );
+        assert_eq!(
+            open_loop_verdict(None, 2.0, 0.0023),
+            (
+                true,
+                "open loop: PASSED (no end stop in 2.000 s, peak |x| 2.300 mm)".into()
+            )
+        );
+    }
 }

@@ -18,11 +18,18 @@ use serde::Serialize;
 use crate::args::{ContactArgs, OutputArgs, PlantArgs};
 use crate::output::{emit, say};
 use crate::plot::{self, Labels, Mark, Series};
-use crate::simulate::{print_plant, PlantReport};
+use crate::simulate::{end_stop_failure, print_plant, PlantReport};
 use crate::trace::plot_plate_trace;
 
 /// The flags of `host-sim hil`.
 #[derive(Args)]
+#[command(
+    after_help = "Exit code 0 when the run passes: every edge present and as planned, none \
+                  missed, none away from a cycle boundary or off its planned tick, the run \
+                  ended (unless --open-ended), no firmware error and, with --plant, no end stop \
+                  on the actual edges; 1 when it fails them (the report names each); 2 when the \
+                  run cannot be checked."
+)]
 pub struct HilArgs {
     /// Decoded event stream (defmt-print or probe-rs output); standard input by default.
     #[arg(long, value_name = "FILE")]
@@ -41,6 +48,8 @@ pub struct HilArgs {
 #[derive(Serialize)]
 struct HilReport<'a> {
     passed: bool,
+    /// Empty when the run passed; else each criterion it missed.
+    failures: Vec<String>,
     edges: u64,
     matched: u64,
     missing: u64,
@@ -120,8 +129,8 @@ impl From<&EdgeWork> for WorkSummary {
     }
 }
 
-/// Runs `host-sim hil`.
-pub fn run(args: &HilArgs) -> Result<(), SimError> {
+/// Runs `host-sim hil`; false when the run failed its check (the report is out).
+pub fn run(args: &HilArgs) -> Result<bool, SimError> {
     args.output.check()?;
     let contact = args.contact.contact()?;
     let plate = args.plant.plate()?;
@@ -181,9 +190,16 @@ pub fn run(args: &HilArgs) -> Result<(), SimError> {
         }
         _ => (None, None, None),
     };
-    let passed = check.passed() && stream.errors.is_empty();
+    let mut failures = check.failures();
+    if !stream.errors.is_empty() {
+        failures.push(format!("{} firmware error(s)", stream.errors.len()));
+    }
+    if let Some(stop) = plant.as_ref().and_then(|plant| plant.end_stop) {
+        failures.push(format!("{} on the actual edges", end_stop_failure(&stop)));
+    }
     let report = HilReport {
-        passed,
+        passed: failures.is_empty(),
+        failures,
         edges: check.edges,
         matched: check.matched,
         missing: check.missing,
@@ -230,6 +246,7 @@ pub fn run(args: &HilArgs) -> Result<(), SimError> {
         "per-cycle means on the ideal plate"
     };
     let report_text = || print_report(&report, &check, &args.output, shown);
+    let passed = report.passed;
     match &plate_trace {
         Some((plant, trace)) => emit(
             &args.output,
@@ -246,22 +263,25 @@ pub fn run(args: &HilArgs) -> Result<(), SimError> {
             report_text,
         ),
     }?;
-    if passed {
-        Ok(())
+    Ok(passed)
+}
+
+/// The verdict as one line: `PASSED`, or `FAILED` with each criterion the run missed.
+fn verdict_line(report: &HilReport) -> String {
+    if report.passed {
+        "firmware in the loop: PASSED".into()
     } else {
-        Err(SimError::CheckFailed {
-            problems: check.problems.len() + stream.errors.len(),
-        })
+        format!(
+            "firmware in the loop: FAILED ({})",
+            report.failures.join("; ")
+        )
     }
 }
 
 /// The report; `shown` says what the CSV and the chart, if written, hold.
 fn print_report(report: &HilReport, check: &CheckReport, output: &OutputArgs, shown: &str) {
     let microseconds = |ticks: i64| ticks as f64 * 1e6 / f64::from(report.clock_hz.max(1));
-    say!(
-        "firmware in the loop: {}",
-        if report.passed { "PASSED" } else { "FAILED" }
-    );
+    say!("{}", verdict_line(report));
     say!(
         "  edges           {} reported, {} exactly as planned, {} missing, {} unexpected, {} glitches, {} missed",
         report.edges, report.matched, report.missing, report.unexpected, report.glitches,

@@ -78,15 +78,19 @@ fn main() -> ExitCode {
         Command::Viscosity(args) => viscosity::run(&args),
         Command::Saturation(args) => saturation::run(&args),
         Command::Trace(args) => trace::run(&args),
-        Command::Hil(args) => hil::run(&args),
         Command::Drift(args) => drift::run(&args),
+        // A run that fails its criteria is not a refusal: its report is out, and exit code 1
+        // says so.
+        Command::Hil(args) => match hil::run(&args) {
+            Ok(true) => Ok(()),
+            Ok(false) => return ExitCode::FAILURE,
+            Err(error) => Err(error),
+        },
         Command::Cosim(args) => match cosim::run(&args) {
             Ok(true) => Ok(()),
             Ok(false) => return ExitCode::FAILURE,
             Err(error) => Err(error),
         },
-        // A run that fails its criteria is not a refusal: its report is out, and exit code 1
-        // says so.
         Command::Family(args) => match family::run(&args) {
             Ok(true) => Ok(()),
             Ok(false) => return ExitCode::FAILURE,

@@ -55,7 +55,7 @@ pub struct PlantReport {
     plate_peak_excursion_m: f64,
     /// When the plate hit an end stop; null if it never did.
     end_stop_after_s: Option<f64>,
-    end_stop: Option<EndStop>,
+    pub end_stop: Option<EndStop>,
 }
 
 impl PlantReport {
@@ -277,6 +277,16 @@ pub fn print_plant(plant: &PlantReport) {
         ),
         None => say!("end stop          not reached"),
     }
+}
+
+/// An end stop as a verdict names it.
+pub fn end_stop_failure(stop: &EndStop) -> String {
+    format!(
+        "end stop at {:+.1} mm after {:.4} s, at {:+.3} m/s",
+        stop.position_m * 1e3,
+        stop.time_s,
+        stop.velocity_mps
+    )
 }
 
 fn regime_name(regime: Regime) -> &'static str {
