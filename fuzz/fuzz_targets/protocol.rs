@@ -1,12 +1,25 @@
 //! Arbitrary bytes through the line assembler, the parser, `set` validation and every reply
-//! formatter: nothing panics, and every reply is one printable-ASCII `OK`/`ERR <code>` line.
+//! formatter, with a status whose closed-loop stage and drive and track state are drawn from the
+//! input's first bytes: nothing panics, and every reply is one printable-ASCII `OK`/`ERR <code>`
+//! line.
 #![no_main]
 
+use feeder_shared::closed_loop::{Identified, LoopReport, Stage, TrackReport, TrackState};
 use feeder_shared::protocol::REPLY_CAPACITY;
 use feeder_shared::recipe::{self, RECIPE_SLOTS, RECORD_LEN};
 use feeder_shared::testing;
 use feeder_shared::{Command, LineAssembler, Machine, Phase, RecipeSlot, Reply, Settings, Status};
+use libfuzzer_sys::arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
+
+const STAGES: [Stage; 6] = [
+    Stage::Waiting,
+    Stage::Probing,
+    Stage::Identifying,
+    Stage::Centring,
+    Stage::Feeding,
+    Stage::Failed,
+];
 
 /// The tests' machine with a 16-bit timer: at most `u16::MAX` ticks per segment.
 fn machine() -> Machine {
@@ -15,6 +28,41 @@ fn machine() -> Machine {
         clock: machine.clock.with_max_segment_ticks(u32::from(u16::MAX)),
         ..machine
     }
+}
+
+/// The closed loop's report as a board with one publishes it: any stage, with or without an
+/// identified drive of any values.
+fn loop_report(input: &mut Unstructured) -> Result<Option<LoopReport>> {
+    if !input.arbitrary()? {
+        return Ok(None);
+    }
+    let stage = *input.choose(&STAGES)?;
+    let drive = match input.arbitrary()? {
+        true => Some(Identified {
+            gain_positive: input.arbitrary()?,
+            gain_negative: input.arbitrary()?,
+            offset_mps2: input.arbitrary()?,
+            lag_s: input.arbitrary()?,
+            coulomb_mps2: input.arbitrary()?,
+            viscous_per_s: input.arbitrary()?,
+            spring_per_s2: input.arbitrary()?,
+            residual_m: input.arbitrary()?,
+        }),
+        false => None,
+    };
+    Ok(Some(LoopReport { stage, drive }))
+}
+
+/// Track control's report on a board with a part sensor: either state, any rate.
+fn track_report(input: &mut Unstructured) -> Result<Option<TrackReport>> {
+    if !input.arbitrary()? {
+        return Ok(None);
+    }
+    let state = *input.choose(&[TrackState::Empty, TrackState::Full])?;
+    Ok(Some(TrackReport {
+        state,
+        parts_per_minute: input.arbitrary()?,
+    }))
 }
 
 fn check(reply: &Reply) {
@@ -31,6 +79,11 @@ fn check(reply: &Reply) {
 }
 
 fuzz_target!(|input: &[u8]| {
+    let mut input = Unstructured::new(input);
+    let (Ok(closed_loop), Ok(track)) = (loop_report(&mut input), track_report(&mut input)) else {
+        return;
+    };
+    let input = input.take_rest();
     let machine = machine();
     let mut settings = Settings::DEFAULT;
     let mut applied = settings.validate(&machine).expect("defaults are valid");
@@ -49,6 +102,8 @@ fuzz_target!(|input: &[u8]| {
             feed_rate_mps: applied.feed_rate_mps,
             uptime_ms: u64::MAX,
             cycles: u64::MAX,
+            closed_loop,
+            track,
         };
         let reply = match request {
             Err(error) => Reply::error(&error),

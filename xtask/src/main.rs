@@ -275,6 +275,7 @@ fn run_plant(plant: &Path, args: &RunArgs) -> Result {
 
 fn test() -> Result {
     exec(cargo().args(["test", "--workspace", "--locked"]))?;
+    exec(&mut fuzz_check())?;
     for features in ["", "defmt"] {
         exec(cargo().args([
             "build",
@@ -311,6 +312,17 @@ fn test() -> Result {
         .is_none()
         .then_some(TEST_SOAK_SEED);
     soak(&console, &SoakArgs { cycles: None, seed })
+}
+
+/// A type check of every fuzz target (`fuzz/`, its own workspace) on the stable toolchain:
+/// without libFuzzer, which only `cargo +nightly fuzz` builds and links.
+fn fuzz_check() -> Command {
+    let mut command = cargo();
+    command
+        .args(["check", "--locked", "--bins", "--no-default-features"])
+        .arg("--manifest-path")
+        .arg(root().join("fuzz").join("Cargo.toml"));
+    command
 }
 
 /// The soak's seed in `test`, so that every run sends the same operator lines (the firmware's
@@ -417,6 +429,21 @@ mod tests {
         };
         assert_eq!((args.cycles, args.seed), (Some(1_000_000), Some(7)));
         assert!(parse(&["soak", "--cycles", "0"]).is_err());
+    }
+
+    #[test]
+    fn the_fuzz_targets_are_checked_on_stable_without_libfuzzer() {
+        let command = fuzz_check();
+        let arguments: Vec<_> = command.get_args().collect();
+        assert_eq!(
+            arguments[..4],
+            ["check", "--locked", "--bins", "--no-default-features"]
+        );
+        assert!(!arguments.iter().any(|a| a.to_string_lossy().starts_with('+')));
+        let manifest = Path::new(arguments[5]);
+        assert_eq!(manifest, root().join("fuzz").join("Cargo.toml"));
+        let text = std::fs::read_to_string(manifest).expect("fuzz/Cargo.toml");
+        assert!(text.contains("default-features = false"), "{text}");
     }
 
     #[test]
