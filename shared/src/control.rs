@@ -11,7 +11,8 @@
 //! Rules beyond validation:
 //! * `start` is refused while a fault is latched (`ERR 61`); `reset` clears it.
 //! * `recipe save` writes only while the feeder is stopped (`ERR 60`); a failed write is `ERR 62`.
-//! * `recipe load` applies the slot like a `set` (the defaults, and why, if the slot is unusable).
+//! * `recipe load` applies the slot like a `set`; an empty or unusable slot is `ERR 63` or
+//!   `ERR 64` and changes nothing.
 //!
 //! The [`Snapshot`] the transport passes in lags the requests it has just queued by up to a few
 //! cycles. The controller therefore remembers its last `start`, `stop` or `reset` until
@@ -193,8 +194,8 @@ impl Controller {
             }
             Command::RecipeLoad(slot) => {
                 match recipe::load(&store.read(slot), slot, &self.machine) {
-                    Ok(loaded) => self.adopt(loaded.applied, Reply::recipe_loaded(slot, &loaded)),
-                    Err(error) => Outcome::error(error.into()),
+                    Ok(applied) => self.adopt(applied, Reply::recipe_loaded(slot, &applied)),
+                    Err(issue) => Outcome::error(ReplyError::RecipeUnusable { slot, issue }),
                 }
             }
             Command::RecipeList => {
@@ -224,17 +225,12 @@ impl Controller {
     /// Makes `applied` the operator's settings and asks the control loop to run them.
     fn adopt(&mut self, applied: Applied, reply: Reply) -> Outcome {
         self.applied = applied;
-        let settings = applied.settings;
         Outcome {
             reply,
             action: Action::Configure {
-                spec: WaveformSpec::from_frequency(
-                    settings.frequency_hz,
-                    settings.duty,
-                    settings.drive,
-                ),
+                spec: applied.settings.spec(),
                 plan: applied.plan,
-                ramp_cycles: settings.ramp_cycles,
+                ramp_cycles: applied.settings.ramp_cycles,
             },
         }
     }

@@ -75,6 +75,24 @@ pub enum Error {
     AccelAboveLimit { accel_mps2: f64, limit_mps2: f64 },
     /// The derived or requested stroke exceeds the plate's travel.
     StrokeAboveLimit { stroke_m: f64, limit_m: f64 },
+    /// A held stroke needs more than the motor's peak acceleration at this frequency and duty:
+    /// the motor allows at most `limit_m = a_limit·(T(1 − d)/2)²` there (Eq. 5).
+    StrokeAboveAccelLimit {
+        stroke_m: f64,
+        limit_m: f64,
+        accel_limit_mps2: f64,
+        frequency_hz: f64,
+        duty: f64,
+    },
+    /// A held peak acceleration moves the plate further than its travel at this frequency and
+    /// duty: the travel allows at most `limit_mps2 = x_limit/(T(1 − d)/2)²` there (Eq. 5).
+    AccelAboveTravelLimit {
+        accel_mps2: f64,
+        limit_mps2: f64,
+        stroke_limit_m: f64,
+        frequency_hz: f64,
+        duty: f64,
+    },
     /// A caller-supplied limit is NaN or negative, so nothing could be checked against it.
     InvalidLimit { quantity: Quantity, value: f64 },
     /// At this clock a segment of the waveform is shorter than half a tick and would vanish.
@@ -153,6 +171,24 @@ impl fmt::Display for Error {
                 "stroke {} m exceeds the plate travel limit of {} m",
                 Significant(stroke_m), Significant(limit_m)
             ),
+            Error::StrokeAboveAccelLimit { stroke_m, limit_m, accel_limit_mps2, frequency_hz, duty } => {
+                write!(
+                    f,
+                    "stroke {} m exceeds the {} m that the motor limit of {} m/s² allows at {} Hz \
+                     and duty cycle {}",
+                    Significant(stroke_m), Significant(limit_m), Significant(accel_limit_mps2),
+                    Significant(frequency_hz), Significant(duty)
+                )
+            }
+            Error::AccelAboveTravelLimit { accel_mps2, limit_mps2, stroke_limit_m, frequency_hz, duty } => {
+                write!(
+                    f,
+                    "peak acceleration {} m/s² exceeds the {} m/s² that the plate travel limit of \
+                     {} m allows at {} Hz and duty cycle {}",
+                    Significant(accel_mps2), Significant(limit_mps2), Significant(stroke_limit_m),
+                    Significant(frequency_hz), Significant(duty)
+                )
+            }
             Error::InvalidLimit { quantity, value } => {
                 write!(f, "{} must be a non-negative number, got {}", quantity.name(), Significant(value))
             }

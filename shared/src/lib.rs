@@ -39,7 +39,7 @@ pub use error::{Error, Quantity};
 pub use model::{Friction, Regime, SteadyState};
 pub use plan::{CycleTicks, TickClock, TickPlan};
 pub use protocol::{Command, LineAssembler, Param, Reply, ReplyError, Status};
-pub use recipe::{Loaded, RecipeSlot, RecordError};
+pub use recipe::{RecipeSlot, RecordError};
 pub use scenario::{ScenarioError, ScenarioSetting};
 pub use scheduler::{Amplitude, Phase, Scheduler, Segment};
 pub use segment::SegmentKind;

@@ -16,8 +16,8 @@
 //! |     36 |    4 | CRC-32 (IEEE, reflected) of bytes 0..36                 |
 //!
 //! Erased flash (all `0xFF`) reads as an empty slot. A record that is empty, corrupt, of another
-//! format version, stored for another slot or no longer valid on the machine loads
-//! [`Settings::DEFAULT`] and names the reason ([`RecordError`]).
+//! format version, stored for another slot or no longer valid on the machine loads nothing and
+//! names the reason ([`RecordError`]).
 
 use core::fmt;
 
@@ -228,40 +228,16 @@ pub fn decode(record: &[u8; RECORD_LEN], slot: RecipeSlot) -> Result<Settings, R
     })
 }
 
-/// What `recipe load` (or loading at power-up) yields: validated settings to apply, and why they
-/// are the defaults if they are.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Loaded {
-    pub applied: Applied,
-    /// `None` if the record was used; otherwise why [`Settings::DEFAULT`] was loaded instead.
-    pub issue: Option<RecordError>,
-}
-
-/// Decodes and validates the record read from `slot`, falling back to [`Settings::DEFAULT`].
-///
-/// Fails only if the defaults themselves are refused on `machine`, a configuration error.
+/// The validated settings of the record read from `slot`, or why it holds none that can run on
+/// `machine`.
 pub fn load(
     record: &[u8; RECORD_LEN],
     slot: RecipeSlot,
     machine: &Machine,
-) -> Result<Loaded, Error> {
-    let issue = match decode(record, slot) {
-        Ok(settings) => match settings.validate(machine) {
-            Ok(applied) => {
-                return Ok(Loaded {
-                    applied,
-                    issue: None,
-                })
-            }
-            Err(error) => RecordError::Rejected(error),
-        },
-        Err(issue) => issue,
-    };
-    Ok(Loaded {
-        applied: Settings::DEFAULT.validate(machine)?,
-        issue: Some(issue),
-    })
+) -> Result<Applied, RecordError> {
+    decode(record, slot)?
+        .validate(machine)
+        .map_err(RecordError::Rejected)
 }
 
 fn put(record: &mut [u8; RECORD_LEN], at: usize, bytes: &[u8]) {

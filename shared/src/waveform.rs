@@ -32,7 +32,7 @@ impl WaveformSpec {
     /// A spec given by frequency instead of period. A non-positive or non-finite frequency gives
     /// a period that [`Waveform::new`] refuses in terms of the period, so callers that want the
     /// frequency named in the refusal check it first.
-    pub fn from_frequency(frequency_hz: f64, duty: f64, drive: Drive) -> Self {
+    pub const fn from_frequency(frequency_hz: f64, duty: f64, drive: Drive) -> Self {
         Self {
             period_s: 1.0 / frequency_hz,
             duty,
@@ -76,6 +76,13 @@ impl Limits {
         }
         Ok(())
     }
+}
+
+/// `x_max / a_max = (T(1 − d)/2)²` (Eq. 5): the peak-to-peak stroke per unit of peak
+/// acceleration at period `period_s` and duty `duty`, in m per m/s².
+pub fn stroke_per_accel_s2(period_s: f64, duty: f64) -> f64 {
+    let half_backward_s = period_s * (1.0 - duty) / 2.0;
+    half_backward_s * half_backward_s
 }
 
 /// A validated waveform with every derived quantity of Eq. 1–5 (SI units).
@@ -126,16 +133,15 @@ impl Waveform {
                 max_hz: limits.max_frequency_hz,
             });
         }
-        let half_backward_s = period_s * (1.0 - duty) / 2.0;
-        // Eq. 5: x_max = a_max · (T(1 − d)/2)².
+        let stroke_per_accel_s2 = stroke_per_accel_s2(period_s, duty);
         let (accel_mps2, stroke_m) = match spec.drive {
             Drive::Stroke { stroke_m } => {
                 let stroke_m = positive(Quantity::StrokeM, stroke_m)?;
-                (stroke_m / (half_backward_s * half_backward_s), stroke_m)
+                (stroke_m / stroke_per_accel_s2, stroke_m)
             }
             Drive::Accel { accel_mps2 } => {
                 let accel_mps2 = positive(Quantity::AccelMps2, accel_mps2)?;
-                (accel_mps2, accel_mps2 * half_backward_s * half_backward_s)
+                (accel_mps2, accel_mps2 * stroke_per_accel_s2)
             }
         };
         if !accel_mps2.is_finite() {
@@ -149,19 +155,46 @@ impl Waveform {
                 value: stroke_m,
             });
         }
-        if accel_mps2 > limits.max_accel_mps2 {
-            return Err(Error::AccelAboveLimit {
+        let accel_over = accel_mps2 > limits.max_accel_mps2;
+        let stroke_over = stroke_m > limits.max_stroke_m;
+        // The motor's acceleration limit as a stroke, and the plate's travel as an acceleration,
+        // at this period and duty (Eq. 5).
+        let accel_limit_as_stroke_m = limits.max_accel_mps2 * stroke_per_accel_s2;
+        let travel_as_accel_mps2 = limits.max_stroke_m / stroke_per_accel_s2;
+        // A refusal names the quantity that was set and the tighter of the two limits on it.
+        match spec.drive {
+            Drive::Stroke { .. }
+                if stroke_over && limits.max_stroke_m <= accel_limit_as_stroke_m =>
+            {
+                Err(Error::StrokeAboveLimit {
+                    stroke_m,
+                    limit_m: limits.max_stroke_m,
+                })
+            }
+            Drive::Stroke { .. } if accel_over || stroke_over => {
+                Err(Error::StrokeAboveAccelLimit {
+                    stroke_m,
+                    limit_m: accel_limit_as_stroke_m,
+                    accel_limit_mps2: limits.max_accel_mps2,
+                    frequency_hz,
+                    duty,
+                })
+            }
+            Drive::Accel { .. } if accel_over && limits.max_accel_mps2 <= travel_as_accel_mps2 => {
+                Err(Error::AccelAboveLimit {
+                    accel_mps2,
+                    limit_mps2: limits.max_accel_mps2,
+                })
+            }
+            Drive::Accel { .. } if accel_over || stroke_over => Err(Error::AccelAboveTravelLimit {
                 accel_mps2,
-                limit_mps2: limits.max_accel_mps2,
-            });
+                limit_mps2: travel_as_accel_mps2,
+                stroke_limit_m: limits.max_stroke_m,
+                frequency_hz,
+                duty,
+            }),
+            _ => Ok(Self::derive(period_s, duty, accel_mps2, stroke_m)),
         }
-        if stroke_m > limits.max_stroke_m {
-            return Err(Error::StrokeAboveLimit {
-                stroke_m,
-                limit_m: limits.max_stroke_m,
-            });
-        }
-        Ok(Self::derive(period_s, duty, accel_mps2, stroke_m))
     }
 
     fn derive(period_s: f64, duty: f64, accel_mps2: f64, stroke_m: f64) -> Self {

@@ -1,7 +1,7 @@
-//! The recipe record: layout, CRC-32, versioning, and defaults for every unusable record.
+//! The recipe record: layout, CRC-32, versioning, and the reason for every unusable record.
 
 use feeder_shared::recipe::{self, crc32, FORMAT_VERSION, MAGIC, RECIPE_SLOTS, RECORD_LEN};
-use feeder_shared::{Drive, Error, Limits, Machine, RecipeSlot, RecordError, Settings};
+use feeder_shared::{Drive, Error, RecipeSlot, RecordError, Settings};
 use proptest::prelude::*;
 
 mod common;
@@ -169,12 +169,7 @@ fn every_unusable_record_is_named() {
         assert_eq!(recipe::decode(&record, slot(2)), Err(error));
         assert_eq!(error.short_name(), short);
         assert!(error.to_string().contains(text), "{error}");
-        let loaded = recipe::load(&record, slot(2), &machine()).unwrap();
-        assert_eq!(loaded.issue, Some(error));
-        assert_eq!(
-            loaded.applied,
-            Settings::DEFAULT.validate(&machine()).unwrap()
-        );
+        assert_eq!(recipe::load(&record, slot(2), &machine()), Err(error));
     }
 }
 
@@ -182,48 +177,36 @@ fn every_unusable_record_is_named() {
 fn an_intact_record_loads_its_settings() {
     let record = recipe::encode(slot(6), &sample());
     assert_eq!(recipe::decode(&record, slot(6)), Ok(sample()));
-    let loaded = recipe::load(&record, slot(6), &machine()).unwrap();
-    assert_eq!(loaded.issue, None);
-    assert_eq!(loaded.applied.settings, sample());
-    assert_eq!(loaded.applied.plan.waveform.accel_mps2, 150.0);
+    let applied = recipe::load(&record, slot(6), &machine()).unwrap();
+    assert_eq!(applied.settings, sample());
+    assert_eq!(applied.plan.waveform.accel_mps2, 150.0);
 }
 
 #[test]
-fn a_record_refused_on_this_machine_loads_defaults() {
+fn a_record_refused_on_this_machine_is_not_loaded() {
     let too_fast = Settings {
         frequency_hz: 400.0,
         ..sample()
     };
     let record = recipe::encode(slot(1), &too_fast);
     assert_eq!(recipe::decode(&record, slot(1)), Ok(too_fast));
-    let loaded = recipe::load(&record, slot(1), &machine()).unwrap();
-    let Some(RecordError::Rejected(Error::FrequencyOutOfBand { frequency_hz, .. })) = loaded.issue
-    else {
-        panic!("{:?}", loaded.issue);
+    let issue = recipe::load(&record, slot(1), &machine()).unwrap_err();
+    let RecordError::Rejected(Error::FrequencyOutOfBand { frequency_hz, .. }) = issue else {
+        panic!("{issue:?}");
     };
     assert_eq!(frequency_hz, 400.0);
-    assert_eq!(loaded.applied.settings, Settings::DEFAULT);
-    assert_eq!(loaded.issue.unwrap().short_name(), "rejected");
-    assert!(loaded
-        .issue
-        .unwrap()
+    assert_eq!(issue.short_name(), "rejected");
+    assert!(issue
         .to_string()
         .starts_with("stored parameters refused: frequency 400 Hz"));
 }
 
 #[test]
-fn defaults_refused_by_the_machine_are_a_configuration_error() {
-    let slow_only = Machine {
-        limits: Limits {
-            max_frequency_hz: 30.0,
-            ..machine().limits
-        },
-        ..machine()
-    };
-    assert!(matches!(
-        recipe::load(&[0xff; RECORD_LEN], slot(0), &slow_only),
-        Err(Error::FrequencyOutOfBand { .. })
-    ));
+fn an_erased_slot_is_empty() {
+    assert_eq!(
+        recipe::load(&[0xff; RECORD_LEN], slot(0), &machine()),
+        Err(RecordError::Empty)
+    );
 }
 
 fn settings() -> impl Strategy<Value = Settings> {
@@ -298,9 +281,7 @@ proptest! {
         let mut record = recipe::encode(slot(number), &settings);
         record[bit / 8] ^= 1 << (bit % 8);
         prop_assert!(recipe::decode(&record, slot(number)).is_err());
-        let loaded = recipe::load(&record, slot(number), &machine()).unwrap();
-        prop_assert!(loaded.issue.is_some());
-        prop_assert_eq!(loaded.applied.settings, Settings::DEFAULT);
+        prop_assert!(recipe::load(&record, slot(number), &machine()).is_err());
     }
 
     /// Random bytes or intact records of plausible settings, read from any slot: decoding never
@@ -322,17 +303,11 @@ proptest! {
             let stored = u32::from_le_bytes(record[36..40].try_into().unwrap());
             prop_assert_eq!(stored, crc32_table(&record[..36]));
         }
-        let loaded = recipe::load(&record, slot(number), &machine()).unwrap();
+        let loaded = recipe::load(&record, slot(number), &machine());
         let usable = decoded.ok().filter(|settings| settings.validate(&machine()).is_ok());
         match usable {
-            Some(settings) => {
-                prop_assert_eq!(loaded.issue, None);
-                prop_assert_eq!(loaded.applied.settings, settings);
-            }
-            None => {
-                prop_assert!(loaded.issue.is_some());
-                prop_assert_eq!(loaded.applied.settings, Settings::DEFAULT);
-            }
+            Some(settings) => prop_assert_eq!(loaded.map(|applied| applied.settings), Ok(settings)),
+            None => prop_assert!(loaded.is_err()),
         }
     }
 

@@ -15,8 +15,11 @@ fn defaults_are_the_papers_operating_point() {
     assert_eq!(applied.settings, Settings::default());
     let waveform = applied.plan.waveform;
     assert!((waveform.frequency_hz() - 50.0).abs() < 1e-9);
-    assert!((waveform.duty - (2.0 - 2f64.sqrt())).abs() < 1e-15);
+    // The optimum d = 2 − √2 to the paper's three decimals.
+    assert_eq!(waveform.duty, 0.586);
+    assert!((waveform.duty - (2.0 - 2f64.sqrt())).abs() < 5e-4);
     assert_eq!(waveform.stroke_m, paper_stroke_m());
+    assert_eq!(applied.settings.ramp_cycles, 25);
     assert_eq!(applied.plan.period_ticks, 20_000);
     // Eq. 15 while sliding: aT(2d − 1)/4.
     let expected = waveform.accel_mps2 * 0.02 * (2.0 * waveform.duty - 1.0) / 4.0;
@@ -125,10 +128,17 @@ fn refused_settings_name_the_reason() {
         refuse(Setting::StrokeMm(-1.0)),
         Error::NotPositive { .. }
     ));
-    assert!(matches!(
-        refuse(Setting::AccelMps2(600.0)),
-        Error::AccelAboveLimit { .. }
-    ));
+    // The 5 mm travel allows 0.005/(0.02·(1 − 0.586)/2)² = 291.7 m/s², below the motor's 500.
+    let Error::AccelAboveTravelLimit {
+        accel_mps2,
+        limit_mps2,
+        ..
+    } = refuse(Setting::AccelMps2(400.0))
+    else {
+        panic!("{:?}", refuse(Setting::AccelMps2(400.0)));
+    };
+    assert_eq!(accel_mps2, 400.0);
+    assert!((limit_mps2 - 0.005 / (0.02f64 * 0.414 / 2.0).powi(2)).abs() < 1e-9);
     assert!(matches!(
         refuse(Setting::FeedMmps(0.0)),
         Error::NotPositive { .. }

@@ -186,7 +186,8 @@ fn bad_inputs_are_refused_with_the_expected_error() {
             },
         ),
         (
-            spec(0.02, 0.6, Drive::Accel { accel_mps2: 400.0 }),
+            // The travel allows 0.004/(0.02·0.3/2)² = 444 m/s²: the motor's 300 m/s² is tighter.
+            spec(0.02, 0.7, Drive::Accel { accel_mps2: 400.0 }),
             board,
             Error::AccelAboveLimit {
                 accel_mps2: 400.0,
@@ -194,20 +195,61 @@ fn bad_inputs_are_refused_with_the_expected_error() {
             },
         ),
         (
-            // a = 4x/(T(1−d))² = 4·0.0025/(0.02·0.2)² = 625 m/s² > 300 m/s².
-            spec(0.02, 0.8, stroke),
+            // The travel allows 0.004/(0.02·0.4/2)² = 250 m/s², less than the motor's 300 m/s².
+            spec(0.02, 0.6, Drive::Accel { accel_mps2: 400.0 }),
             board,
-            Error::AccelAboveLimit {
-                accel_mps2: 625.0,
-                limit_mps2: 300.0,
+            Error::AccelAboveTravelLimit {
+                accel_mps2: 400.0,
+                limit_mps2: 250.0,
+                stroke_limit_m: 0.004,
+                frequency_hz: 50.0,
+                duty: 0.6,
             },
         ),
         (
-            // x = a(T(1−d)/2)² = 250·(0.02·0.45/2)² = 5.0625 mm > 4 mm.
+            // x = a(T(1−d)/2)² = 250·(0.02·0.45/2)² = 5.0625 mm > 4 mm: the travel allows
+            // 0.004/(0.02·0.45/2)² = 197.53 m/s².
             spec(0.02, 0.55, Drive::Accel { accel_mps2: 250.0 }),
             board,
+            Error::AccelAboveTravelLimit {
+                accel_mps2: 250.0,
+                limit_mps2: 0.004 / 0.0045f64.powi(2),
+                stroke_limit_m: 0.004,
+                frequency_hz: 50.0,
+                duty: 0.55,
+            },
+        ),
+        (
+            // a = 4x/(T(1−d))² = 4·0.0025/(0.02·0.2)² = 625 m/s² > 300 m/s²: the motor allows
+            // a stroke of 300·(0.02·0.2/2)² = 1.2 mm.
+            spec(0.02, 0.8, stroke),
+            board,
+            Error::StrokeAboveAccelLimit {
+                stroke_m: 0.0025,
+                limit_m: 0.0012,
+                accel_limit_mps2: 300.0,
+                frequency_hz: 50.0,
+                duty: 0.8,
+            },
+        ),
+        (
+            // 5 mm is above the 4 mm travel and the motor's 1.2 mm: the tighter limit is named.
+            spec(0.02, 0.8, Drive::Stroke { stroke_m: 0.005 }),
+            board,
+            Error::StrokeAboveAccelLimit {
+                stroke_m: 0.005,
+                limit_m: 0.0012,
+                accel_limit_mps2: 300.0,
+                frequency_hz: 50.0,
+                duty: 0.8,
+            },
+        ),
+        (
+            // The motor allows 300·(0.02·0.45/2)² = 6.075 mm: the 4 mm travel is tighter.
+            spec(0.02, 0.55, Drive::Stroke { stroke_m: 0.005 }),
+            board,
             Error::StrokeAboveLimit {
-                stroke_m: 0.0050625,
+                stroke_m: 0.005,
                 limit_m: 0.004,
             },
         ),
@@ -261,6 +303,38 @@ fn bad_inputs_are_refused_with_the_expected_error() {
                     limit_m: lb,
                 },
             ) => close(a, b, 1e-12) && la == lb,
+            (
+                Error::StrokeAboveAccelLimit {
+                    stroke_m: a,
+                    limit_m: la,
+                    accel_limit_mps2: ma,
+                    frequency_hz: fa,
+                    duty: da,
+                },
+                Error::StrokeAboveAccelLimit {
+                    stroke_m: b,
+                    limit_m: lb,
+                    accel_limit_mps2: mb,
+                    frequency_hz: fb,
+                    duty: db,
+                },
+            ) => a == b && close(la, lb, 1e-12) && ma == mb && close(fa, fb, 1e-12) && da == db,
+            (
+                Error::AccelAboveTravelLimit {
+                    accel_mps2: a,
+                    limit_mps2: la,
+                    stroke_limit_m: ma,
+                    frequency_hz: fa,
+                    duty: da,
+                },
+                Error::AccelAboveTravelLimit {
+                    accel_mps2: b,
+                    limit_mps2: lb,
+                    stroke_limit_m: mb,
+                    frequency_hz: fb,
+                    duty: db,
+                },
+            ) => a == b && close(la, lb, 1e-12) && ma == mb && close(fa, fb, 1e-12) && da == db,
             (actual, expected) => actual == expected,
         };
         assert!(matches, "{spec:?} gave {error:?}, expected {expected:?}");
@@ -313,6 +387,45 @@ proptest! {
         ).unwrap();
         prop_assert!(close(back.stroke_m, stroke_m, 1e-12));
         prop_assert!(close(w.accel_per_stroke_per_s2(), 4.0 / (period_s * (1.0 - duty)).powi(2), 1e-12));
+    }
+
+    /// A held stroke or acceleration is refused exactly when it exceeds the tighter of its two
+    /// limits at this period and duty (the travel, and the motor limit through Eq. 5), and the
+    /// refusal names the held quantity and that limit.
+    #[test]
+    fn refusals_name_the_held_quantity_and_its_tighter_limit(
+        period_s in 0.01f64..0.02,
+        duty in 0.51f64..0.95,
+        value in 0.0f64..2.0,
+        by_stroke in any::<bool>(),
+        max_accel_mps2 in 50.0f64..500.0,
+        max_stroke_m in 0.001f64..0.01,
+    ) {
+        let limits = Limits { min_frequency_hz: 50.0, max_frequency_hz: 100.0, max_accel_mps2, max_stroke_m };
+        let per_accel_s2 = (period_s * (1.0 - duty) / 2.0).powi(2);
+        let (drive, held, limit) = if by_stroke {
+            let stroke_m = value * 1e-2;
+            (Drive::Stroke { stroke_m }, stroke_m, max_stroke_m.min(max_accel_mps2 * per_accel_s2))
+        } else {
+            let accel_mps2 = value * 500.0;
+            (Drive::Accel { accel_mps2 }, accel_mps2, max_accel_mps2.min(max_stroke_m / per_accel_s2))
+        };
+        prop_assume!(held > 0.0 && !close(held, limit, 1e-9));
+        let result = Waveform::new(WaveformSpec { period_s, duty, drive }, &limits);
+        let named = match result {
+            Ok(_) => {
+                prop_assert!(held < limit, "{} accepted above {}", held, limit);
+                return Ok(());
+            }
+            Err(Error::StrokeAboveLimit { stroke_m, limit_m }) if by_stroke => (stroke_m, limit_m),
+            Err(Error::StrokeAboveAccelLimit { stroke_m, limit_m, .. }) if by_stroke => (stroke_m, limit_m),
+            Err(Error::AccelAboveLimit { accel_mps2, limit_mps2 }) if !by_stroke => (accel_mps2, limit_mps2),
+            Err(Error::AccelAboveTravelLimit { accel_mps2, limit_mps2, .. }) if !by_stroke => (accel_mps2, limit_mps2),
+            Err(other) => return Err(TestCaseError::fail(format!("{other:?} for {drive:?}"))),
+        };
+        prop_assert!(held > limit);
+        prop_assert_eq!(named.0, held);
+        prop_assert!(close(named.1, limit, 1e-12), "{:?} names {}, not {}", result, named.1, limit);
     }
 
     #[test]

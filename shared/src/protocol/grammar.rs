@@ -2,7 +2,7 @@
 //!
 //! Words are separated by blanks; keywords and units are case-insensitive. A number
 //! ([`crate::number::split_decimal`]) takes an optional unit, attached (`50hz`) or as the next word
-//! (`50 Hz`), that must be the documented one.
+//! (`50 Hz`), that must be the documented one. A decimal comma (`0,6`) is refused as such.
 
 use super::refusal::ReplyError;
 use crate::number::split_decimal;
@@ -260,8 +260,14 @@ fn number<'a>(value: Value, words: &mut impl Iterator<Item = &'a str>) -> Result
     let word = words
         .next()
         .ok_or(ReplyError::MissingArgument { what: value.what })?;
-    let (number, attached) =
-        split_decimal(word).ok_or(ReplyError::BadNumber { what: value.what })?;
+    let (number, attached) = match split_decimal(word) {
+        Some((_, rest)) if decimal_comma(rest) => {
+            return Err(ReplyError::DecimalComma { what: value.what })
+        }
+        Some(split) => split,
+        None if decimal_comma(word) => return Err(ReplyError::DecimalComma { what: value.what }),
+        None => return Err(ReplyError::BadNumber { what: value.what }),
+    };
     if !number.is_finite() {
         return Err(ReplyError::NotFinite);
     }
@@ -276,4 +282,10 @@ fn number<'a>(value: Value, words: &mut impl Iterator<Item = &'a str>) -> Result
         }
         _ => Ok(number),
     }
+}
+
+/// `text` starts with a comma followed by a digit: a decimal comma (`0,6` leaves `,6`).
+fn decimal_comma(text: &str) -> bool {
+    text.strip_prefix(',')
+        .is_some_and(|fraction| fraction.starts_with(|c: char| c.is_ascii_digit()))
 }

@@ -4,6 +4,7 @@ use core::fmt;
 
 use super::limits::MAX_LINE_BYTES;
 use crate::error::Error;
+use crate::recipe::{RecipeSlot, RecordError};
 
 /// Why a line was refused. Codes are stable; see `shared/PROTOCOL.md`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -23,6 +24,8 @@ pub enum ReplyError {
     UnknownParameter,
     /// 24: a word that should be a number is not one.
     BadNumber { what: &'static str },
+    /// 24: a word that should be a number has a decimal comma (`0,6`).
+    DecimalComma { what: &'static str },
     /// 25: the number is NaN or infinite (or overflows to infinity).
     NotFinite,
     /// 26: the unit after the number is not the documented one.
@@ -35,7 +38,7 @@ pub enum ReplyError {
         min: u32,
         max: u32,
     },
-    /// 40–55: the new parameters were refused by validation (one code per [`Error`] variant).
+    /// 40–58: the new parameters were refused by validation (one code per [`Error`] variant).
     Rejected(Error),
     /// 60: the command needs the feeder to be stopped.
     NotStopped,
@@ -43,6 +46,11 @@ pub enum ReplyError {
     FaultLatched,
     /// 62: the recipe store could not be written.
     StorageFailed,
+    /// 63 if the slot is empty, 64 if its record is unusable: `recipe load` loaded nothing.
+    RecipeUnusable {
+        slot: RecipeSlot,
+        issue: RecordError,
+    },
 }
 
 impl ReplyError {
@@ -55,7 +63,7 @@ impl ReplyError {
             ReplyError::MissingArgument { .. } => 21,
             ReplyError::UnexpectedArgument => 22,
             ReplyError::UnknownParameter => 23,
-            ReplyError::BadNumber { .. } => 24,
+            ReplyError::BadNumber { .. } | ReplyError::DecimalComma { .. } => 24,
             ReplyError::NotFinite => 25,
             ReplyError::WrongUnit { .. } => 26,
             ReplyError::NotWholeNumber { .. } => 27,
@@ -64,11 +72,16 @@ impl ReplyError {
             ReplyError::NotStopped => 60,
             ReplyError::FaultLatched => 61,
             ReplyError::StorageFailed => 62,
+            ReplyError::RecipeUnusable {
+                issue: RecordError::Empty,
+                ..
+            } => 63,
+            ReplyError::RecipeUnusable { .. } => 64,
         }
     }
 }
 
-/// One code per validation error, 40–55.
+/// One code per validation error, 40–58.
 const fn rejected_code(error: &Error) -> u16 {
     match error {
         Error::NotFinite { .. } => 40,
@@ -88,6 +101,8 @@ const fn rejected_code(error: &Error) -> u16 {
         Error::FeedRateBelowReach { .. } => 54,
         Error::SegmentBelowFloor { .. } => 55,
         Error::AccelAboveLoopRoom { .. } => 56,
+        Error::StrokeAboveAccelLimit { .. } => 57,
+        Error::AccelAboveTravelLimit { .. } => 58,
     }
 }
 
@@ -115,6 +130,11 @@ impl fmt::Display for ReplyError {
                 f.write_str("unknown parameter; use freq, duty, stroke, accel, feed or ramp")
             }
             ReplyError::BadNumber { what } => write!(f, "not a number: expected {}", what),
+            ReplyError::DecimalComma { what } => write!(
+                f,
+                "not a number: use a decimal point, not a comma; expected {}",
+                what
+            ),
             ReplyError::NotFinite => f.write_str("the number must be finite"),
             ReplyError::WrongUnit { what } => write!(f, "wrong unit: expected {}", what),
             ReplyError::NotWholeNumber { what } => {
@@ -132,6 +152,9 @@ impl fmt::Display for ReplyError {
             }
             ReplyError::StorageFailed => {
                 f.write_str("the recipe could not be written to flash; nothing changed")
+            }
+            ReplyError::RecipeUnusable { slot, issue } => {
+                write!(f, "recipe {} not loaded: {}; nothing changed", slot, issue)
             }
         }
     }

@@ -9,7 +9,7 @@ use super::limits::REPLY_CAPACITY;
 use super::refusal::ReplyError;
 use crate::closed_loop::{LoopReport, TrackReport};
 use crate::number::Fixed;
-use crate::recipe::{Loaded, RecipeSlot, RecordError, RECIPE_SLOTS};
+use crate::recipe::{RecipeSlot, RecordError, RECIPE_SLOTS};
 use crate::scheduler::Phase;
 use crate::settings::{Applied, Settings};
 use crate::waveform::{Drive, Waveform};
@@ -215,16 +215,10 @@ impl Reply {
         Self::ok(format_args!("recipe {} saved", slot))
     }
 
-    /// The reply to `recipe load`: what was loaded, and why defaults were used if they were.
-    pub fn recipe_loaded(slot: RecipeSlot, loaded: &Loaded) -> Self {
-        let mut reply = match &loaded.issue {
-            None => Self::ok(format_args!("recipe {} loaded", slot)),
-            Some(issue) => Self::ok(format_args!(
-                "recipe {} not usable ({}), defaults loaded",
-                slot, issue
-            )),
-        };
-        Params::of_applied(&loaded.applied).write_all(&mut reply);
+    /// The reply to a successful `recipe load`: every parameter the recipe will run with.
+    pub fn recipe_loaded(slot: RecipeSlot, applied: &Applied) -> Self {
+        let mut reply = Self::ok(format_args!("recipe {} loaded", slot));
+        Params::of_applied(applied).write_all(&mut reply);
         reply
     }
 

@@ -40,28 +40,30 @@ fn every_command_by_table() {
         (
             "status",
             running(617),
-            Ok("OK state=running freq_hz=50 duty=0.5858 stroke_mm=2.5 "),
+            Ok("OK state=running freq_hz=50 duty=0.586 stroke_mm=2.5 "),
             Some(Action::None),
         ),
         ("get freq", running(0), Ok("OK freq_hz=50"), Some(Action::None)),
-        ("get duty", running(0), Ok("OK duty=0.5858"), Some(Action::None)),
+        ("get duty", running(0), Ok("OK duty=0.586"), Some(Action::None)),
         ("get stroke", running(0), Ok("OK stroke_mm=2.5"), Some(Action::None)),
         ("get accel", running(0), Ok("OK accel_mps2="), Some(Action::None)),
         ("get feed", running(0), Ok("OK feed_mmps="), Some(Action::None)),
-        ("get ramp", running(0), Ok("OK ramp_cycles=10"), Some(Action::None)),
+        ("get ramp", running(0), Ok("OK ramp_cycles=25"), Some(Action::None)),
         ("set freq 55", running(0), Ok("OK freq_hz=55 "), None),
         ("set duty 0.6", running(0), Ok("OK freq_hz=50 duty=0.6 "), None),
-        ("set stroke 2", running(0), Ok("OK freq_hz=50 duty=0.5858 stroke_mm=2 "), None),
-        ("set accel 100", running(0), Ok("OK freq_hz=50 duty=0.5858 stroke_mm="), None),
+        ("set stroke 2", running(0), Ok("OK freq_hz=50 duty=0.586 stroke_mm=2 "), None),
+        ("set accel 100", running(0), Ok("OK freq_hz=50 duty=0.586 stroke_mm="), None),
         ("set feed 30", running(0), Ok("OK freq_hz=50 duty=0.5"), None),
         ("set ramp 5", running(0), Ok("OK freq_hz=50 "), None),
         ("set ramp 5", faulted(0), Ok("OK freq_hz=50 "), None),
         ("set freq 20", stopped(0), Err(44), Some(Action::None)),
         ("set duty 0.4", stopped(0), Err(42), Some(Action::None)),
         ("set duty 1", stopped(0), Err(43), Some(Action::None)),
-        ("set stroke 9", stopped(0), Err(45), Some(Action::None)),
+        ("set stroke 9", stopped(0), Err(57), Some(Action::None)),
+        ("set stroke 4", running(0), Err(57), Some(Action::None)),
         ("set stroke 0", stopped(0), Err(41), Some(Action::None)),
         ("set accel 900", stopped(0), Err(45), Some(Action::None)),
+        ("set duty 0,6", running(0), Err(24), Some(Action::None)),
         ("set feed 0.0001", stopped(0), Err(48), Some(Action::None)),
         ("set feed 1e6", stopped(0), Err(53), Some(Action::None)),
         ("recipe save 3", stopped(0), Ok("OK recipe 3 saved"), Some(Action::None)),
@@ -80,12 +82,8 @@ fn every_command_by_table() {
             Some(Action::None),
         ),
         ("recipe load 4", running(0), Ok("OK recipe 4 loaded freq_hz=55 "), None),
-        (
-            "recipe load 5",
-            running(0),
-            Ok("OK recipe 5 not usable (no recipe saved in this slot), defaults loaded freq_hz=50 "),
-            None,
-        ),
+        ("recipe load 5", running(0), Err(63), Some(Action::None)),
+        ("recipe load 5", stopped(0), Err(63), Some(Action::None)),
         ("recipe list", running(0), Ok("OK recipes 0=empty "), Some(Action::None)),
         ("help", running(0), Ok("OK commands: start | stop "), Some(Action::None)),
         ("?", running(0), Ok("OK commands: "), Some(Action::None)),
@@ -123,6 +121,32 @@ fn every_command_by_table() {
         let expected = action.unwrap_or_else(|| configure(controller.settings()));
         assert_eq!(outcome.action, expected, "{line:?}");
     }
+}
+
+#[test]
+fn a_stroke_above_what_the_motor_allows_names_the_stroke_and_its_limit() {
+    let mut controller = controller();
+    let mut store = Memory::erased();
+    // 200 m/s² · (0.02 s · (1 − 0.586)/2)² = 3.42792 mm at the defaults (Eq. 5).
+    for (line, expected) in [
+        (
+            "set stroke 6",
+            "ERR 57 stroke 0.006 m exceeds the 0.00342792 m that the motor limit of 200 m/s2 \
+             allows at 50 Hz and duty cycle 0.586; nothing changed",
+        ),
+        (
+            "set stroke 3.5",
+            "ERR 57 stroke 0.0035 m exceeds the 0.00342792 m that the motor limit of 200 m/s2 \
+             allows at 50 Hz and duty cycle 0.586; nothing changed",
+        ),
+    ] {
+        let outcome = run(&mut controller, line, &running(0), &mut store);
+        assert_eq!(outcome.reply.as_str(), expected, "{line:?}");
+        assert_eq!(controller.settings(), &Settings::DEFAULT);
+        assert_eq!(outcome.action, Action::None);
+    }
+    let accepted = run(&mut controller, "set stroke 3.4", &running(0), &mut store);
+    assert!(accepted.reply.as_str().starts_with("OK freq_hz=50 duty=0.586 stroke_mm=3.4 "));
 }
 
 #[test]
@@ -176,8 +200,8 @@ fn status_reports_the_snapshot_and_the_settings() {
     };
     let reply = run(&mut controller, "status", &at, &mut store).reply;
     let text = reply.as_str();
-    assert!(text.starts_with("OK state=fault freq_hz=50 duty=0.5858 stroke_mm=2.5 "));
-    assert!(text.contains(" ramp_cycles=10 feed_mmps="), "{text}");
+    assert!(text.starts_with("OK state=fault freq_hz=50 duty=0.586 stroke_mm=2.5 "));
+    assert!(text.contains(" ramp_cycles=25 feed_mmps="), "{text}");
     assert!(
         text.ends_with(" uptime_s=61.005 cycles=3050 fault=watchdog-reset"),
         "{text}"

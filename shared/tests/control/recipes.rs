@@ -47,12 +47,16 @@ fn recipes_round_trip_and_load_like_a_set() {
 }
 
 #[test]
-fn unusable_records_load_the_defaults_and_say_why() {
+fn unusable_records_are_refused_say_why_and_change_nothing() {
     let mut controller = controller();
     let mut store = Memory::erased();
     let at = stopped(0);
-    run(&mut controller, "set freq 80", &at, &mut store);
-    run(&mut controller, "recipe save 1", &at, &mut store);
+    for line in ["set freq 55", "set ramp 4", "recipe save 1"] {
+        assert!(
+            run(&mut controller, line, &at, &mut store).reply.is_ok(),
+            "{line}"
+        );
+    }
     store.records[1][10] ^= 0x40;
     store.records[2] = recipe::encode(slot(3), &Settings::DEFAULT);
     store.records[3] = recipe::encode(
@@ -69,28 +73,30 @@ fn unusable_records_load_the_defaults_and_say_why() {
         "{}",
         list.as_str()
     );
-    for (slot, reason) in [
-        (1, "corrupt record: CRC"),
-        (2, "record belongs to slot 3, not slot 2"),
-        (3, "stored parameters refused: "),
+    let live = *controller.settings();
+    assert_ne!(live, Settings::DEFAULT);
+    for (slot, reply) in [
+        (0, "ERR 63 recipe 0 not loaded: no recipe saved in this slot; nothing changed"),
+        (4, "ERR 63 recipe 4 not loaded: no recipe saved in this slot; nothing changed"),
+        (1, "ERR 64 recipe 1 not loaded: corrupt record: CRC"),
+        (2, "ERR 64 recipe 2 not loaded: record belongs to slot 3, not slot 2; nothing changed"),
+        (3, "ERR 64 recipe 3 not loaded: stored parameters refused: frequency 150 Hz"),
     ] {
-        let outcome = run(
-            &mut controller,
-            &format!("recipe load {slot}"),
-            &at,
-            &mut store,
-        );
-        let head = format!("OK recipe {slot} not usable ({reason}");
-        assert!(
-            outcome.reply.as_str().starts_with(&head),
-            "{}",
-            outcome.reply
-        );
-        assert!(outcome
-            .reply
-            .as_str()
-            .contains("defaults loaded freq_hz=50 duty=0.5858 "));
-        assert_eq!(controller.settings(), &Settings::DEFAULT);
-        assert_eq!(outcome.action, configure(&Settings::DEFAULT));
+        for at in [stopped(0), running(9)] {
+            let outcome = run(
+                &mut controller,
+                &format!("recipe load {slot}"),
+                &at,
+                &mut store,
+            );
+            assert!(
+                outcome.reply.as_str().starts_with(reply),
+                "{}",
+                outcome.reply
+            );
+            assert!(outcome.reply.as_str().ends_with("; nothing changed"));
+            assert_eq!(controller.settings(), &live);
+            assert_eq!(outcome.action, Action::None);
+        }
     }
 }

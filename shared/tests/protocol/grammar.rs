@@ -1,7 +1,7 @@
 //! The parser: every command and every refused line by table, and whole numbers by property.
 
 use feeder_shared::protocol;
-use feeder_shared::{Command, Param, Setting};
+use feeder_shared::{Command, Param, ReplyError, Setting};
 use proptest::prelude::*;
 
 use crate::common::slot;
@@ -88,6 +88,11 @@ fn every_parse_error_has_its_code() {
         ("set freq fifty", 24),
         ("set freq hz", 24),
         ("recipe load x", 24),
+        ("set duty 0,6", 24),
+        ("set duty ,6", 24),
+        ("set freq 62,5hz", 24),
+        ("recipe load 1,0", 24),
+        ("set freq 50,", 26),
         ("set freq inf", 25),
         ("set freq -inf", 25),
         ("set duty NaN", 25),
@@ -114,8 +119,54 @@ fn every_parse_error_has_its_code() {
     }
 }
 
+#[test]
+fn a_decimal_comma_is_named() {
+    for (line, what) in [
+        ("set duty 0,6", "the duty cycle as a plain fraction"),
+        ("set stroke 2,5 mm", "the stroke in mm"),
+        ("set accel ,5", "the peak acceleration in m/s2"),
+    ] {
+        assert_eq!(
+            protocol::parse(line),
+            Err(ReplyError::DecimalComma { what }),
+            "{line:?}"
+        );
+    }
+    let reply = protocol::Reply::error(&ReplyError::DecimalComma {
+        what: "the duty cycle as a plain fraction",
+    });
+    assert_eq!(
+        reply.as_str(),
+        "ERR 24 not a number: use a decimal point, not a comma; expected the duty cycle as a plain \
+         fraction"
+    );
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    /// Any parameter's value with a decimal comma is refused as a decimal comma, never read or
+    /// taken for a unit; the same value with a decimal point is read.
+    #[test]
+    fn decimal_commas_are_refused_as_such(
+        whole in 0u32..1000,
+        fraction in 0u32..1000,
+        unit in prop::sample::select(vec!["", " ", "hz", "mm", " Hz"]),
+        param in prop::sample::select(vec!["freq", "duty", "stroke", "accel", "feed", "ramp"]),
+    ) {
+        let line = format!("set {param} {whole},{fraction}{unit}");
+        let refused = protocol::parse(&line);
+        prop_assert!(
+            matches!(refused, Err(ReplyError::DecimalComma { .. })),
+            "{:?}: {:?}", line, refused
+        );
+        prop_assert_eq!(refused.map_err(|e| e.code()), Err(24));
+        let pointed = protocol::parse(&format!("set {param} {whole}.{fraction}"));
+        prop_assert!(
+            !matches!(pointed, Err(ReplyError::DecimalComma { .. } | ReplyError::BadNumber { .. })),
+            "{:?}", pointed
+        );
+    }
 
     /// Whole numbers: ramp lengths in range are read, others refused with the right code.
     #[test]

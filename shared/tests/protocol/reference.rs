@@ -1,9 +1,29 @@
-//! `shared/PROTOCOL.md` agrees with the code: its status example and its table of error codes.
+//! `shared/PROTOCOL.md` agrees with the code: its defaults, its status example and its table of
+//! error codes.
 
 use feeder_shared::testing::machine;
-use feeder_shared::{Phase, Reply, Settings, Status};
+use feeder_shared::{Drive, Phase, Reply, Settings, Status};
 
 const REFERENCE: &str = include_str!("../../PROTOCOL.md");
+
+#[test]
+fn the_reference_states_the_defaults() {
+    let defaults = Settings::DEFAULT;
+    let Drive::Stroke { stroke_m } = defaults.drive else {
+        panic!("the defaults hold a stroke: {defaults:?}");
+    };
+    let sentence = format!(
+        "Defaults, the settings at power-up: {} Hz, `d = {}`, {} mm stroke, {} ramp cycles.",
+        defaults.frequency_hz,
+        defaults.duty,
+        stroke_m * 1e3,
+        defaults.ramp_cycles
+    );
+    assert!(
+        REFERENCE.contains(&sentence),
+        "PROTOCOL.md lacks {sentence:?}"
+    );
+}
 
 #[test]
 fn the_reference_example_is_what_status_prints() {
@@ -41,7 +61,7 @@ fn the_reference_documents_every_error_code() {
         .collect();
     let mut expected: Vec<u16> = vec![10, 11];
     expected.extend(20..=28);
-    expected.extend(40..=56);
-    expected.extend(60..=62);
+    expected.extend(40..=58);
+    expected.extend(60..=64);
     assert_eq!(documented, expected);
 }

@@ -1,6 +1,6 @@
 //! Why a line is refused: every refusal's stable code and its explanation.
 
-use feeder_shared::{Error, Quantity, Reply, ReplyError};
+use feeder_shared::{Error, Quantity, RecipeSlot, RecordError, Reply, ReplyError};
 
 #[test]
 fn error_codes_are_stable_and_explained() {
@@ -206,9 +206,54 @@ fn error_codes_are_stable_and_explained() {
             56,
             "peak acceleration 180 m/s2 is more than the closed loop can hold: the output's linear range reaches 224.75 m/s2",
         ),
+        (
+            Error::StrokeAboveAccelLimit {
+                stroke_m: 0.006,
+                limit_m: 0.0034,
+                accel_limit_mps2: 200.0,
+                frequency_hz: 50.0,
+                duty: 0.586,
+            }
+            .into(),
+            57,
+            "stroke 0.006 m exceeds the 0.0034 m that the motor limit of 200 m/s2 allows at 50 Hz \
+             and duty cycle 0.586; nothing changed",
+        ),
+        (
+            Error::AccelAboveTravelLimit {
+                accel_mps2: 250.0,
+                limit_mps2: 197.5,
+                stroke_limit_m: 0.004,
+                frequency_hz: 50.0,
+                duty: 0.55,
+            }
+            .into(),
+            58,
+            "peak acceleration 250 m/s2 exceeds the 197.5 m/s2 that the plate travel limit of \
+             0.004 m allows at 50 Hz and duty cycle 0.55; nothing changed",
+        ),
         (ReplyError::NotStopped, 60, "only allowed while stopped"),
         (ReplyError::FaultLatched, 61, "send reset"),
         (ReplyError::StorageFailed, 62, "could not be written"),
+        (
+            ReplyError::RecipeUnusable {
+                slot: RecipeSlot::new(3).unwrap(),
+                issue: RecordError::Empty,
+            },
+            63,
+            "recipe 3 not loaded: no recipe saved in this slot; nothing changed",
+        ),
+        (
+            ReplyError::RecipeUnusable {
+                slot: RecipeSlot::new(2).unwrap(),
+                issue: RecordError::WrongSlot {
+                    found: 5,
+                    expected: RecipeSlot::new(2).unwrap(),
+                },
+            },
+            64,
+            "recipe 2 not loaded: record belongs to slot 5, not slot 2; nothing changed",
+        ),
     ];
     let mut codes: Vec<u16> = table.iter().map(|(_, code, _)| *code).collect();
     codes.dedup();

@@ -6,7 +6,8 @@ use feeder_shared::protocol::REPLY_CAPACITY;
 use feeder_shared::recipe::{self, RECIPE_SLOTS, RECORD_LEN};
 use feeder_shared::testing::machine;
 use feeder_shared::{
-    Drive, Limits, Param, Phase, Reply, Setting, Settings, Status, Waveform, WaveformSpec,
+    Drive, Limits, Param, Phase, Reply, ReplyError, Setting, Settings, Status, Waveform,
+    WaveformSpec,
 };
 
 use crate::common::slot;
@@ -139,7 +140,7 @@ fn set_reply_lists_the_candidate() {
     let reply = Reply::applied(&applied);
     assert!(
         reply.as_str().starts_with(
-            "OK freq_hz=50 duty=0.6 stroke_mm=2.5 accel_mps2=156.25 ramp_cycles=10 feed_mmps="
+            "OK freq_hz=50 duty=0.6 stroke_mm=2.5 accel_mps2=156.25 ramp_cycles=25 feed_mmps="
         ),
         "{reply}"
     );
@@ -204,8 +205,8 @@ fn recipe_replies() {
     flash[3][9] ^= 0x10;
     flash[4] = recipe::encode(slot(5), &stored);
 
-    let loaded = recipe::load(&flash[1], slot(1), &machine).unwrap();
-    let reply = Reply::recipe_loaded(slot(1), &loaded);
+    let applied = recipe::load(&flash[1], slot(1), &machine).unwrap();
+    let reply = Reply::recipe_loaded(slot(1), &applied);
     assert!(
         reply
             .as_str()
@@ -213,21 +214,26 @@ fn recipe_replies() {
         "{reply}"
     );
 
-    let loaded = recipe::load(&flash[0], slot(0), &machine).unwrap();
-    let reply = Reply::recipe_loaded(slot(0), &loaded);
-    assert!(
-        reply.as_str().starts_with(
-            "OK recipe 0 not usable (no recipe saved in this slot), defaults loaded \
-             freq_hz=50 duty=0.5858 "
-        ),
-        "{reply}"
-    );
+    let reasons = [
+        (0, "ERR 63 recipe 0 not loaded: no recipe saved in this slot; nothing changed"),
+        (3, "ERR 64 recipe 3 not loaded: corrupt record: CRC 0x"),
+        (4, "ERR 64 recipe 4 not loaded: record belongs to slot 5, not slot 4; nothing changed"),
+    ];
+    for (number, expected) in reasons {
+        let issue = recipe::load(&flash[number], slot(number as u8), &machine).unwrap_err();
+        let error = ReplyError::RecipeUnusable {
+            slot: slot(number as u8),
+            issue,
+        };
+        let reply = Reply::error(&error);
+        assert!(reply.as_str().starts_with(expected), "{reply}");
+    }
 
     let entries: [_; RECIPE_SLOTS] =
         std::array::from_fn(|index| recipe::decode(&flash[index], slot(index as u8)));
     assert_eq!(
         Reply::recipe_list(&entries).as_str(),
-        "OK recipes 0=empty 1=60Hz/0.6/2.5mm/r10 2=60Hz/0.6/150m/s2/r3 3=corrupt 4=wrong-slot \
+        "OK recipes 0=empty 1=60Hz/0.6/2.5mm/r25 2=60Hz/0.6/150m/s2/r3 3=corrupt 4=wrong-slot \
          5=empty 6=empty 7=empty"
     );
 }

@@ -63,10 +63,14 @@ impl Controller {
                 Reply::recipe_saved(slot)
             }
             Command::RecipeLoad(slot) => {
-                let loaded = recipe::load(&self.flash[slot.index()], slot, &self.machine).unwrap();
-                self.settings = loaded.applied.settings;
-                self.applied = loaded.applied;
-                Reply::recipe_loaded(slot, &loaded)
+                match recipe::load(&self.flash[slot.index()], slot, &self.machine) {
+                    Ok(applied) => {
+                        self.settings = applied.settings;
+                        self.applied = applied;
+                        Reply::recipe_loaded(slot, &applied)
+                    }
+                    Err(issue) => Reply::error(&ReplyError::RecipeUnusable { slot, issue }),
+                }
             }
             Command::RecipeList => {
                 let entries: [_; RECIPE_SLOTS] = std::array::from_fn(|index| {
@@ -134,13 +138,13 @@ fn a_session_answers_every_line_once() {
     assert!(replies[6].starts_with("ERR 11 "));
     assert!(replies[7].starts_with("OK freq_hz=60 duty=0.5"));
     assert!(
-        replies[8].starts_with("OK recipe 1 loaded freq_hz=60 duty=0.5858 "),
+        replies[8].starts_with("OK recipe 1 loaded freq_hz=60 duty=0.586 "),
         "{}",
         replies[8]
     );
     assert_eq!(replies[9], "OK freq_hz=60");
-    assert_eq!(replies[10], "OK duty=0.5858");
-    assert!(replies[11].starts_with("OK recipe 2 not usable (no recipe saved"));
+    assert_eq!(replies[10], "OK duty=0.586");
+    assert!(replies[11].starts_with("ERR 63 recipe 2 not loaded: no recipe saved in this slot"));
     assert_eq!(heads[4], "stopping");
 }
 
