@@ -8,7 +8,9 @@ use feeder_shared::closed_loop::{Identified, LoopReport, Stage, TrackReport, Tra
 use feeder_shared::protocol::REPLY_CAPACITY;
 use feeder_shared::recipe::{self, RECIPE_SLOTS, RECORD_LEN};
 use feeder_shared::testing;
-use feeder_shared::{Command, LineAssembler, Machine, Phase, RecipeSlot, Reply, Settings, Status};
+use feeder_shared::{
+    Command, LineAssembler, Machine, Phase, RecipeSlot, Reply, ReplyError, Settings, Status,
+};
 use libfuzzer_sys::arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
 
@@ -121,11 +123,14 @@ fuzz_target!(|input: &[u8]| {
                 Reply::recipe_saved(slot)
             }
             Ok(Command::RecipeLoad(slot)) => {
-                let loaded =
-                    recipe::load(&flash[slot.index()], slot, &machine).expect("defaults are valid");
-                settings = loaded.applied.settings;
-                applied = loaded.applied;
-                Reply::recipe_loaded(slot, &loaded)
+                match recipe::load(&flash[slot.index()], slot, &machine) {
+                    Ok(loaded) => {
+                        settings = loaded.settings;
+                        applied = loaded;
+                        Reply::recipe_loaded(slot, &loaded)
+                    }
+                    Err(issue) => Reply::error(&ReplyError::RecipeUnusable { slot, issue }),
+                }
             }
             Ok(Command::RecipeList) => {
                 let entries = core::array::from_fn(|index| {
