@@ -1,14 +1,16 @@
 //! Default parameters of the feeder, in one place. Units are in the names.
 
-use feeder_shared::{DacCalibration, Drive, Limits, WaveformSpec};
+use feeder_shared::{DacCalibration, Limits, Settings, WaveformSpec};
 
-/// Waveform at power-up: 50 Hz, d = 0.586, stroke x_max = 2.5 mm peak to peak, which Eq. 5 turns
-/// into a_max ≈ 150 m/s² (the paper's operating point).
-pub const WAVEFORM: WaveformSpec = WaveformSpec {
-    period_s: 1.0 / 50.0,
-    duty: 0.586,
-    drive: Drive::Stroke { stroke_m: 2.5e-3 },
-};
+/// The operator's settings at power-up: shared's defaults ([`Settings::DEFAULT`]), which a console
+/// `set` or `recipe load` replaces.
+pub const SETTINGS: Settings = Settings::DEFAULT;
+
+/// Waveform at power-up, from [`SETTINGS`].
+pub const WAVEFORM: WaveformSpec = SETTINGS.spec();
+
+/// Cycles over which soft start and soft stop ramp the amplitude at power-up, from [`SETTINGS`].
+pub const RAMP_CYCLES: u16 = SETTINGS.ramp_cycles;
 
 /// What this machine can do; every waveform is validated against it.
 pub const LIMITS: Limits = Limits {
@@ -44,9 +46,6 @@ pub const TRACK: feeder_shared::closed_loop::TrackConfig =
         full_after_s: 0.5,
         empty_after_s: 1.0,
     };
-
-/// Cycles over which soft start and soft stop ramp the amplitude (0.5 s at 50 Hz).
-pub const RAMP_CYCLES: u16 = 25;
 
 /// Calibration of the analog driver input (see [`DacCalibration::DEFAULT`]).
 pub const DAC: DacCalibration = DacCalibration::DEFAULT;

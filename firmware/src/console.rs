@@ -10,8 +10,7 @@
 use defmt::{error, info, warn};
 use embedded_io_async::{Read, Write};
 use feeder_shared::{
-    Action, Controller, LineAssembler, Machine, RecipeStore, Settings, Snapshot, SupervisorEvent,
-    TickClock,
+    Action, Controller, LineAssembler, Machine, RecipeStore, Snapshot, SupervisorEvent, TickClock,
 };
 
 use crate::config;
@@ -21,16 +20,6 @@ use crate::status;
 /// Bytes taken from the port per read.
 const READ_CHUNK_BYTES: usize = 32;
 
-/// The operator's settings at power-up: the firmware's configured waveform.
-fn power_up_settings() -> Settings {
-    Settings {
-        frequency_hz: 1.0 / config::WAVEFORM.period_s,
-        duty: config::WAVEFORM.duty,
-        drive: config::WAVEFORM.drive,
-        ramp_cycles: config::RAMP_CYCLES,
-    }
-}
-
 /// Serves the console on `port` for good; `clock` is the output's tick clock, on which every new
 /// waveform must be representable. Returns only if the power-up settings are refused.
 pub async fn serve<P: Read + Write, S: RecipeStore>(mut port: P, mut recipes: S, clock: TickClock) {
@@ -39,7 +28,7 @@ pub async fn serve<P: Read + Write, S: RecipeStore>(mut port: P, mut recipes: S,
         friction: config::FRICTION,
         clock,
     };
-    let mut controller = match Controller::new(machine, power_up_settings()) {
+    let mut controller = match Controller::new(machine, config::SETTINGS) {
         Ok(controller) => controller,
         Err(err) => {
             error!("console disabled: power-up settings refused: {}", err);
