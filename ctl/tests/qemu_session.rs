@@ -35,6 +35,8 @@ fn scripted_session_over_the_serial_console() {
     assert!(overlong.starts_with("ERR 10 "), "{overlong:?}");
     console.expect("launch", "ERR 20 ");
     console.expect("set duty 2", "ERR 43 ");
+    console.expect("set duty 0,6", "ERR 24 not a number: use a decimal point");
+    console.expect("set stroke 6", "ERR 57 stroke 0.006 m exceeds ");
     console.expect("set freq nan", "ERR 25 ");
     console.expect("recipe save 1", "ERR 60 ");
     console.expect("start", "OK starting");
@@ -44,9 +46,13 @@ fn scripted_session_over_the_serial_console() {
     console.wait_for_state("stopped", STATE_TIMEOUT);
     console.expect("recipe save 1", "OK recipe 1 saved");
     console.expect("recipe load 1", "OK recipe 1 loaded freq_hz=55 ");
-    console.expect("recipe load 2", "OK recipe 2 not usable (no recipe saved");
+    console.expect(
+        "recipe load 2",
+        "ERR 63 recipe 2 not loaded: no recipe saved",
+    );
+    console.expect("get freq", "OK freq_hz=55");
     console.expect("help", "OK commands: ");
-    // Let the last plan (the defaults of slot 2) reach the output.
+    // Let the last plan (recipe 1's) reach the output.
     thread::sleep(Duration::from_millis(300));
     drop(console);
     let log = emulator.shut_down();

@@ -17,9 +17,11 @@ const MAX_ACCEL_MPS2: f64 = 200.0;
 const MAX_RAMP_CYCLES: i64 = 65_535;
 
 /// Every error code of `shared/PROTOCOL.md`.
-const ERROR_CODES: [std::ops::RangeInclusive<u16>; 4] = [10..=11, 20..=28, 40..=55, 60..=62];
-/// The codes of a refused `set` whose value parsed: validation (40–55).
-const VALIDATION_CODES: std::ops::RangeInclusive<u16> = 40..=55;
+const ERROR_CODES: [std::ops::RangeInclusive<u16>; 4] = [10..=11, 20..=28, 40..=58, 60..=64];
+/// The codes of a refused `set` whose value parsed: validation (40–58).
+const VALIDATION_CODES: std::ops::RangeInclusive<u16> = 40..=58;
+/// The codes of a `recipe load` that loads nothing: an empty slot, an unusable record.
+const RECIPE_NOT_LOADED_CODES: [u16; 2] = [63, 64];
 
 /// SplitMix64: a small, fast generator whose sequence depends on the seed alone.
 struct Rng(u64);
@@ -83,7 +85,7 @@ pub enum Expect {
     /// `ERR` with this code, or with any code.
     Err(Option<u16>),
     /// `set <param> <value>`: an `OK` echoing the value is allowed only `in_range` (inside the
-    /// machine's limits); otherwise an `ERR` 40–55, which validation may also give in range
+    /// machine's limits); otherwise an `ERR` 40–58, which validation may also give in range
     /// (other settings can make the change invalid), except for a ramp length.
     Set {
         param: Param,
@@ -94,7 +96,7 @@ pub enum Expect {
     Status,
     /// `recipe save <slot>`: saved, or refused because the feeder is not stopped.
     RecipeSave(usize),
-    /// `recipe load <slot>`: the slot's settings, or the defaults and why.
+    /// `recipe load <slot>`: the slot's settings, or `ERR 63` or `ERR 64` and nothing changed.
     RecipeLoad(usize),
     /// `reset` with no fault latched.
     Reset,
@@ -201,10 +203,14 @@ impl Expect {
             }
             (Expect::RecipeSave(_), Shape::Err(60)) => Ok(Verdict::Plain),
             (Expect::RecipeLoad(slot), Shape::Ok(text))
-                if text.starts_with(&format!("recipe {slot} loaded "))
-                    || text.starts_with(&format!("recipe {slot} not usable (")) =>
+                if text.starts_with(&format!("recipe {slot} loaded ")) =>
             {
                 parameters(reply).map(Verdict::Applied)
+            }
+            (Expect::RecipeLoad(_), Shape::Err(code))
+                if RECIPE_NOT_LOADED_CODES.contains(&code) =>
+            {
+                Ok(Verdict::Plain)
             }
             (Expect::Reset, Shape::Ok("no fault latched")) => Ok(Verdict::Plain),
             (Expect::Reset, Shape::Ok("fault cleared")) => {
@@ -462,10 +468,10 @@ impl Operator {
         self.command(&words, expect)
     }
 
-    /// `set` with a wrong unit, a non-number, a fraction of a cycle or no value.
+    /// `set` with a wrong unit, a non-number, a decimal comma, a fraction of a cycle or no value.
     fn set_misspelled(&mut self, param: Param) -> Line {
         let keyword = param.keyword();
-        let (words, code): (Vec<String>, u16) = match self.rng.below(5) {
+        let (words, code): (Vec<String>, u16) = match self.rng.below(6) {
             0 => {
                 let unit = wrong_unit(param);
                 (
@@ -481,7 +487,11 @@ impl Operator {
                 let word = *self.rng.pick(&["fast", "x", "--"]);
                 (vec!["set".into(), keyword.into(), word.into()], 24)
             }
-            3 if param == Param::Ramp => (vec!["set".into(), "ramp".into(), "2.5".into()], 27),
+            3 => {
+                let word = *self.rng.pick(&["0,6", "62,5", ",5"]);
+                (vec!["set".into(), keyword.into(), word.into()], 24)
+            }
+            4 if param == Param::Ramp => (vec!["set".into(), "ramp".into(), "2.5".into()], 27),
             _ => (vec!["set".into(), keyword.into()], 21),
         };
         let words: Vec<&str> = words.iter().map(String::as_str).collect();
@@ -710,4 +720,29 @@ fn wrong_unit(param: Param) -> &'static str {
         Param::Stroke => "Hz",
         _ => "mm",
     }
+}
+
+/// The codes this operator accepts are those `shared/PROTOCOL.md` documents.
+#[test]
+fn the_error_codes_are_the_documented_ones() {
+    let reference = include_str!("../../../shared/PROTOCOL.md");
+    let documented: Vec<u16> = reference
+        .lines()
+        .filter_map(|line| {
+            line.strip_prefix('|')?
+                .split('|')
+                .next()?
+                .trim()
+                .parse()
+                .ok()
+        })
+        .collect();
+    let known: Vec<u16> = ERROR_CODES.iter().cloned().flatten().collect();
+    assert_eq!(known, documented);
+    assert!(VALIDATION_CODES
+        .clone()
+        .all(|code| documented.contains(&code)));
+    assert!(RECIPE_NOT_LOADED_CODES
+        .iter()
+        .all(|code| documented.contains(code)));
 }
