@@ -9,9 +9,23 @@
 //! symmetric about zero and the command carries no DC acceleration bias.
 
 use crate::scheduler::Amplitude;
-use crate::waveform::Level;
+use crate::waveform::{Level, Limits};
 use core::fmt;
 use libm::round;
+
+/// What the machine can do: its linear motor's peak acceleration with the plate mounted, the
+/// plate's peak-to-peak travel before the end stops and the frequencies it is built for. The
+/// firmware validates every waveform against them; the host simulator holds its runs to them
+/// unless told otherwise.
+pub const MACHINE_LIMITS: Limits = Limits {
+    min_frequency_hz: 50.0,
+    max_frequency_hz: 100.0,
+    max_accel_mps2: 200.0,
+    max_stroke_m: 5.0e-3,
+};
+
+// No level the machine's limits allow leaves the default DAC's linear range.
+const _: () = assert!(MACHINE_LIMITS.max_accel_mps2 <= DacCalibration::DEFAULT.linear_limit_mps2());
 
 /// Why an output stage refused a calibration or a peak acceleration.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -142,7 +156,7 @@ pub struct DacCalibration {
     /// a 12-bit converter; measure the driver's offset and enter it here.
     pub zero_code: u16,
     /// DAC counts per m/s² of commanded plate acceleration. Default 8, so ±200 m/s² (the
-    /// machine's limit) spans ±1600 counts around the zero code, inside the linear range.
+    /// machine's limit, [`MACHINE_LIMITS`]) spans ±1600 counts around the zero code, inside the linear range.
     pub counts_per_mps2: f64,
     /// Largest code of the converter, in counts. Default 4095 (12 bits).
     pub max_code: u16,

@@ -15,6 +15,9 @@
 //!
 //! Values that overflow are infinite; those below half the smallest subnormal are zero.
 //!
+//! [`parse_length`] reads a length with its unit (`2.5mm`, `0.0025 m`, `2500um`, `2500µm`), the
+//! unit's power of ten applied to the decimal exponent before that one rounding.
+//!
 //! [`Fixed`] and [`Significant`] print numbers with integer arithmetic: a fixed number of
 //! decimals for replies, and 15 significant digits for explanations.
 
@@ -33,6 +36,103 @@ const MAX_FIXED_SCALED: f64 = 9_007_199_254_740_992.0;
 /// Splits `text` into its longest prefix that is a decimal number and the rest (see the module
 /// documentation); `None` if no prefix is a number.
 pub fn split_decimal(text: &str) -> Option<(f64, &str)> {
+    split_scaled_decimal(text, 0)
+}
+
+/// A unit of length a typed number may carry.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum LengthUnit {
+    Metre,
+    Millimetre,
+    Micrometre,
+}
+
+impl LengthUnit {
+    /// The words that name each unit, ASCII case ignored: `um` and `µm` with the micro sign
+    /// (U+00B5) or the Greek mu (U+03BC) for the micrometre.
+    const WORDS: [(&'static str, LengthUnit); 5] = [
+        ("m", LengthUnit::Metre),
+        ("mm", LengthUnit::Millimetre),
+        ("um", LengthUnit::Micrometre),
+        ("\u{b5}m", LengthUnit::Micrometre),
+        ("\u{3bc}m", LengthUnit::Micrometre),
+    ];
+
+    /// The unit `word` names, if any.
+    pub fn from_word(word: &str) -> Option<Self> {
+        Self::WORDS
+            .iter()
+            .find(|(name, _)| name.eq_ignore_ascii_case(word))
+            .map(|&(_, unit)| unit)
+    }
+
+    /// The unit's symbol.
+    pub const fn symbol(self) -> &'static str {
+        match self {
+            LengthUnit::Metre => "m",
+            LengthUnit::Millimetre => "mm",
+            LengthUnit::Micrometre => "µm",
+        }
+    }
+
+    /// One unit is `10^power` metres.
+    const fn metre_power(self) -> i32 {
+        match self {
+            LengthUnit::Metre => 0,
+            LengthUnit::Millimetre => -3,
+            LengthUnit::Micrometre => -6,
+        }
+    }
+}
+
+/// Why [`parse_length`] refused a text.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum LengthError {
+    /// The text does not begin with a decimal number.
+    NotANumber,
+    /// The number is infinite or NaN.
+    NotFinite,
+    /// What follows the number is not a unit of length.
+    UnknownUnit,
+}
+
+impl fmt::Display for LengthError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            LengthError::NotANumber => "a length must begin with a decimal number",
+            LengthError::NotFinite => "a length must be finite",
+            LengthError::UnknownUnit => "the unit of a length must be m, mm, um or µm",
+        })
+    }
+}
+
+impl core::error::Error for LengthError {}
+
+/// Reads a length in `unit`: a decimal number (as [`split_decimal`] reads it) with an optional
+/// unit of length, attached or after blanks (`2.5mm`, `2.5 mm`, `0.0025m`, `2500um`, `2500µm`);
+/// a number without one is in `bare`. The units' ratio is a power of ten applied before the one
+/// rounding, so `2500um` in millimetres is exactly `2.5`.
+pub fn parse_length(text: &str, bare: LengthUnit, unit: LengthUnit) -> Result<f64, LengthError> {
+    let (_, rest) = split_decimal(text).ok_or(LengthError::NotANumber)?;
+    let word = rest.trim_start_matches([' ', '\t']);
+    let typed = if word.is_empty() {
+        bare
+    } else {
+        LengthUnit::from_word(word).ok_or(LengthError::UnknownUnit)?
+    };
+    let (length, _) = split_scaled_decimal(text, typed.metre_power() - unit.metre_power())
+        .ok_or(LengthError::NotANumber)?;
+    if length.is_finite() {
+        Ok(length)
+    } else {
+        Err(LengthError::NotFinite)
+    }
+}
+
+/// [`split_decimal`] of the number times `10^power`, the power added to its decimal exponent.
+fn split_scaled_decimal(text: &str, power: i32) -> Option<(f64, &str)> {
     let bytes = text.as_bytes();
     let negative = bytes.first() == Some(&b'-');
     let mut at = usize::from(matches!(bytes.first(), Some(b'-' | b'+')));
@@ -74,10 +174,11 @@ pub fn split_decimal(text: &str) -> Option<(f64, &str)> {
     if !any_digit {
         return None;
     }
-    if let Some((power, end)) = exponent_part(bytes, at) {
-        exponent = exponent.saturating_add(power);
+    if let Some((typed, end)) = exponent_part(bytes, at) {
+        exponent = exponent.saturating_add(typed);
         at = end;
     }
+    exponent = exponent.saturating_add(power);
     Some((signed(scaled_integer(mantissa, exponent)), text.get(at..)?))
 }
 

@@ -4,11 +4,12 @@
 //! is refused with the same explanation in both places.
 //!
 //! Numbers are checked here for form (a count is a whole number of at least one, a physical value
-//! is finite); whether a waveform is possible is the waveform's own check ([`crate::Waveform`]).
+//! is finite, a length may carry its unit: `stroke_m=2.5mm`); whether a waveform is possible is the
+//! waveform's own check ([`crate::Waveform`]).
 
 use core::fmt;
 
-use crate::number::split_decimal;
+use crate::number::{parse_length, split_decimal, LengthError, LengthUnit};
 
 /// The keys, each with its meaning, in the order a help text lists them.
 pub const SCENARIO_KEYS: [(&str, &str); 14] = [
@@ -19,7 +20,7 @@ pub const SCENARIO_KEYS: [(&str, &str); 14] = [
     ),
     ("freq_hz", "waveform frequency"),
     ("duty", "duty at start"),
-    ("stroke_m", "stroke (peak-to-peak plate travel)"),
+    ("stroke_m", "stroke (peak-to-peak plate travel), in m or with its unit (2.5mm, 2500um)"),
     ("new_duty", "duty of the live change at half the cycles"),
     ("ramp", "soft start and stop cycles"),
     ("panic_at", "panic in thread mode once this many cycles have begun"),
@@ -83,6 +84,12 @@ pub enum ScenarioError<'a> {
     },
     /// The value is not a finite decimal number.
     NotFinite { key: &'static str, value: &'a str },
+    /// The value is not a finite length, in metres or with its unit.
+    NotALength {
+        key: &'static str,
+        value: &'a str,
+        error: LengthError,
+    },
 }
 
 impl fmt::Display for ScenarioError<'_> {
@@ -113,6 +120,10 @@ impl fmt::Display for ScenarioError<'_> {
             ScenarioError::NotFinite { key, value } => {
                 write!(f, "{key}={value}: {key} must be a finite decimal number")
             }
+            ScenarioError::NotALength { key, value, error } => write!(
+                f,
+                "{key}={value}: {key} must be a finite length in m or with its unit: {error}"
+            ),
         }
     }
 }
@@ -142,7 +153,15 @@ pub fn parse_setting(word: &str) -> Result<ScenarioSetting, ScenarioError<'_>> {
         "cycles" => ScenarioSetting::Cycles(count("cycles", 1, u32::MAX)?),
         "freq_hz" => ScenarioSetting::FreqHz(finite("freq_hz")?),
         "duty" => ScenarioSetting::Duty(finite("duty")?),
-        "stroke_m" => ScenarioSetting::StrokeM(finite("stroke_m")?),
+        "stroke_m" => ScenarioSetting::StrokeM(
+            parse_length(value, LengthUnit::Metre, LengthUnit::Metre).map_err(|error| {
+                ScenarioError::NotALength {
+                    key: "stroke_m",
+                    value,
+                    error,
+                }
+            })?,
+        ),
         "new_duty" => ScenarioSetting::NewDuty(finite("new_duty")?),
         "ramp" => ScenarioSetting::Ramp(value.parse().map_err(|_| ScenarioError::NotACount {
             key: "ramp",

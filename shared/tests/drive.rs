@@ -1,6 +1,6 @@
 //! Level-to-output mapping: hand-derived codes and duties, symmetry, range and linearity checks.
 
-use feeder_shared::drive::scale_counts;
+use feeder_shared::drive::{scale_counts, MACHINE_LIMITS};
 use feeder_shared::{
     Amplitude, DacCalibration, Direction, DriveError, Level, PwmCalibration, PwmCommand,
 };
@@ -11,9 +11,9 @@ fn amp(step: u16, steps: u16) -> Amplitude {
     Amplitude { step, steps }
 }
 
-/// The machine's acceleration limit, `LIMITS.max_accel_mps2` in `firmware/src/config.rs`, which
-/// asserts at compile time that its DAC calibration reaches it in the linear range.
-const MACHINE_MAX_ACCEL_MPS2: f64 = 200.0;
+/// The machine's acceleration limit; `shared` asserts at compile time that the default DAC
+/// calibration reaches it in the linear range.
+const MACHINE_MAX_ACCEL_MPS2: f64 = MACHINE_LIMITS.max_accel_mps2;
 
 #[test]
 fn default_dac_codes_at_the_paper_operating_point() {

@@ -335,3 +335,46 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn lengths_are_read_in_the_unit_asked_for() {
+    use feeder_shared::number::{parse_length, LengthError, LengthUnit};
+    let (m, mm) = (LengthUnit::Metre, LengthUnit::Millimetre);
+    for text in [
+        "2.5mm", "2.5 mm", "2.5MM", "0.0025m", "0.0025 m", "2500um", "2500µm", "2500μm", "2.5e-3m",
+        "0.0025",
+    ] {
+        assert_eq!(parse_length(text, m, m), Ok(0.0025), "{text}");
+    }
+    // The units' ratio is applied before the one rounding: exact where the decimal is.
+    assert_eq!(parse_length("2500um", m, mm), Ok(2.5));
+    assert_eq!(parse_length("0.0025m", m, mm), Ok(2.5));
+    assert_eq!(parse_length("2.5", mm, mm), Ok(2.5));
+    assert_eq!(parse_length("2.5", mm, m), Ok(0.0025));
+    assert_eq!(parse_length("-1mm", m, m), Ok(-0.001));
+    for (text, error) in [
+        ("", LengthError::NotANumber),
+        ("mm", LengthError::NotANumber),
+        ("2.5in", LengthError::UnknownUnit),
+        ("2.5 m m", LengthError::UnknownUnit),
+        ("2.5e", LengthError::UnknownUnit),
+        ("inf mm", LengthError::NotFinite),
+        ("NaN", LengthError::NotFinite),
+        ("1e400m", LengthError::NotFinite),
+    ] {
+        assert_eq!(parse_length(text, m, m), Err(error), "{text}");
+    }
+}
+
+proptest! {
+    /// A length typed in millimetres or micrometres reads as the same number typed in metres
+    /// with its exponent moved, to the last bit.
+    #[test]
+    fn a_unit_moves_the_decimal_exponent(digits in 1u64..1_000_000_000, exponent in -12i32..12) {
+        use feeder_shared::number::{parse_length, LengthUnit};
+        let m = LengthUnit::Metre;
+        let metres: f64 = format!("{digits}e{}", exponent).parse().unwrap();
+        prop_assert_eq!(parse_length(&format!("{digits}e{}mm", exponent + 3), m, m), Ok(metres));
+        prop_assert_eq!(parse_length(&format!("{digits}e{}um", exponent + 6), m, m), Ok(metres));
+    }
+}

@@ -94,7 +94,6 @@ fn physical_values_are_finite_decimals() {
     for word in [
         "freq_hz=inf",
         "duty=NaN",
-        "stroke_m=2.5mm",
         "freq_hz=",
         "duty=1e400",
     ] {
@@ -156,4 +155,20 @@ proptest! {
         let expected: f64 = value.parse().unwrap();
         prop_assert_eq!(parse_setting(&word), Ok(ScenarioSetting::StrokeM(expected)));
     }
+}
+
+#[test]
+fn the_stroke_takes_a_unit() {
+    for word in ["stroke_m=2.5mm", "stroke_m=0.0025", "stroke_m=2500um", "stroke_m=2500µm"] {
+        assert_eq!(
+            parse_setting(word),
+            Ok(ScenarioSetting::StrokeM(0.0025)),
+            "{word}"
+        );
+    }
+    assert_eq!(
+        parse_setting("stroke_m=2.5in").unwrap_err().to_string(),
+        "stroke_m=2.5in: stroke_m must be a finite length in m or with its unit: the unit of a \
+         length must be m, mm, um or µm"
+    );
 }

@@ -6,14 +6,16 @@
 
 use std::time::Duration;
 
+use feeder_shared::drive::MACHINE_LIMITS;
 use feeder_shared::protocol::{Param, MAX_LINE_BYTES, REPLY_CAPACITY};
 use feeder_shared::recipe::RECIPE_SLOTS;
 
-/// The machine's limits (`LIMITS` in `firmware/src/config.rs`) in the protocol's units.
-const MIN_FREQUENCY_HZ: f64 = 50.0;
-const MAX_FREQUENCY_HZ: f64 = 100.0;
-const MAX_STROKE_MM: f64 = 5.0;
-const MAX_ACCEL_MPS2: f64 = 200.0;
+/// The machine's limits ([`MACHINE_LIMITS`], which the firmware validates against) in the
+/// protocol's units.
+const MIN_FREQUENCY_HZ: f64 = MACHINE_LIMITS.min_frequency_hz;
+const MAX_FREQUENCY_HZ: f64 = MACHINE_LIMITS.max_frequency_hz;
+const MAX_STROKE_MM: f64 = MACHINE_LIMITS.max_stroke_m * 1e3;
+const MAX_ACCEL_MPS2: f64 = MACHINE_LIMITS.max_accel_mps2;
 const MAX_RAMP_CYCLES: i64 = 65_535;
 
 /// Every error code of `shared/PROTOCOL.md`.
