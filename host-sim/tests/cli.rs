@@ -393,7 +393,15 @@ fn unwritable_outputs_are_refused_before_anything_runs() {
     }
     let log_in_missing = format!("{missing_dir}/cosim.log");
     run(
-        &["cosim", "--elf", log, "--plant", &plant, "--log", &log_in_missing],
+        &[
+            "cosim",
+            "--elf",
+            log,
+            "--plant",
+            &plant,
+            "--log",
+            &log_in_missing,
+        ],
         RUN_TIME,
     )
     .assert_refused(&["cosim.log", "does not exist"]);
@@ -410,15 +418,34 @@ fn a_finished_report_survives_an_output_that_fails() {
     let plant = realistic_plant();
     for (args, report) in [
         (
-            &["closed-loop", "--plant", &plant, "--cycles", "60", "--csv", "/dev/full"][..],
+            &[
+                "closed-loop",
+                "--plant",
+                &plant,
+                "--cycles",
+                "60",
+                "--csv",
+                "/dev/full",
+            ][..],
             "closed loop: ",
         ),
         (
-            &["closed-loop", "--plant", &plant, "--cycles", "60", "--plot", full_chart][..],
+            &[
+                "closed-loop",
+                "--plant",
+                &plant,
+                "--cycles",
+                "60",
+                "--plot",
+                full_chart,
+            ][..],
             "closed loop: ",
         ),
         (&["simulate", "--csv", "/dev/full"][..], "feed rate"),
-        (&["simulate", "--csv", "/dev/full", "--json"][..], "\"feed_rate_mps\""),
+        (
+            &["simulate", "--csv", "/dev/full", "--json"][..],
+            "\"feed_rate_mps\"",
+        ),
     ] {
         let outcome = run(args, RUN_TIME);
         assert_eq!(outcome.code(), Some(2), "{outcome:#?}");
@@ -427,6 +454,66 @@ fn a_finished_report_survives_an_output_that_fails() {
         assert_eq!(lines.len(), 1, "{outcome:#?}");
         assert!(lines[0].starts_with("error: cannot write "), "{outcome:#?}");
     }
+}
+
+#[test]
+fn waveforms_beyond_the_machine_are_refused_unless_lifted() {
+    let plant = realistic_plant();
+    let beyond = "beyond the machine's drive limits, which the firmware refuses";
+    // A bare number is metres: 2.5 is a 2.5 m stroke, not the console's 2.5 mm.
+    refusal(&["simulate", "--stroke-m", "2.5"]).assert_refused(&[
+        "stroke 2.5 m",
+        beyond,
+        "--no-drive-limits",
+    ]);
+    refusal(&["simulate", "--duty", "0.7"]).assert_refused(&["200 m/s²", beyond]);
+    refusal(&["simulate", "--freq-hz", "40"]).assert_refused(&["40 Hz", beyond]);
+    refusal(&["drift", "--duty", "0.7"]).assert_refused(&["200 m/s²", beyond]);
+    let closed = refusal(&["closed-loop", "--plant", &plant, "--freq-hz", "100"]);
+    closed.assert_refused(&["200 m/s²", beyond]);
+    assert!(!closed.stderr.contains("--no-drive-limits"), "{closed:#?}");
+    let closed = refusal(&[
+        "closed-loop",
+        "--plant",
+        &plant,
+        "--change-duty-at",
+        "10",
+        "--to-duty",
+        "0.7",
+    ]);
+    closed.assert_refused(&["duty cycle 0.7", beyond]);
+    let lifted = json(&run(
+        &[
+            "simulate",
+            "--duty",
+            "0.7",
+            "--no-drive-limits",
+            "--cycles",
+            "3",
+            "--json",
+        ],
+        RUN_TIME,
+    ));
+    assert!(lifted["accel_mps2"].as_f64() > Some(277.0), "{lifted}");
+    // The paper's figures go beyond the machine: Fig. 8 at d = 0.7 and 2.5 mm.
+    let figure = run(&["trace", "--duty", "0.7", "--cycles", "1"], RUN_TIME);
+    assert_eq!(figure.code(), Some(0), "{figure:#?}");
+}
+
+#[test]
+fn a_stroke_typed_with_its_unit_reads_right() {
+    for stroke in ["2.5mm", "0.0025m", "2500um", "2500µm", "2500μm", "0.0025"] {
+        let report = json(&run(
+            &["simulate", "--stroke-m", stroke, "--cycles", "1", "--json"],
+            RUN_TIME,
+        ));
+        assert_eq!(report["stroke_m"], 0.0025, "{stroke}");
+    }
+    refusal(&["simulate", "--stroke-m", "2.5in"]).assert_refused(&[
+        "'2.5in'",
+        "--stroke-m",
+        "m, mm, um or µm",
+    ]);
 }
 
 #[test]

@@ -6,8 +6,10 @@ use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use clap::Args;
+use feeder_shared::drive::MACHINE_LIMITS;
 use feeder_shared::model::STANDARD_GRAVITY_MPS2;
-use feeder_shared::{Drive, WaveformSpec};
+use feeder_shared::number::{parse_length, LengthUnit};
+use feeder_shared::{DacCalibration, Drive, Waveform, WaveformSpec};
 use host_sim::plant::PAPER_PART_MASS_KG;
 use host_sim::plate::{PlateParams, PlateRunOptions};
 use host_sim::{Contact, SimError};
@@ -55,8 +57,14 @@ pub struct WaveArgs {
     /// Duty cycle d = F/T of the plate's velocity profile, in (0.5, 1).
     #[arg(long, default_value_t = 0.586, allow_hyphen_values = true)]
     pub duty: f64,
-    /// Peak-to-peak plate stroke x_max (a_max follows from Eq. 5); default 2.5 mm.
-    #[arg(long, conflicts_with = "accel_mps2", allow_hyphen_values = true)]
+    /// Peak-to-peak plate stroke x_max in metres, or with its unit (2.5mm, 2500um); a_max follows
+    /// from Eq. 5. Default 2.5 mm.
+    #[arg(
+        long,
+        conflicts_with = "accel_mps2",
+        allow_hyphen_values = true,
+        value_parser = metres
+    )]
     pub stroke_m: Option<f64>,
     /// Peak plate acceleration a_max (the stroke follows from Eq. 5).
     #[arg(long, allow_hyphen_values = true)]
@@ -77,6 +85,45 @@ impl WaveArgs {
             drive,
         })
     }
+}
+
+/// A length typed in metres or with its unit, as metres.
+fn metres(text: &str) -> Result<f64, String> {
+    parse_length(text, LengthUnit::Metre, LengthUnit::Metre).map_err(|error| error.to_string())
+}
+
+/// Whether a waveform is held to the machine's drive limits.
+#[derive(Args, Clone)]
+pub struct DriveLimitArgs {
+    /// Run a waveform beyond the machine's drive limits (its frequencies, peak acceleration and
+    /// stroke, as the firmware checks them, and the DAC's linear range): a paper study.
+    #[arg(long)]
+    pub no_drive_limits: bool,
+}
+
+impl DriveLimitArgs {
+    /// Refuses `spec` beyond the machine's limits unless `--no-drive-limits` lifts them.
+    pub fn check(&self, spec: WaveformSpec) -> Result<(), SimError> {
+        if self.no_drive_limits {
+            return Ok(());
+        }
+        check_drive_limits(spec, " (--no-drive-limits runs it as a paper study)")
+    }
+}
+
+/// Refuses a waveform the firmware would refuse: beyond [`MACHINE_LIMITS`] or, with the default
+/// DAC, beyond its linear range; the shared refusal's text, then `remedy`.
+pub fn check_drive_limits(spec: WaveformSpec, remedy: &str) -> Result<(), SimError> {
+    let beyond = |error: &dyn Display| {
+        SimError::Request(format!(
+            "{error}: beyond the machine's drive limits, which the firmware refuses{remedy}"
+        ))
+    };
+    let waveform = Waveform::new(spec, &MACHINE_LIMITS).map_err(|error| beyond(&error))?;
+    DacCalibration::DEFAULT
+        .levels(waveform.accel_mps2)
+        .map_err(|error| beyond(&error))?;
+    Ok(())
 }
 
 /// The part's friction on the plate, gravity and the part's mass.

@@ -15,7 +15,7 @@ use host_sim::plate::{PlantFile, PlateParams};
 use host_sim::{OperatingPoint, SimError, Timing};
 use serde::Serialize;
 
-use crate::args::{count, ContactArgs, OutputArgs, TimingArgs, WaveArgs};
+use crate::args::{check_drive_limits, count, ContactArgs, OutputArgs, TimingArgs, WaveArgs};
 use crate::output::{emit, file_name, say};
 use crate::plot::{self, Mark, Panel, Series};
 
@@ -186,7 +186,9 @@ pub fn run(args: &ClosedLoopArgs) -> Result<ExitCode, SimError> {
                --exact-times",
     })?;
     let contact = args.contact.contact()?;
-    let point = OperatingPoint::new(args.wave.spec()?, contact, Some(clock_hz))?;
+    let spec = args.wave.spec()?;
+    let point = OperatingPoint::new(spec, contact, Some(clock_hz))?;
+    check_drive_limits(spec, "")?;
     let change = match (args.change_duty_at, args.to_duty) {
         (Some(at), Some(duty)) => {
             if at >= args.cycles {
@@ -199,10 +201,10 @@ pub fn run(args: &ClosedLoopArgs) -> Result<ExitCode, SimError> {
             }
             let mut wave = args.wave.clone();
             wave.duty = duty;
-            Some((
-                at,
-                OperatingPoint::new(wave.spec()?, contact, Some(clock_hz))?,
-            ))
+            let new_spec = wave.spec()?;
+            let new_point = OperatingPoint::new(new_spec, contact, Some(clock_hz))?;
+            check_drive_limits(new_spec, "")?;
+            Some((at, new_point))
         }
         (None, None) => None,
         (Some(_), None) | (None, Some(_)) => {

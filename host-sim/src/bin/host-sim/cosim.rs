@@ -19,8 +19,8 @@ use serde::Serialize;
 
 use crate::args::{ContactArgs, OutputArgs};
 use crate::output::{check_writable, emit, file_name, join_failures, say};
-use crate::simulate::end_stop_failure;
 use crate::plot::{self, Mark, Panel, Series};
+use crate::simulate::end_stop_failure;
 
 /// The longest co-simulation before it is stopped.
 const LIMIT: Duration = Duration::from_secs(3600);

@@ -9,7 +9,8 @@ use host_sim::{OperatingPoint, SimError, Timing};
 use serde::Serialize;
 
 use crate::args::{
-    count, plate_options, ContactArgs, OutputArgs, TimingArgs, WaveArgs, PLATE_CYCLES,
+    count, plate_options, ContactArgs, DriveLimitArgs, OutputArgs, TimingArgs, WaveArgs,
+    PLATE_CYCLES,
 };
 use crate::output::{emit, say};
 use crate::plot::{self, Labels, Mark, Series};
@@ -26,6 +27,8 @@ pub struct DriftArgs {
     wave: WaveArgs,
     #[command(flatten)]
     contact: ContactArgs,
+    #[command(flatten)]
+    drive_limits: DriveLimitArgs,
     #[command(flatten)]
     timing: TimingArgs,
     /// Cycles each plate runs from rest (at most 1 000), unless it hits an end stop.
@@ -69,11 +72,9 @@ struct DriftSample {
 /// Runs `host-sim drift`.
 pub fn run(args: &DriftArgs) -> Result<(), SimError> {
     args.output.check()?;
-    let point = OperatingPoint::new(
-        args.wave.spec()?,
-        args.contact.contact()?,
-        args.timing.clock_hz(),
-    )?;
+    let spec = args.wave.spec()?;
+    let point = OperatingPoint::new(spec, args.contact.contact()?, args.timing.clock_hz())?;
+    args.drive_limits.check(spec)?;
     let options = plate_options(args.cycles);
     let traced = args.output.csv.is_some() || args.output.plot.is_some();
     let cases = figures::open_loop_drift(&point, &figures::open_loop_cases()?, &options, traced)?;

@@ -36,21 +36,27 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Simulate one operating point to steady state (or for --cycles N).
+    /// Simulate one operating point to steady state (or for --cycles N), within the machine's
+    /// drive limits unless --no-drive-limits.
     Simulate(simulate::SimulateArgs),
-    /// Feed rate vs duty for one or more a_max, beside the models (Fig. 4, Fig. 9).
+    /// Feed rate vs duty for one or more a_max, beside the models (Fig. 4, Fig. 9); a paper study,
+    /// not held to the machine's drive limits.
     Sweep(sweep::SweepArgs),
-    /// Steady velocity vs external force and the least-squares viscosity K (Fig. 10, Eq. 10).
+    /// Steady velocity vs external force and the least-squares viscosity K (Fig. 10, Eq. 10); a
+    /// paper study, not held to the machine's drive limits.
     Viscosity(viscosity::ViscosityArgs),
-    /// Saturation duty d_sat,nqs vs a_max for several μ, model and simulation (Fig. 7, Eq. 16).
+    /// Saturation duty d_sat,nqs vs a_max for several μ, model and simulation (Fig. 7, Eq. 16); a
+    /// paper study, not held to the machine's drive limits.
     Saturation(saturation::SaturationArgs),
-    /// Plate and part velocity through N cycles (Fig. 3, 5, 6, 8).
+    /// Plate and part velocity through N cycles (Fig. 3, 5, 6, 8); a paper study, not held to the
+    /// machine's drive limits.
     Trace(trace::TraceArgs),
     /// Check a running firmware's decoded event stream against the shared scheduler, edge by
     /// edge, and simulate the part on its actual edge times.
     Hil(hil::HilArgs),
     /// What each non-ideality of a real plate does to one operating point in open loop: feed
-    /// rate, plate position, end stop.
+    /// rate, plate position, end stop; within the machine's drive limits unless
+    /// --no-drive-limits.
     Drift(drift::DriftArgs),
     /// The shared closed loop on a real plate: the drive it identifies, how well it centres the
     /// plate and its feed rate beside the ideal plate's, with a verdict.

@@ -11,7 +11,8 @@ use host_sim::{OperatingPoint, RunOptions, SimError, Timing};
 use serde::Serialize;
 
 use crate::args::{
-    count, plate_options, ContactArgs, OutputArgs, PlantArgs, TimingArgs, WaveArgs, PLATE_CYCLES,
+    count, plate_options, ContactArgs, DriveLimitArgs, OutputArgs, PlantArgs, TimingArgs, WaveArgs,
+    PLATE_CYCLES,
 };
 use crate::output::{emit, say};
 use crate::trace::plot_trace;
@@ -28,6 +29,8 @@ pub struct SimulateArgs {
     wave: WaveArgs,
     #[command(flatten)]
     contact: ContactArgs,
+    #[command(flatten)]
+    drive_limits: DriveLimitArgs,
     #[command(flatten)]
     timing: TimingArgs,
     /// Run exactly N cycles (at most 10 000 000) instead of detecting steady state.
@@ -144,11 +147,9 @@ impl SimulateReport {
 /// Runs `host-sim simulate`.
 pub fn run(args: &SimulateArgs) -> Result<(), SimError> {
     args.output.check()?;
-    let point = OperatingPoint::new(
-        args.wave.spec()?,
-        args.contact.contact()?,
-        args.timing.clock_hz(),
-    )?;
+    let spec = args.wave.spec()?;
+    let point = OperatingPoint::new(spec, args.contact.contact()?, args.timing.clock_hz())?;
+    args.drive_limits.check(spec)?;
     match args.plant.plate()? {
         Some((path, params)) if !params.is_ideal() => run_real_plate(args, &point, path, &params),
         ideal => run_ideal_plate(args, &point, ideal),
