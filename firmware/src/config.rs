@@ -1,5 +1,6 @@
 //! Default parameters of the feeder, in one place. Units are in the names.
 
+use feeder_shared::drive::MACHINE_LIMITS;
 use feeder_shared::{DacCalibration, Limits, Settings, WaveformSpec};
 
 /// The operator's settings at power-up: shared's defaults ([`Settings::DEFAULT`]), which a console
@@ -12,15 +13,9 @@ pub const WAVEFORM: WaveformSpec = SETTINGS.spec();
 /// Cycles over which soft start and soft stop ramp the amplitude at power-up, from [`SETTINGS`].
 pub const RAMP_CYCLES: u16 = SETTINGS.ramp_cycles;
 
-/// What this machine can do; every waveform is validated against it.
-pub const LIMITS: Limits = Limits {
-    min_frequency_hz: 50.0,
-    max_frequency_hz: 100.0,
-    // Peak acceleration the linear motor can deliver with the plate mounted.
-    max_accel_mps2: 200.0,
-    // Peak-to-peak plate travel before the end stops.
-    max_stroke_m: 5.0e-3,
-};
+/// What this machine can do ([`MACHINE_LIMITS`], which the host simulator holds its runs to
+/// too); every waveform is validated against it.
+pub const LIMITS: Limits = MACHINE_LIMITS;
 
 /// Coulomb friction between the plate and the parts (μ = 0.3, typical of small metal parts on a
 /// steel plate): the feed-rate model behind `status` and `set feed` on the console.

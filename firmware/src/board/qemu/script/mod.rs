@@ -11,7 +11,7 @@
 //! |                     | (with the closed loop: N cycles after its course released the soft start) | |
 //! | `freq_hz=F`         | waveform frequency                              | the firmware default |
 //! | `duty=D`            | duty at start                                   | the firmware default |
-//! | `stroke_m=X`        | stroke (peak-to-peak plate travel)              | the firmware default |
+//! | `stroke_m=X`        | stroke (peak-to-peak plate travel), in m or with its unit (`2.5mm`) | the firmware default |
 //! | `new_duty=D`        | duty of the live change at N/2 cycles           | `duty` + 0.02        |
 //! | `ramp=R`            | soft start/stop cycles                          | the firmware default |
 //! | `panic_at=C`        | panic in thread mode once C cycles have begun   | never                |
