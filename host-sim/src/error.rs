@@ -45,8 +45,6 @@ pub enum SimError {
     /// The plate or the part changed contact state without end at one instant (stick–slip
     /// chatter the event model cannot resolve).
     Chatter { time_s: f64 },
-    /// A firmware-in-the-loop run did not match the shared plan (details in the report).
-    CheckFailed { problems: usize },
     /// A sensors table on its own that is not valid TOML or holds an unknown key (the parser's
     /// message names it).
     SensorFile { source: String, reason: String },
@@ -139,10 +137,6 @@ impl fmt::Display for SimError {
                 f,
                 "the plate or part changed contact state without end at t = {} s",
                 Significant(*time_s)
-            ),
-            SimError::CheckFailed { problems } => write!(
-                f,
-                "the firmware-in-the-loop check failed with {problems} problem(s), listed above"
             ),
             SimError::SensorFile { source, reason } => {
                 write!(f, "cannot load the sensors from {source}: {reason}")
