@@ -90,10 +90,12 @@ impl CheckReport {
         self.failures().is_empty()
     }
 
-    /// Each criterion the run missed, in words: it must report edges, each one present, as
-    /// planned (kind, length, level, amplitude), not missed, with no change away from a cycle
-    /// boundary and taking effect on its planned tick (no deviation after the last restart's
-    /// shift), with no other problem, and end (where an end is required).
+    /// Each criterion the run missed, in words: it must report edges, each one present and as
+    /// planned (kind, planned tick, length, level, amplitude), none missed, none changing the
+    /// amplitude or the plan away from a cycle boundary, with no other problem, and end (where an
+    /// end is required). The deviation of an edge's actual tick from its planned one is measured
+    /// ([`CheckReport::deviation_histogram`]), not judged: the part is simulated on the actual
+    /// ticks, so its effect shows in the feed rate and the plate's drift.
     pub fn failures(&self) -> Vec<String> {
         let mut failures = Vec::new();
         let mut count = |number: u64, what: &str| {
@@ -107,12 +109,6 @@ impl CheckReport {
         count(self.missed.len() as u64, "missed edge(s)");
         if self.edges == 0 {
             failures.push("no edges reported".into());
-        }
-        let deviation_ticks = self.max_deviation_ticks();
-        if deviation_ticks != 0 {
-            failures.push(format!(
-                "edges off their planned tick by up to {deviation_ticks} ticks"
-            ));
         }
         if failures.is_empty() && !self.problems.is_empty() {
             failures.push(format!("{} problem(s)", self.problems.len()));
@@ -156,15 +152,24 @@ mod tests {
     }
 
     #[test]
-    fn an_edge_off_its_planned_tick_fails_the_run() {
-        let late = CheckReport {
+    fn each_missed_criterion_is_named() {
+        let broken = CheckReport {
+            matched: 1,
+            missing: 1,
+            unexpected: 2,
+            glitches: 1,
+            problems: vec!["missing edge at tick 9".into()],
+            // Measured, not judged.
             deviation_histogram: BTreeMap::from([(0, 3), (-2, 1)]),
             ..clean()
         };
-        assert!(!late.passed());
         assert_eq!(
-            late.failures(),
-            ["edges off their planned tick by up to 2 ticks"]
+            broken.failures(),
+            [
+                "1 missing edge(s)",
+                "2 unexpected edge(s)",
+                "1 change(s) away from a cycle boundary"
+            ]
         );
     }
 

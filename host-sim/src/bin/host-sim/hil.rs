@@ -25,10 +25,11 @@ use crate::trace::plot_plate_trace;
 #[derive(Args)]
 #[command(
     after_help = "Exit code 0 when the run passes: every edge present and as planned, none \
-                  missed, none away from a cycle boundary or off its planned tick, the run \
-                  ended (unless --open-ended), no firmware error and, with --plant, no end stop \
-                  on the actual edges; 1 when it fails them (the report names each); 2 when the \
-                  run cannot be checked."
+                  missed, no change away from a cycle boundary, the run ended (unless \
+                  --open-ended), no firmware error and, with --plant, no end stop on the actual \
+                  edges; 1 when it fails them (the report names each); 2 when the run cannot be \
+                  checked. The latency of the actual edges is measured, not judged: the part \
+                  runs on them."
 )]
 pub struct HilArgs {
     /// Decoded event stream (defmt-print or probe-rs output); standard input by default.
