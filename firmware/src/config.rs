@@ -48,6 +48,15 @@ pub const DAC: DacCalibration = DacCalibration::DEFAULT;
 // No level the machine's limits allow leaves the DAC's linear range.
 const _: () = assert!(LIMITS.max_accel_mps2 <= DAC.linear_limit_mps2());
 
+/// In a build with the encoder, where the closed loop runs, the peak acceleration the DAC's linear
+/// range reaches: every waveform must leave the loop its room below it
+/// (`Machine::loop_linear_mps2`).
+pub const LOOP_LINEAR_MPS2: Option<f64> = if cfg!(feature = "encoder") {
+    Some(DAC.linear_limit_mps2())
+} else {
+    None
+};
+
 /// Calibration of the PWM driver input (see `PwmCalibration::DEFAULT`).
 #[cfg(feature = "output-pwm")]
 pub const PWM: feeder_shared::PwmCalibration = feeder_shared::PwmCalibration::DEFAULT;

@@ -27,6 +27,7 @@ pub async fn serve<P: Read + Write, S: RecipeStore>(mut port: P, mut recipes: S,
         limits: config::LIMITS,
         friction: config::FRICTION,
         clock,
+        loop_linear_mps2: config::LOOP_LINEAR_MPS2,
     };
     let mut controller = match Controller::new(machine, config::SETTINGS) {
         Ok(controller) => controller,

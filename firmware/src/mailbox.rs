@@ -37,8 +37,8 @@ impl ReadyPlan {
     /// on the output's `clock`.
     pub fn new(clock: TickClock, spec: &WaveformSpec, ramp_cycles: u16) -> Result<Self, Error> {
         let waveform = Waveform::new(*spec, &config::LIMITS)?;
-        if cfg!(feature = "encoder") {
-            ENVELOPE.check_loop_accel(waveform.accel_mps2, config::DAC.linear_limit_mps2())?;
+        if let Some(linear_mps2) = config::LOOP_LINEAR_MPS2 {
+            ENVELOPE.check_loop_accel(waveform.accel_mps2, linear_mps2)?;
         }
         let plan = TickPlan::new(&waveform, clock)?;
         info!(

@@ -18,6 +18,7 @@ fuzz_target!(|input: &[u8]| {
         limits: Limits::NONE,
         friction: Friction::new(0.5, 9.81).expect("valid friction"),
         clock: TickClock::new(1_000_000),
+        loop_linear_mps2: None,
     };
     let decoded = recipe::decode(&record, slot);
     if let Ok(settings) = decoded {

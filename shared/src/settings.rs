@@ -4,19 +4,24 @@
 //! into a fully validated candidate ([`Applied`]: settings, tick plan, predicted feed rate) or a
 //! typed [`Error`], so a refused change leaves everything as it was.
 
+use crate::closed_loop::ENVELOPE;
 use crate::error::{positive, Error, Quantity};
 use crate::model::{self, Friction};
 use crate::plan::{TickClock, TickPlan};
 use crate::waveform::{Drive, Limits, Waveform, WaveformSpec};
 
 /// The machine a setting is validated for: its limits, the part's friction (for the feed-rate
-/// model) and the waveform timer.
+/// model), the waveform timer and, where the closed loop runs, the output's linear range.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Machine {
     pub limits: Limits,
     pub friction: Friction,
     pub clock: TickClock,
+    /// Where the closed loop runs the waveform: the peak acceleration the output's linear range
+    /// reaches, m/s². Every waveform must then leave the loop its room
+    /// ([`crate::closed_loop::Envelope::check_loop_accel`]); `None` for an open-loop machine.
+    pub loop_linear_mps2: Option<f64>,
 }
 
 impl Machine {
@@ -68,11 +73,14 @@ impl Settings {
         WaveformSpec::from_frequency(self.frequency_hz, self.duty, self.drive)
     }
 
-    /// Validates these settings on `machine`: waveform within the limits and a representable
-    /// tick plan.
+    /// Validates these settings on `machine`: waveform within the limits (and the closed loop's
+    /// room, where it runs) and a representable tick plan.
     pub fn validate(&self, machine: &Machine) -> Result<Applied, Error> {
         positive(Quantity::FrequencyHz, self.frequency_hz)?;
         let waveform = Waveform::new(self.spec(), &machine.limits)?;
+        if let Some(linear_mps2) = machine.loop_linear_mps2 {
+            ENVELOPE.check_loop_accel(waveform.accel_mps2, linear_mps2)?;
+        }
         let plan = TickPlan::new(&waveform, machine.clock)?;
         Ok(Applied {
             settings: *self,

@@ -5,7 +5,8 @@ use crate::plan::TickClock;
 use crate::settings::Machine;
 use crate::waveform::Limits;
 
-/// A permissive machine: 20–200 Hz, 500 m/s², 5 mm, μ = 1 under standard gravity, a 1 MHz clock.
+/// A permissive machine: 20–200 Hz, 500 m/s², 5 mm, μ = 1 under standard gravity, a 1 MHz clock,
+/// open loop.
 pub const fn machine() -> Machine {
     Machine {
         limits: Limits {
@@ -19,5 +20,6 @@ pub const fn machine() -> Machine {
             gravity_mps2: STANDARD_GRAVITY_MPS2,
         },
         clock: TickClock::new(1_000_000),
+        loop_linear_mps2: None,
     }
 }

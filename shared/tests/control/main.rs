@@ -27,6 +27,7 @@ fn machine() -> Machine {
         },
         friction: Friction::new(0.3, 9.80665).unwrap(),
         clock: TickClock::new(1_000_000),
+        loop_linear_mps2: None,
     }
 }
 

@@ -1,10 +1,10 @@
 //! The recipe store: a failed write, a round trip, and every unusable record.
 
 use feeder_shared::recipe;
-use feeder_shared::{Action, Settings};
+use feeder_shared::{Action, Controller, DacCalibration, Drive, Machine, Settings};
 
 use crate::common::slot;
-use crate::{configure, controller, run, running, stopped, Memory};
+use crate::{configure, controller, machine, run, running, stopped, Memory};
 
 #[test]
 fn a_failed_write_is_reported_and_changes_nothing() {
@@ -76,11 +76,23 @@ fn unusable_records_are_refused_say_why_and_change_nothing() {
     let live = *controller.settings();
     assert_ne!(live, Settings::DEFAULT);
     for (slot, reply) in [
-        (0, "ERR 63 recipe 0 not loaded: no recipe saved in this slot; nothing changed"),
-        (4, "ERR 63 recipe 4 not loaded: no recipe saved in this slot; nothing changed"),
+        (
+            0,
+            "ERR 63 recipe 0 not loaded: no recipe saved in this slot; nothing changed",
+        ),
+        (
+            4,
+            "ERR 63 recipe 4 not loaded: no recipe saved in this slot; nothing changed",
+        ),
         (1, "ERR 64 recipe 1 not loaded: corrupt record: CRC"),
-        (2, "ERR 64 recipe 2 not loaded: record belongs to slot 3, not slot 2; nothing changed"),
-        (3, "ERR 64 recipe 3 not loaded: stored parameters refused: frequency 150 Hz"),
+        (
+            2,
+            "ERR 64 recipe 2 not loaded: record belongs to slot 3, not slot 2; nothing changed",
+        ),
+        (
+            3,
+            "ERR 64 recipe 3 not loaded: stored parameters refused: frequency 150 Hz",
+        ),
     ] {
         for at in [stopped(0), running(9)] {
             let outcome = run(
@@ -99,4 +111,45 @@ fn unusable_records_are_refused_say_why_and_change_nothing() {
             assert_eq!(outcome.action, Action::None);
         }
     }
+}
+
+#[test]
+fn where_the_closed_loop_runs_a_recipe_it_cannot_hold_is_refused_and_changes_nothing() {
+    // The default DAC reaches 224.75 m/s²; the loop keeps room for its drives up to 171.675 m/s².
+    let closed_loop = Machine {
+        loop_linear_mps2: Some(DacCalibration::DEFAULT.linear_limit_mps2()),
+        ..machine()
+    };
+    let mut controller = Controller::new(closed_loop, Settings::DEFAULT).unwrap();
+    let mut store = Memory::erased();
+    let strong = Settings {
+        drive: Drive::Accel { accel_mps2: 190.0 },
+        ..Settings::DEFAULT
+    };
+    assert!(
+        strong.validate(&machine()).is_ok(),
+        "within the motor limit"
+    );
+    store.records[2] = recipe::encode(slot(2), &strong);
+    for at in [stopped(0), running(9)] {
+        let set = run(&mut controller, "set accel 190", &at, &mut store);
+        assert!(set.reply.as_str().starts_with("ERR 56 "), "{}", set.reply);
+        let load = run(&mut controller, "recipe load 2", &at, &mut store);
+        assert!(
+            load.reply.as_str().starts_with(
+                "ERR 64 recipe 2 not loaded: stored parameters refused: peak acceleration 190 m/s2 \
+                 is more than the closed loop can hold"
+            ),
+            "{}",
+            load.reply
+        );
+        for outcome in [set, load] {
+            assert_eq!(outcome.action, Action::None);
+        }
+        assert_eq!(controller.settings(), &Settings::DEFAULT);
+    }
+    let list = run(&mut controller, "recipe list", &stopped(0), &mut store).reply;
+    assert!(list.as_str().contains(" 2=rejected "), "{list}");
+    let held = run(&mut controller, "set accel 170", &running(9), &mut store);
+    assert!(held.reply.as_str().starts_with("OK "), "{}", held.reply);
 }

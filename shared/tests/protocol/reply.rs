@@ -215,9 +215,15 @@ fn recipe_replies() {
     );
 
     let reasons = [
-        (0, "ERR 63 recipe 0 not loaded: no recipe saved in this slot; nothing changed"),
+        (
+            0,
+            "ERR 63 recipe 0 not loaded: no recipe saved in this slot; nothing changed",
+        ),
         (3, "ERR 64 recipe 3 not loaded: corrupt record: CRC 0x"),
-        (4, "ERR 64 recipe 4 not loaded: record belongs to slot 5, not slot 4; nothing changed"),
+        (
+            4,
+            "ERR 64 recipe 4 not loaded: record belongs to slot 5, not slot 4; nothing changed",
+        ),
     ];
     for (number, expected) in reasons {
         let issue = recipe::load(&flash[number], slot(number as u8), &machine).unwrap_err();
