@@ -484,11 +484,18 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
     };
     let mut excursion = vec![
         line(
-            format!(
-                "largest |x| sampled in each cycle: {:.0} µm before the release, {:.0} µm in all",
-                verdict.startup_peak_m * 1e6,
-                verdict.peak_excursion_m * 1e6
-            ),
+            if verdict.startup_peak_m == verdict.peak_excursion_m {
+                format!(
+                    "largest |x| per cycle: peak {:.0} µm",
+                    verdict.startup_peak_m * 1e6
+                )
+            } else {
+                format!(
+                    "largest |x| per cycle: {:.0} µm to the release, {:.0} µm in all",
+                    verdict.startup_peak_m * 1e6,
+                    verdict.peak_excursion_m * 1e6
+                )
+            },
             run.cycles
                 .iter()
                 .map(|c| (c.time_s, c.peak_m * 1e6))
@@ -510,7 +517,7 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
             .max(verdict.peak_excursion_m)
             * 1e6;
         excursion.push(line(
-            format!("release of the soft start at {:.2} s", release.time_s),
+            format!("soft start released at {:.2} s", release.time_s),
             vec![(release.time_s, 0.0), (release.time_s, top_um)],
             Mark::DashedLine,
             2,
@@ -528,17 +535,14 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
         Some(worst_m) => {
             let feed = verdict.feed_rate_mps.map_or(String::new(), |rate| {
                 format!(
-                    "; feed {:.2} mm/s (ideal plate {:.2} mm/s)",
+                    "; feed {:.2} mm/s (ideal {:.2})",
                     rate * 1e3,
                     verdict.ideal_feed_rate_mps * 1e3
                 )
             });
-            format!(
-                "plate's mean position over each cycle: worst {:.1} µm{feed}",
-                worst_m * 1e6
-            )
+            format!("mean per cycle: worst {:.1} µm{feed}", worst_m * 1e6)
         }
-        None => "plate's mean position over each cycle: the soft start was never released".into(),
+        None => "mean per cycle: the soft start was never released".into(),
     };
     let panels = [
         Panel {
@@ -554,8 +558,8 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
                     Mark::ThinLine,
                     0,
                 ),
-                level(format!("+{limit_um:.0} µm"), limit_um, start_s, 1),
-                level(format!("−{limit_um:.0} µm"), -limit_um, start_s, 1),
+                level(format!("±{limit_um:.0} µm"), limit_um, start_s, 1),
+                level(format!("±{limit_um:.0} µm"), -limit_um, start_s, 1),
             ],
         },
         Panel {
@@ -563,7 +567,7 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
             series: vec![line(
                 "bias added to every level".into(),
                 over_time(|c| c.bias_mps2),
-                Mark::ThinLine,
+                Mark::Dots,
                 2,
             )],
         },
@@ -573,13 +577,13 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
                 line(
                     "factor on +a".into(),
                     over_time(|c| c.positive_trim),
-                    Mark::ThinLine,
+                    Mark::Dots,
                     3,
                 ),
                 line(
                     "factor on −a".into(),
                     over_time(|c| c.negative_trim),
-                    Mark::ThinLine,
+                    Mark::Dots,
                     4,
                 ),
             ],

@@ -13,7 +13,7 @@ use crate::args::{
     PLATE_CYCLES,
 };
 use crate::output::{emit, say};
-use crate::plot::{self, Labels, Mark, Series};
+use crate::plot::{self, Labels, Mark, Options, Series, YAxis};
 
 /// Most cycles of `--cycles`: every case is traced for `--csv` and `--plot`.
 const MAX_CYCLES: u64 = 1_000;
@@ -211,16 +211,26 @@ fn plot_drift(path: &Path, report: &DriftReport) -> Result<(), SimError> {
         report.stroke_m * 1e3,
         report.mu
     );
-    plot::chart(
+    plot::chart_with(
         path,
         Labels {
             title: &title,
             x: "time (s)",
-            y: "plate position (mm)",
+            y: "plate position (mm, logarithmic beyond ±0.1 mm)",
         },
         &series,
+        &Options {
+            y_axis: YAxis::SymLog {
+                linear_within: POSITION_LINEAR_WITHIN_MM,
+            },
+            ..Options::default()
+        },
     )
 }
+
+/// The plate positions the drift chart draws to scale; beyond them its axis is logarithmic, so
+/// that the stroke's 2.5 mm and metres of drift are read off one axis.
+const POSITION_LINEAR_WITHIN_MM: f64 = 0.1;
 
 /// The case's plate position (mm) at the first traced instant of every `step_s`, and its last.
 fn thinned(case: &DriftCase, step_s: f64) -> Vec<(f64, f64)> {

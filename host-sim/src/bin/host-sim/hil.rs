@@ -11,13 +11,13 @@ use feeder_emulator::{ICOUNT_SHIFT, NS_PER_INSTRUCTION};
 use host_sim::hil::{
     self, CheckReport, Checker, EdgeTimes, EdgeWork, Event, HaltPoint, PartReport,
 };
-use host_sim::plate::PlatePoint;
+use host_sim::plate::{EndStop, PlatePoint};
 use host_sim::SimError;
 use serde::Serialize;
 
 use crate::args::{ContactArgs, OutputArgs, PlantArgs};
 use crate::output::{emit, say};
-use crate::plot::{self, Labels, Mark, Series};
+use crate::plot::{self, Mark, Moment, Panel, Series};
 use crate::simulate::{end_stop_failure, print_plant, PlantReport};
 use crate::trace::plot_plate_trace;
 
@@ -247,19 +247,23 @@ pub fn run(args: &HilArgs) -> Result<bool, SimError> {
         "per-cycle means on the ideal plate"
     };
     let report_text = || print_report(&report, &check, &args.output, shown);
+    let moments = run_moments(&stream.events, clock_hz);
     let passed = report.passed;
     match &plate_trace {
         Some((plant, trace)) => emit(
             &args.output,
             trace,
-            |path| plot_plate_run(path, plant, trace),
+            |path| {
+                let end_stop = report.plant.as_ref().and_then(|plant| plant.end_stop);
+                plot_plate_run(path, plant, trace, &moments, end_stop)
+            },
             &report,
             report_text,
         ),
         None => emit(
             &args.output,
             &actual.cycles,
-            |path| plot_run(path, &actual, &planned),
+            |path| plot_run(path, &actual, &planned, &moments),
             &report,
             report_text,
         ),
@@ -378,57 +382,152 @@ fn print_report(report: &HilReport, check: &CheckReport, output: &OutputArgs, sh
 }
 
 /// The real plate and its part through the run on the actual edges, until the edges end or an
-/// end stop.
-fn plot_plate_run(path: &Path, plant: &Path, trace: &[PlatePoint]) -> Result<(), SimError> {
+/// end stop, with the run's moments and the end stop marked.
+fn plot_plate_run(
+    path: &Path,
+    plant: &Path,
+    trace: &[PlatePoint],
+    moments: &[Moment],
+    end_stop: Option<EndStop>,
+) -> Result<(), SimError> {
     let title = format!(
         "Firmware in the loop on {}, open loop: actual edges",
         plant.display()
     );
-    plot_plate_trace(path, &title, trace)
+    let end_stop = end_stop.map(|stop| Moment {
+        x: stop.time_s,
+        name: format!("end stop at {:.3} s", stop.time_s),
+    });
+    let in_ms: Vec<Moment> = moments
+        .iter()
+        .chain(&end_stop)
+        .map(|moment| Moment {
+            x: moment.x * 1e3,
+            ..moment.clone()
+        })
+        .collect();
+    plot_plate_trace(path, &title, trace, &in_ms)
 }
 
-/// Per-cycle mean velocities through the run: the part on both timings and the plate's drift.
-fn plot_run(path: &Path, actual: &PartReport, planned: &PartReport) -> Result<(), SimError> {
-    let series =
-        |name: &str, part: &PartReport, value: fn(&hil::CyclePoint) -> f64, mark, color| Series {
-            name: name.into(),
-            points: part
-                .cycles
-                .iter()
-                .map(|cycle| (cycle.start_s, value(cycle) * 1e3))
-                .collect(),
-            mark,
-            color,
+/// The moments a chart of the run marks, in s: the start, each new duty taken while running, the
+/// stop and a halt.
+fn run_moments(events: &[Event], clock_hz: u32) -> Vec<Moment> {
+    let seconds = |tick: u64| tick as f64 / f64::from(clock_hz.max(1));
+    let mut moments = Vec::new();
+    let mut duty = None;
+    let mut running = false;
+    for event in events {
+        let (tick, name) = match event {
+            Event::Plan { tick, spec, .. } => {
+                let before = duty.replace(spec.duty);
+                match before {
+                    Some(before) if running && before != spec.duty => {
+                        (*tick, format!("d = {before} → {}", spec.duty))
+                    }
+                    _ => continue,
+                }
+            }
+            Event::Start { tick } => {
+                running = true;
+                (*tick, "start".to_owned())
+            }
+            Event::Stop { tick } => (*tick, "stop".to_owned()),
+            Event::Halt { tick } => (*tick, "halt".to_owned()),
+            _ => continue,
         };
-    plot::chart(
+        moments.push(Moment {
+            x: seconds(tick),
+            name: format!("{name} at {:.3} s", seconds(tick)),
+        });
+    }
+    moments
+}
+
+/// Per-cycle mean velocities through the run, the run's moments marked: the part on both
+/// timings above, the plate's drift (a few µm/s from the edges' rounding) below on its own scale.
+fn plot_run(
+    path: &Path,
+    actual: &PartReport,
+    planned: &PartReport,
+    moments: &[Moment],
+) -> Result<(), SimError> {
+    let series = |name: &str,
+                  part: &PartReport,
+                  value: fn(&hil::CyclePoint) -> f64,
+                  mark,
+                  color| Series {
+        name: name.into(),
+        points: part
+            .cycles
+            .iter()
+            .map(|cycle| (cycle.start_s, value(cycle)))
+            .collect(),
+        mark,
+        color,
+    };
+    let mut part = vec![
+        series(
+            "actual edges",
+            actual,
+            |c| c.part_velocity_mps * 1e3,
+            Mark::Line,
+            0,
+        ),
+        series(
+            "planned ticks",
+            planned,
+            |c| c.part_velocity_mps * 1e3,
+            Mark::DashedLine,
+            2,
+        ),
+    ];
+    let mut plate = vec![series(
+        "actual edges",
+        actual,
+        |c| c.plate_velocity_mps * 1e6,
+        Mark::Line,
+        1,
+    )];
+    part.extend(plot::moment_lines(moments, &part, 3));
+    plate.extend(plot::moment_lines(moments, &plate, 3));
+    plot::stacked(
         path,
-        Labels {
-            title: "Firmware in the loop: mean velocity per cycle",
-            x: "time (s)",
-            y: "velocity (mm/s)",
-        },
+        "Firmware in the loop: mean velocity per cycle",
+        "time (s)",
         &[
-            series(
-                "part, actual edges",
-                actual,
-                |c| c.part_velocity_mps,
-                Mark::Line,
-                0,
-            ),
-            series(
-                "part, planned ticks",
-                planned,
-                |c| c.part_velocity_mps,
-                Mark::DashedLine,
-                2,
-            ),
-            series(
-                "plate, actual edges",
-                actual,
-                |c| c.plate_velocity_mps,
-                Mark::Line,
-                1,
-            ),
+            Panel {
+                y: "part (mm/s)",
+                series: part,
+            },
+            Panel {
+                y: "plate (µm/s)",
+                series: plate,
+            },
         ],
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The chart marks the start, the new duty taken while running and the stop, not the plans
+    /// taken before the start or one that keeps the duty.
+    #[test]
+    fn the_run_is_marked_where_it_starts_changes_duty_and_stops() {
+        let text = "EVT plan tick=0 period_s=0.02 duty=0.586 stroke_m=0.0025 clock_hz=1000000 ramp=25\n\
+                    EVT plan tick=0 period_s=0.02 duty=0.6 stroke_m=0.0025 clock_hz=1000000 ramp=25\n\
+                    EVT start tick=40000\n\
+                    EVT plan tick=40000 period_s=0.02 duty=0.6 stroke_m=0.0025 clock_hz=1000000 ramp=4\n\
+                    EVT plan tick=215860 period_s=0.02 duty=0.606 stroke_m=0.0025 clock_hz=1000000 ramp=4\n\
+                    EVT stop tick=416060\n";
+        let stream = hil::read_stream(text.as_bytes()).unwrap();
+        let moments = run_moments(&stream.events, 1_000_000);
+        let names: Vec<&str> = moments.iter().map(|moment| moment.name.as_str()).collect();
+        assert_eq!(
+            names,
+            ["start at 0.040 s", "d = 0.6 → 0.606 at 0.216 s", "stop at 0.416 s"]
+        );
+        assert_eq!(moments[1].x, 0.21586);
+    }
 }

@@ -13,7 +13,7 @@ use crate::args::{
     TimingArgs, MAX_POINTS, PLATE_CYCLES,
 };
 use crate::output::{emit, progress, say};
-use crate::plot::{self, Labels, Mark, Series};
+use crate::plot::{self, Key, Labels, Mark, Options, Series};
 
 /// Upper end of the swept duties: closer to 1 the first `+a` segment, `T(1 − d)²/(2(d + P/T))`,
 /// gets shorter than a tick of a 1 MHz clock at 50 Hz and the tick plan is refused.
@@ -178,6 +178,11 @@ fn plot_plate_sweep(
     points: &[PlateSweepPoint],
 ) -> Result<(), SimError> {
     let mut series = Vec::new();
+    let mut kinds = vec![("real plate", Mark::Points)];
+    if points.iter().any(|p| p.end_stop_after_s.is_some()) {
+        kinds.push(("real plate, ended at an end stop", Mark::OpenPoints));
+    }
+    kinds.push(("ideal plate (Eq. 15/18)", Mark::DashedLine));
     for (index, &accel) in args.accel_mps2.iter().enumerate() {
         let of_accel: Vec<&PlateSweepPoint> =
             points.iter().filter(|p| p.accel_mps2 == accel).collect();
@@ -212,7 +217,7 @@ fn plot_plate_sweep(
             color: index,
         });
     }
-    feed_rate_chart(path, "on a real plate in open loop ", args, &series)
+    feed_rate_chart(path, "on a real plate in open loop ", args, &series, &kinds)
 }
 
 fn print_table(points: &[SweepPoint]) {
@@ -276,22 +281,29 @@ fn plot_sweep(path: &Path, args: &SweepArgs, points: &[SweepPoint]) -> Result<()
             color: index,
         });
     }
-    feed_rate_chart(path, "", args, &series)
+    let kinds = [
+        ("simulated", Mark::Points),
+        ("non-quasi-static (Eq. 15/18)", Mark::Line),
+        ("quasi-static (Eq. 9)", Mark::DashedLine),
+    ];
+    feed_rate_chart(path, "", args, &series, &kinds)
 }
 
 /// The chart of feed rate (mm/s) against duty, titled with the sweep's frequency and μ and
-/// `what` (empty, or ending in a space).
+/// `what` (empty, or ending in a space). Its legend names each a_max by its colour and each
+/// kind of series by its mark.
 fn feed_rate_chart(
     path: &Path,
     what: &str,
     args: &SweepArgs,
     series: &[Series],
+    kinds: &[(&str, Mark)],
 ) -> Result<(), SimError> {
     let title = format!(
         "Feed rate vs duty {what}at {} Hz, μ = {}",
         args.frequency.freq_hz, args.contact.friction.mu
     );
-    plot::chart(
+    plot::chart_with(
         path,
         Labels {
             title: &title,
@@ -299,5 +311,51 @@ fn feed_rate_chart(
             y: "feed rate (mm/s)",
         },
         series,
+        &Options {
+            keys: Some(legend_keys(&args.accel_mps2, kinds)),
+            ..Options::default()
+        },
     )
+}
+
+/// One legend entry for each a_max in its colour, then one for each kind of series in its mark.
+fn legend_keys(accels_mps2: &[f64], kinds: &[(&str, Mark)]) -> Vec<Key> {
+    let accels = accels_mps2.iter().enumerate().map(|(index, accel)| Key {
+        name: format!("a_max = {accel} m/s²"),
+        mark: Mark::Line,
+        color: Some(index),
+    });
+    let kinds = kinds.iter().map(|&(name, mark)| Key {
+        name: name.to_owned(),
+        mark,
+        color: None,
+    });
+    accels.chain(kinds).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every legend entry has a swatch of its own: each a_max a colour, each kind of series a
+    /// mark, the dashed quasi-static curve named.
+    #[test]
+    fn the_legend_names_each_colour_and_each_mark_once() {
+        let kinds = [
+            ("simulated", Mark::Points),
+            ("non-quasi-static (Eq. 15/18)", Mark::Line),
+            ("quasi-static (Eq. 9)", Mark::DashedLine),
+        ];
+        let keys = legend_keys(&[100.0, 150.0, 200.0], &kinds);
+        assert_eq!(keys.len(), 6);
+        for (index, key) in keys.iter().enumerate() {
+            for other in &keys[index + 1..] {
+                assert_ne!((key.mark, key.color), (other.mark, other.color), "{keys:?}");
+            }
+        }
+        assert_eq!(keys[0].name, "a_max = 100 m/s²");
+        assert!(keys
+            .iter()
+            .any(|key| key.name == "quasi-static (Eq. 9)" && key.mark == Mark::DashedLine));
+    }
 }

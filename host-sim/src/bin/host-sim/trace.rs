@@ -10,7 +10,7 @@ use host_sim::{OperatingPoint, RunOptions, SimError};
 
 use crate::args::{count, ContactArgs, OutputArgs, PlantArgs, TimingArgs, WaveArgs};
 use crate::output::{emit, say};
-use crate::plot::{self, Labels, Mark, Series};
+use crate::plot::{self, Labels, Mark, Moment, Panel, Series};
 
 /// Most cycles of `--cycles`: every event is kept for the report and the plot.
 const MAX_CYCLES: u64 = 10_000;
@@ -92,7 +92,7 @@ fn run_real_plate(
             point.waveform.accel_mps2,
             point.contact.mu
         );
-        plot_plate_trace(path, &title, &trace)
+        plot_plate_trace(path, &title, &trace, &[])
     };
     emit(&args.output, &trace, plot, &trace, || {
         print_plate_trace(&trace)
@@ -120,30 +120,41 @@ fn print_plate_trace(trace: &[PlatePoint]) {
     }
 }
 
-/// Plate and part velocity through a real plate's `trace`, beside the plate's position (mm,
-/// scaled ×100 to share the axis) that shows its drift.
-pub fn plot_plate_trace(path: &Path, title: &str, trace: &[PlatePoint]) -> Result<(), SimError> {
+/// Plate and part velocity through a real plate's `trace` above, the plate's position that
+/// shows its drift below, each on its own scale, with `moments` (in ms) marked on both.
+pub fn plot_plate_trace(
+    path: &Path,
+    title: &str,
+    trace: &[PlatePoint],
+    moments: &[Moment],
+) -> Result<(), SimError> {
     let line = |name: &str, color, value: fn(&PlatePoint) -> f64| Series {
         name: name.into(),
         points: trace.iter().map(|p| (p.time_s * 1e3, value(p))).collect(),
         mark: Mark::Line,
         color,
     };
-    let series = [
-        line("plate velocity (mm/s)", 0, |p| p.plate_velocity_mps * 1e3),
-        line("part velocity (mm/s)", 1, |p| p.part_velocity_mps * 1e3),
-        line("plate position (mm × 100)", 2, |p| {
-            p.plate_position_m * 1e5
-        }),
+    let mut velocity = vec![
+        line("plate", 0, |p| p.plate_velocity_mps * 1e3),
+        line("part", 1, |p| p.part_velocity_mps * 1e3),
     ];
-    plot::chart(
+    let mut position = vec![line("plate", 0, |p| p.plate_position_m * 1e3)];
+    velocity.extend(plot::moment_lines(moments, &velocity, 3));
+    position.extend(plot::moment_lines(moments, &position, 3));
+    plot::stacked(
         path,
-        Labels {
-            title,
-            x: "time (ms)",
-            y: "velocity (mm/s), position (mm × 100)",
-        },
-        &series,
+        title,
+        "time (ms)",
+        &[
+            Panel {
+                y: "velocity (mm/s)",
+                series: velocity,
+            },
+            Panel {
+                y: "plate position (mm)",
+                series: position,
+            },
+        ],
     )
 }
 

@@ -117,6 +117,16 @@ fn print_fit(fit: &Viscosity) {
 }
 
 fn plot_viscosity(path: &Path, fit: &Viscosity) -> Result<(), SimError> {
+    let labels = Labels {
+        title: "External force vs steady velocity",
+        x: "velocity v′ (mm/s)",
+        y: "f_ext (mN)",
+    };
+    plot::chart(path, labels, &viscosity_series(fit))
+}
+
+/// The sliding and the sticking points (the latter only where there are any) and the fitted line.
+fn viscosity_series(fit: &Viscosity) -> Vec<Series> {
     let (sliding, sticking): (Vec<_>, Vec<_>) = fit.points.iter().partition(|p| !p.sticks);
     let to_points = |points: &[&ViscosityPoint]| -> Vec<(f64, f64)> {
         points
@@ -127,33 +137,65 @@ fn plot_viscosity(path: &Path, fit: &Viscosity) -> Result<(), SimError> {
     let velocities = fit.points.iter().map(|p| p.velocity_mps);
     let (low, high) = velocities.fold((f64::MAX, f64::MIN), |(l, h), v| (l.min(v), h.max(v)));
     let line = |v: f64| (v * 1e3, (fit.k_ns_per_m * v + fit.intercept_n) * 1e3);
-    let series = vec![
-        Series {
-            name: "simulated, sliding".into(),
-            points: to_points(&sliding),
-            mark: Mark::Points,
-            color: 0,
-        },
-        Series {
+    let mut series = vec![Series {
+        name: "simulated, sliding".into(),
+        points: to_points(&sliding),
+        mark: Mark::Points,
+        color: 0,
+    }];
+    if !sticking.is_empty() {
+        series.push(Series {
             name: "simulated, sticks".into(),
             points: to_points(&sticking),
             mark: Mark::Points,
             color: 1,
-        },
-        Series {
-            name: format!(
-                "fit K = {:.4e} N·s/m (Eq. 10: {:.4e})",
-                fit.k_ns_per_m, fit.model_k_ns_per_m
-            ),
-            points: vec![line(low), line(high)],
-            mark: Mark::Line,
-            color: 2,
-        },
-    ];
-    let labels = Labels {
-        title: "External force vs steady velocity",
-        x: "velocity v′ (mm/s)",
-        y: "f_ext (mN)",
-    };
-    plot::chart(path, labels, &series)
+        });
+    }
+    series.push(Series {
+        name: format!(
+            "fit K = {:.4e} N·s/m (Eq. 10: {:.4e})",
+            fit.k_ns_per_m, fit.model_k_ns_per_m
+        ),
+        points: vec![line(low), line(high)],
+        mark: Mark::Line,
+        color: 2,
+    });
+    series
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(force_n: f64, sticks: bool) -> ViscosityPoint {
+        ViscosityPoint {
+            force_n,
+            velocity_mps: 0.02 + force_n,
+            model_velocity_mps: None,
+            stick_fraction: 0.0,
+            sticks,
+            converged: true,
+        }
+    }
+
+    /// The legend names the sticking points only where the chart draws some.
+    #[test]
+    fn the_sticking_points_are_named_only_where_there_are_some() {
+        let mut fit = Viscosity {
+            k_ns_per_m: 2e-3,
+            intercept_n: -5e-5,
+            model_k_ns_per_m: 2e-3,
+            model_feed_rate_mps: 0.025,
+            points: vec![point(-1e-4, false), point(1e-4, false)],
+        };
+        let names = |fit: &Viscosity| -> Vec<String> {
+            viscosity_series(fit)
+                .into_iter()
+                .map(|series| series.name)
+                .collect()
+        };
+        assert!(!names(&fit).iter().any(|name| name.contains("sticks")));
+        fit.points.push(point(3e-4, true));
+        assert!(names(&fit).iter().any(|name| name.contains("sticks")));
+    }
 }
