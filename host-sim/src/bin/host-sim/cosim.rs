@@ -178,7 +178,7 @@ fn plot_run(path: &Path, report: &CosimReport, cycles: &[CosimCycle]) -> Result<
     if report.closed_loop.is_some() {
         for sign in [1.0, -1.0] {
             position.push(line(
-                format!("{:+.0} µm", sign * limit_um),
+                format!("±{limit_um:.0} µm"),
                 vec![(0.0, sign * limit_um), (end_s, sign * limit_um)],
                 Mark::DashedLine,
                 1,
