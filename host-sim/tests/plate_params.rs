@@ -138,7 +138,14 @@ fn every_refusal_names_the_key_with_its_table_and_the_line_and_column() {
 fn a_syntax_error_between_keys_names_its_line_and_column() {
     let (place, reason) = refusal("mass_kg = 1.0\n[sensors.encoder\n");
     assert!(
-        matches!(place, PlantPlace::At { line: 2, column: 17, .. }),
+        matches!(
+            place,
+            PlantPlace::At {
+                line: 2,
+                column: 17,
+                ..
+            }
+        ),
         "{place:?}"
     );
     assert!(reason.contains("unclosed table"), "{reason}");

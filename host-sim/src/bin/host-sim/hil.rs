@@ -451,20 +451,17 @@ fn plot_run(
     planned: &PartReport,
     moments: &[Moment],
 ) -> Result<(), SimError> {
-    let series = |name: &str,
-                  part: &PartReport,
-                  value: fn(&hil::CyclePoint) -> f64,
-                  mark,
-                  color| Series {
-        name: name.into(),
-        points: part
-            .cycles
-            .iter()
-            .map(|cycle| (cycle.start_s, value(cycle)))
-            .collect(),
-        mark,
-        color,
-    };
+    let series =
+        |name: &str, part: &PartReport, value: fn(&hil::CyclePoint) -> f64, mark, color| Series {
+            name: name.into(),
+            points: part
+                .cycles
+                .iter()
+                .map(|cycle| (cycle.start_s, value(cycle)))
+                .collect(),
+            mark,
+            color,
+        };
     let mut part = vec![
         series(
             "actual edges",
@@ -526,7 +523,11 @@ mod tests {
         let names: Vec<&str> = moments.iter().map(|moment| moment.name.as_str()).collect();
         assert_eq!(
             names,
-            ["start at 0.040 s", "d = 0.6 → 0.606 at 0.216 s", "stop at 0.416 s"]
+            [
+                "start at 0.040 s",
+                "d = 0.6 → 0.606 at 0.216 s",
+                "stop at 0.416 s"
+            ]
         );
         assert_eq!(moments[1].x, 0.21586);
     }

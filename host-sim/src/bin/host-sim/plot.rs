@@ -62,14 +62,18 @@ pub enum YAxis {
     /// Symmetric logarithmic: `sign(y)·log10(1 + |y|/linear_within)`, linear near zero and
     /// logarithmic beyond `linear_within`, so that curves of millimetres and of metres are both
     /// read off one axis.
-    SymLog { linear_within: f64 },
+    SymLog {
+        linear_within: f64,
+    },
 }
 
 impl YAxis {
     fn map(self, y: f64) -> f64 {
         match self {
             YAxis::Linear => y,
-            YAxis::SymLog { linear_within } => y.signum() * (y.abs() / linear_within).ln_1p() / LN_10,
+            YAxis::SymLog { linear_within } => {
+                y.signum() * (y.abs() / linear_within).ln_1p() / LN_10
+            }
         }
     }
 
@@ -264,9 +268,14 @@ fn draw_layout<DB: DrawingBackend>(
     let text = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     root.fill(&WHITE).map_err(text)?;
     match layout {
-        Layout::Single(labels, series, options) => {
-            draw(root, Some(labels.title), labels.x, labels.y, series, options)
-        }
+        Layout::Single(labels, series, options) => draw(
+            root,
+            Some(labels.title),
+            labels.x,
+            labels.y,
+            series,
+            options,
+        ),
         Layout::Stacked { title, x, panels } => {
             let below = root.titled(title, (FONT, 22)).map_err(text)?;
             let areas = below.split_evenly((panels.len().max(1), 1));
@@ -373,7 +382,9 @@ fn draw<DB: DrawingBackend>(
         .map_err(text)?;
     }
     for key in &keys {
-        let color = key.color.map_or(NEUTRAL, |index| PALETTE[index % PALETTE.len()]);
+        let color = key
+            .color
+            .map_or(NEUTRAL, |index| PALETTE[index % PALETTE.len()]);
         let mark = key.mark;
         chart
             .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())
@@ -381,12 +392,16 @@ fn draw<DB: DrawingBackend>(
             .label(key.name.as_str())
             .legend(move |(x, y)| {
                 // A swatch 18 px wide, drawn as the mark is.
-                let solid = |width: u32| {
-                    PathElement::new([(x, y), (x + 18, y)], color.stroke_width(width))
-                };
+                let solid =
+                    |width: u32| PathElement::new([(x, y), (x + 18, y)], color.stroke_width(width));
                 let broken = |dash: i32, gap: i32, width: u32| {
                     let ends = vec![(x, y), (x + 18, y)].into_iter();
-                    plotters::element::DashedPathElement::new(ends, dash, gap, color.stroke_width(width))
+                    plotters::element::DashedPathElement::new(
+                        ends,
+                        dash,
+                        gap,
+                        color.stroke_width(width),
+                    )
                 };
                 match mark {
                     // A one-pixel swatch would be too faint to tell its colour by.
@@ -709,7 +724,13 @@ mod tests {
 
     #[test]
     fn tick_labels_never_read_minus_zero_and_carry_the_steps_places() {
-        for range in [-0.1537..0.1537, -52.0..101.0, -1e-9..3e-9, 0.978..1.026, -1.0..1e-17] {
+        for range in [
+            -0.1537..0.1537,
+            -52.0..101.0,
+            -1e-9..3e-9,
+            0.978..1.026,
+            -1.0..1e-17,
+        ] {
             let ticks = linear_ticks(&range);
             assert!(ticks.at.len() >= 3, "{range:?}: {ticks:?}");
             let labels: Vec<String> = ticks.at.iter().map(|&at| ticks.label(at)).collect();
@@ -768,6 +789,9 @@ mod tests {
         assert_eq!(lines[0].name, "start");
         assert_eq!(lines[0].color, 3);
         let (_, y_range) = bounds(&series);
-        assert_eq!(lines[0].points, [(40.0, y_range.start), (40.0, y_range.end)]);
+        assert_eq!(
+            lines[0].points,
+            [(40.0, y_range.start), (40.0, y_range.end)]
+        );
     }
 }
