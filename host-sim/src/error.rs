@@ -187,35 +187,21 @@ pub(crate) fn out_of_range(allowed: &str, value: f64) -> String {
     format!("must be {allowed}, got {}", Significant(value))
 }
 
-/// Where a plant file holds a fault: the key with its table, and the line and column of the
-/// fault (none where the key is absent and takes its default).
+/// Where a plant file holds a fault: the line and column (from 1, in characters) and the key
+/// with its table, if the fault lies in a key's entry (a syntax error between entries does not).
 #[derive(Debug, Clone, PartialEq, Eq)]
-pub enum PlantPlace {
-    /// A fault at a line and column (from 1, in characters), inside a key's entry or, for a
-    /// syntax error between entries, outside every key.
-    At {
-        line: usize,
-        column: usize,
-        key: Option<String>,
-    },
-    /// A key the file leaves out, refused at its default.
-    Absent { key: String },
+pub struct PlantPlace {
+    pub line: usize,
+    pub column: usize,
+    pub key: Option<String>,
 }
 
 impl fmt::Display for PlantPlace {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            PlantPlace::At {
-                line,
-                column,
-                key: Some(key),
-            } => write!(f, "line {line}, column {column}, key `{key}`"),
-            PlantPlace::At {
-                line,
-                column,
-                key: None,
-            } => write!(f, "line {line}, column {column}"),
-            PlantPlace::Absent { key } => write!(f, "key `{key}` (absent, at its default)"),
+        write!(f, "line {}, column {}", self.line, self.column)?;
+        match &self.key {
+            Some(key) => write!(f, ", key `{key}`"),
+            None => Ok(()),
         }
     }
 }

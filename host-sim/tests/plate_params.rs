@@ -59,7 +59,7 @@ fn refusal(text: &str) -> (PlantPlace, String) {
 }
 
 fn at(line: usize, column: usize, key: &str) -> PlantPlace {
-    PlantPlace::At {
+    PlantPlace {
         line,
         column,
         key: Some(key.to_owned()),
@@ -140,7 +140,7 @@ fn a_syntax_error_between_keys_names_its_line_and_column() {
     assert!(
         matches!(
             place,
-            PlantPlace::At {
+            PlantPlace {
                 line: 2,
                 column: 17,
                 ..
@@ -152,7 +152,7 @@ fn a_syntax_error_between_keys_names_its_line_and_column() {
     let (place, _) = refusal("mass_kg = 1.0\n= 2\n");
     assert_eq!(
         place,
-        PlantPlace::At {
+        PlantPlace {
             line: 2,
             column: 1,
             key: None
@@ -196,7 +196,7 @@ fn out_of_range_values_are_refused_by_name() {
         assert!(
             matches!(
                 &error,
-                SimError::PlantFile { place: Some(PlantPlace::At { line: 1, key: Some(k), .. }), .. }
+                SimError::PlantFile { place: Some(PlantPlace { line: 1, key: Some(k), .. }), .. }
                     if k == key
             ),
             "{text}: {error:?}"

@@ -127,7 +127,7 @@ impl<'t> Entries<'t> {
     fn refuse(&self, source: &str, error: &toml::de::Error) -> SimError {
         let place = error.span().map(|span| {
             let (line, column) = line_column(self.text, span.start);
-            PlantPlace::At {
+            PlantPlace {
                 line,
                 column,
                 key: self.at(span.start).map(Entry::name),
@@ -140,8 +140,8 @@ impl<'t> Entries<'t> {
         }
     }
 
-    /// A value out of its range, at its key's value (or named as absent where the file leaves
-    /// the key at its default).
+    /// A value out of its range, at its key's value; a value the file does not write (a key at
+    /// its default) keeps its refusal, which names the key.
     fn refuse_value(&self, source: &str, error: SimError) -> SimError {
         let (path, value, allowed) = match &error {
             SimError::PlantValue {
@@ -161,22 +161,17 @@ impl<'t> Entries<'t> {
             }
             _ => return error,
         };
-        let place = match self.entries.iter().find(|entry| entry.path == path) {
-            Some(entry) => {
-                let (line, column) = line_column(self.text, entry.value.start);
-                PlantPlace::At {
-                    line,
-                    column,
-                    key: Some(entry.name()),
-                }
-            }
-            None => PlantPlace::Absent {
-                key: path.join("."),
-            },
+        let Some(entry) = self.entries.iter().find(|entry| entry.path == path) else {
+            return error;
         };
+        let (line, column) = line_column(self.text, entry.value.start);
         SimError::PlantFile {
             source: source.to_owned(),
-            place: Some(place),
+            place: Some(PlantPlace {
+                line,
+                column,
+                key: Some(entry.name()),
+            }),
             reason: out_of_range(allowed, value),
         }
     }
