@@ -443,8 +443,9 @@ fn run_moments(events: &[Event], clock_hz: u32) -> Vec<Moment> {
     moments
 }
 
-/// Per-cycle mean velocities through the run, the run's moments marked: the part on both
-/// timings above, the plate's drift (a few µm/s from the edges' rounding) below on its own scale.
+/// Per-cycle mean velocities through the run, each at its cycle's middle, the run's moments
+/// marked: the part on both timings above, the plate's drift (a few µm/s from the edges'
+/// rounding) below on its own scale.
 fn plot_run(
     path: &Path,
     actual: &PartReport,
@@ -457,7 +458,7 @@ fn plot_run(
             points: part
                 .cycles
                 .iter()
-                .map(|cycle| (cycle.start_s, value(cycle)))
+                .map(|cycle| (cycle.start_s + cycle.duration_s / 2.0, value(cycle)))
                 .collect(),
             mark,
             color,
