@@ -123,6 +123,16 @@ fn every_refusal_names_the_key_with_its_table_and_the_line_and_column() {
             "unknown field `camera`",
         ),
         (
+            "mass_kg = 1.0\nmass_kg = 2.0\n".to_owned(),
+            at(2, 1, "mass_kg"),
+            "duplicate key",
+        ),
+        (
+            format!("{sensors}resolution_m = 1e-6\nresolution_m = 2e-6\n"),
+            at(5, 1, "[sensors.encoder] resolution_m"),
+            "duplicate key",
+        ),
+        (
             "sensors = 3\n".to_owned(),
             at(1, 11, "sensors"),
             "invalid type: integer `3`",

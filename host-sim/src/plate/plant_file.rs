@@ -72,6 +72,11 @@ struct Entry {
 }
 
 impl Entry {
+    /// Whether the entry is a table a `[header]` opens.
+    fn is_header(&self) -> bool {
+        !self.path.is_empty() && self.header_depth == self.path.len()
+    }
+
     /// The key as the file writes it: `[sensors.encoder] resolution_m`, `mass_kg`,
     /// `[sensors.encoder]` for a table opened by its header.
     fn name(&self) -> String {
@@ -123,6 +128,25 @@ impl<'t> Entries<'t> {
             })
     }
 
+    /// The bare key a fault's span spells where no entry holds it (a key written twice), under
+    /// the last `[table]` header before it.
+    fn written_key(&self, span: Range<usize>) -> Option<String> {
+        let key = self.text.get(span.clone())?;
+        let bare = |c: char| c.is_ascii_alphanumeric() || c == '_' || c == '-';
+        if key.is_empty() || !key.chars().all(bare) {
+            return None;
+        }
+        let table = self
+            .entries
+            .iter()
+            .filter(|entry| entry.is_header() && entry.value.start <= span.start)
+            .max_by_key(|entry| entry.value.start);
+        Some(match table {
+            Some(table) => format!("[{}] {key}", table.path.join(".")),
+            None => key.to_owned(),
+        })
+    }
+
     /// A parser's or a deserializer's refusal, at its key and place.
     fn refuse(&self, source: &str, error: &toml::de::Error) -> SimError {
         let place = error.span().map(|span| {
@@ -130,7 +154,10 @@ impl<'t> Entries<'t> {
             PlantPlace {
                 line,
                 column,
-                key: self.at(span.start).map(Entry::name),
+                key: self
+                    .at(span.start)
+                    .map(Entry::name)
+                    .or_else(|| self.written_key(span)),
             }
         });
         SimError::PlantFile {
