@@ -1,6 +1,7 @@
 //! Line and scatter charts as SVG or PNG (by file extension). PNG text is rendered with the
 //! embedded DejaVu Sans font, so no system font is needed.
 
+use std::f64::consts::LN_10;
 use std::path::Path;
 
 use plotters::coord::Shift;
@@ -56,18 +57,18 @@ pub struct Key {
 }
 
 /// How the y axis maps values.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum YAxis {
+    #[default]
     Linear,
     /// Symmetric logarithmic: `sign(y)·log10(1 + |y|/linear_within)`, linear near zero and
     /// logarithmic beyond `linear_within`, so that curves of millimetres and of metres are both
     /// read off one axis.
-    SymLog {
-        linear_within: f64,
-    },
+    SymLog { linear_within: f64 },
 }
 
 impl YAxis {
+    /// A value's place on the axis.
     fn map(self, y: f64) -> f64 {
         match self {
             YAxis::Linear => y,
@@ -77,6 +78,7 @@ impl YAxis {
         }
     }
 
+    /// The value at a place on the axis.
     fn unmap(self, y: f64) -> f64 {
         match self {
             YAxis::Linear => y,
@@ -87,23 +89,13 @@ impl YAxis {
     }
 }
 
-const LN_10: f64 = std::f64::consts::LN_10;
-
 /// What a chart adds to its series: its legend, where not one entry a series, and its y axis.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Options {
-    /// The legend's entries; none: one for every series that has a point, under its name.
+    /// The legend's entries; none: one for every series under its name, series of one name,
+    /// mark and colour sharing one.
     pub keys: Option<Vec<Key>>,
     pub y_axis: YAxis,
-}
-
-impl Default for Options {
-    fn default() -> Self {
-        Options {
-            keys: None,
-            y_axis: YAxis::Linear,
-        }
-    }
 }
 
 /// One named series of `(x, y)` points with a palette colour index.
