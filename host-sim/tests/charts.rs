@@ -162,3 +162,14 @@ fn the_texts_of_a_chart_are_read_whole() {
     let svg = "<svg><text x=\"1\">\na &amp; b&apos;s\n</text><text y=\"2\">−10</text></svg>";
     assert_eq!(texts(svg), ["a & b's", "−10"]);
 }
+
+#[test]
+fn the_real_plate_s_trace_marks_its_end_stop_and_draws_its_position_on_its_own_axis() {
+    let (texts, _) = chart_texts(
+        "chart-trace-plant",
+        &["trace", "--plant", &plant("realistic.toml")],
+    );
+    assert_eq!(count(&texts, "end stop at 0.065 s"), 2, "{texts:?}");
+    assert_eq!(count(&texts, "plate position (mm)"), 1, "{texts:?}");
+    assert_no_negative_zero(&texts);
+}

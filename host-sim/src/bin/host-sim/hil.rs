@@ -394,19 +394,7 @@ fn plot_plate_run(
         "Firmware in the loop on {}, open loop: actual edges",
         plant.display()
     );
-    let end_stop = end_stop.map(|stop| Moment {
-        x: stop.time_s,
-        name: format!("end stop at {:.3} s", stop.time_s),
-    });
-    let in_ms: Vec<Moment> = moments
-        .iter()
-        .chain(&end_stop)
-        .map(|moment| Moment {
-            x: moment.x * 1e3,
-            ..moment.clone()
-        })
-        .collect();
-    plot_plate_trace(path, &title, trace, &in_ms)
+    plot_plate_trace(path, &title, trace, moments, end_stop)
 }
 
 /// The moments a chart of the run marks, in s: the start, each new duty taken while running, the

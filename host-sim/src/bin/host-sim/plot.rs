@@ -114,21 +114,13 @@ pub struct Moment {
     pub name: String,
 }
 
-/// The vertical lines of the `moments` within the x extent of `series`, across its y extent, each
-/// in its own colour from `first_color` on.
+/// The vertical lines of the `moments` within the x range `series` are drawn over, across its y
+/// range, each in its own colour from `first_color` on.
 pub fn moment_lines(moments: &[Moment], series: &[Series], first_color: usize) -> Vec<Series> {
-    let (_, y_range) = bounds(series);
-    let xs = || {
-        series
-            .iter()
-            .flat_map(|one| one.points.iter().map(|&(x, _)| x))
-            .filter(|x| x.is_finite())
-    };
-    let first = xs().fold(f64::INFINITY, f64::min);
-    let last = xs().fold(f64::NEG_INFINITY, f64::max);
+    let (x_range, y_range) = bounds(series);
     moments
         .iter()
-        .filter(|moment| (first..=last).contains(&moment.x))
+        .filter(|moment| x_range.contains(&moment.x))
         .zip(first_color..)
         .map(|(moment, color)| Series {
             name: moment.name.clone(),

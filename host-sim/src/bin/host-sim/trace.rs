@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use clap::Args;
-use host_sim::plate::{self, PlateParams, PlatePoint, PlateRunOptions};
+use host_sim::plate::{self, EndStop, PlateParams, PlatePoint, PlateRunOptions};
 use host_sim::sim::TracePoint;
 use host_sim::{OperatingPoint, RunOptions, SimError};
 
@@ -83,7 +83,7 @@ fn run_real_plate(
         cycles: args.cycles,
         average_cycles: args.cycles,
     };
-    let (_, trace) = plate::trace(params, &point.contact, point.segments(), &options)?;
+    let (run, trace) = plate::trace(params, &point.contact, point.segments(), &options)?;
     let plot = |path: &Path| {
         let title = format!(
             "Real plate, open loop: {} Hz, d = {}, a_max = {:.1} m/s², μ = {}",
@@ -92,7 +92,7 @@ fn run_real_plate(
             point.waveform.accel_mps2,
             point.contact.mu
         );
-        plot_plate_trace(path, &title, &trace, &[])
+        plot_plate_trace(path, &title, &trace, &[], run.end_stop)
     };
     emit(&args.output, &trace, plot, &trace, || {
         print_plate_trace(&trace)
@@ -121,13 +121,27 @@ fn print_plate_trace(trace: &[PlatePoint]) {
 }
 
 /// Plate and part velocity through a real plate's `trace` above, the plate's position that
-/// shows its drift below, each on its own scale, with `moments` (in ms) marked on both.
+/// shows its drift below, each on its own scale, with `moments` (their times in s) and the end
+/// stop, if the plate hit one, marked on both.
 pub fn plot_plate_trace(
     path: &Path,
     title: &str,
     trace: &[PlatePoint],
     moments: &[Moment],
+    end_stop: Option<EndStop>,
 ) -> Result<(), SimError> {
+    let end_stop = end_stop.map(|stop| Moment {
+        x: stop.time_s,
+        name: format!("end stop at {:.3} s", stop.time_s),
+    });
+    let moments: Vec<Moment> = moments
+        .iter()
+        .chain(&end_stop)
+        .map(|moment| Moment {
+            x: moment.x * 1e3,
+            ..moment.clone()
+        })
+        .collect();
     let line = |name: &str, color, value: fn(&PlatePoint) -> f64| Series {
         name: name.into(),
         points: trace.iter().map(|p| (p.time_s * 1e3, value(p))).collect(),
@@ -139,8 +153,8 @@ pub fn plot_plate_trace(
         line("part", 1, |p| p.part_velocity_mps * 1e3),
     ];
     let mut position = vec![line("plate", 0, |p| p.plate_position_m * 1e3)];
-    velocity.extend(plot::moment_lines(moments, &velocity, 3));
-    position.extend(plot::moment_lines(moments, &position, 3));
+    velocity.extend(plot::moment_lines(&moments, &velocity, 3));
+    position.extend(plot::moment_lines(&moments, &position, 3));
     plot::stacked(
         path,
         title,
