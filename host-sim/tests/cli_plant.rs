@@ -44,6 +44,11 @@ fn hil_on_a_real_plate_writes_the_real_plate_s_trace() {
         report["failures"][0],
         "end stop at +5.0 mm after 0.1108 s, at +0.230 m/s on the actual edges"
     );
+    assert_eq!(
+        report["verdict_line"],
+        "firmware in the loop: FAILED (end stop at +5.0 mm after 0.1108 s, at +0.230 m/s on the \
+         actual edges)"
+    );
     let text = std::fs::read_to_string(&csv).expect("the CSV");
     let mut lines = text.lines();
     assert_eq!(

@@ -51,6 +51,8 @@ struct HilReport<'a> {
     passed: bool,
     /// Empty when the run passed; else each criterion it missed.
     failures: Vec<String>,
+    /// The verdict as one line.
+    verdict_line: String,
     edges: u64,
     matched: u64,
     missing: u64,
@@ -200,6 +202,7 @@ pub fn run(args: &HilArgs) -> Result<bool, SimError> {
     }
     let report = HilReport {
         passed: failures.is_empty(),
+        verdict_line: verdict_line(&failures),
         failures,
         edges: check.edges,
         matched: check.matched,
@@ -272,21 +275,18 @@ pub fn run(args: &HilArgs) -> Result<bool, SimError> {
 }
 
 /// The verdict as one line: `PASSED`, or `FAILED` with each criterion the run missed.
-fn verdict_line(report: &HilReport) -> String {
-    if report.passed {
+fn verdict_line(failures: &[String]) -> String {
+    if failures.is_empty() {
         "firmware in the loop: PASSED".into()
     } else {
-        format!(
-            "firmware in the loop: FAILED ({})",
-            report.failures.join("; ")
-        )
+        format!("firmware in the loop: FAILED ({})", failures.join("; "))
     }
 }
 
 /// The report; `shown` says what the CSV and the chart, if written, hold.
 fn print_report(report: &HilReport, check: &CheckReport, output: &OutputArgs, shown: &str) {
     let microseconds = |ticks: i64| ticks as f64 * 1e6 / f64::from(report.clock_hz.max(1));
-    say!("{}", verdict_line(report));
+    say!("{}", report.verdict_line);
     say!(
         "  edges           {} reported, {} exactly as planned, {} missing, {} unexpected, {} glitches, {} missed",
         report.edges, report.matched, report.missing, report.unexpected, report.glitches,
