@@ -91,12 +91,7 @@ fn counts_are_whole_numbers_in_range() {
 
 #[test]
 fn physical_values_are_finite_decimals() {
-    for word in [
-        "freq_hz=inf",
-        "duty=NaN",
-        "freq_hz=",
-        "duty=1e400",
-    ] {
+    for word in ["freq_hz=inf", "duty=NaN", "freq_hz=", "duty=1e400"] {
         let error = parse_setting(word).unwrap_err();
         assert!(
             matches!(error, ScenarioError::NotFinite { .. }),
@@ -159,7 +154,12 @@ proptest! {
 
 #[test]
 fn the_stroke_takes_a_unit() {
-    for word in ["stroke_m=2.5mm", "stroke_m=0.0025", "stroke_m=2500um", "stroke_m=2500µm"] {
+    for word in [
+        "stroke_m=2.5mm",
+        "stroke_m=0.0025",
+        "stroke_m=2500um",
+        "stroke_m=2500µm",
+    ] {
         assert_eq!(
             parse_setting(word),
             Ok(ScenarioSetting::StrokeM(0.0025)),
