@@ -173,3 +173,26 @@ fn the_real_plate_s_trace_marks_its_end_stop_and_draws_its_position_on_its_own_a
     assert_eq!(count(&texts, "plate position (mm)"), 1, "{texts:?}");
     assert_no_negative_zero(&texts);
 }
+
+#[test]
+fn the_closed_loop_chart_marks_a_live_duty_change_from_the_release_on() {
+    let (texts, _) = chart_texts(
+        "chart-closed-loop-change",
+        &[
+            "closed-loop",
+            "--plant",
+            &plant("realistic.toml"),
+            "--cycles",
+            "200",
+            "--change-duty-at",
+            "100",
+            "--to-duty",
+            "0.596",
+        ],
+    );
+    let marks = texts
+        .iter()
+        .filter(|text| text.starts_with("d = 0.586 → 0.596 at "))
+        .count();
+    assert_eq!(marks, 3, "the three panels from the release on: {texts:?}");
+}

@@ -17,7 +17,7 @@ use serde::Serialize;
 
 use crate::args::{check_drive_limits, count, ContactArgs, OutputArgs, TimingArgs, WaveArgs};
 use crate::output::{emit, file_name, say};
-use crate::plot::{self, Mark, Panel, Series};
+use crate::plot::{self, Mark, Moment, Panel, Series};
 
 /// Cycles the loop runs when not told: 60 s at 50 Hz.
 const DEFAULT_CYCLES: u64 = 3_000;
@@ -544,7 +544,25 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
         }
         None => "mean per cycle: the soft start was never released".into(),
     };
-    let panels = [
+    let duty_change: Vec<Moment> = report
+        .duty_change
+        .and_then(|change| {
+            let at = run.cycles.iter().find(|c| c.cycle == change.at_cycle)?;
+            Some(Moment {
+                x: at.time_s,
+                name: format!(
+                    "d = {} → {} at {:.2} s",
+                    report.duty, change.duty, at.time_s
+                ),
+            })
+        })
+        .into_iter()
+        .collect();
+    let marked = |mut series: Vec<Series>| {
+        series.extend(plot::moment_lines(&duty_change, &series, 6));
+        series
+    };
+    let mut panels = [
         Panel {
             y: "largest |x| (µm)",
             series: excursion,
@@ -589,6 +607,10 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
             ],
         },
     ];
+    // The change is marked from the release on; the start-up's panel leaves it out.
+    for panel in &mut panels[1..] {
+        panel.series = marked(std::mem::take(&mut panel.series));
+    }
     let plant = file_name(&report.plant);
     let duty = report.duty_change.map_or(format!("{}", report.duty), |c| {
         format!("{} → {} at cycle {}", report.duty, c.duty, c.at_cycle)
