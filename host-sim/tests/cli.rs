@@ -495,6 +495,10 @@ fn waveforms_beyond_the_machine_are_refused_unless_lifted() {
         RUN_TIME,
     ));
     assert!(lifted["accel_mps2"].as_f64() > Some(277.0), "{lifted}");
+    let reason = lifted["beyond_drive_limits"].as_str().expect("the reason");
+    assert!(reason.contains("200 m/s²"), "{reason}");
+    let within = json(&run(&["simulate", "--cycles", "3", "--json"], RUN_TIME));
+    assert_eq!(within["beyond_drive_limits"], serde_json::Value::Null);
     // The paper's figures go beyond the machine: Fig. 8 at d = 0.7 and 2.5 mm.
     let figure = run(&["trace", "--duty", "0.7", "--cycles", "1"], RUN_TIME);
     assert_eq!(figure.code(), Some(0), "{figure:#?}");

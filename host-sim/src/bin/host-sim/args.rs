@@ -102,28 +102,38 @@ pub struct DriveLimitArgs {
 }
 
 impl DriveLimitArgs {
-    /// Refuses `spec` beyond the machine's limits unless `--no-drive-limits` lifts them.
-    pub fn check(&self, spec: WaveformSpec) -> Result<(), SimError> {
+    /// Refuses `spec` beyond the machine's limits unless `--no-drive-limits` lifts them; with them
+    /// lifted, why it is beyond them (`None` within them), for the report.
+    pub fn check(&self, spec: WaveformSpec) -> Result<Option<String>, SimError> {
         if self.no_drive_limits {
-            return Ok(());
+            return Ok(beyond_drive_limits(spec));
         }
-        check_drive_limits(spec, " (--no-drive-limits runs it as a paper study)")
+        check_drive_limits(spec, " (--no-drive-limits runs it as a paper study)").map(|()| None)
     }
 }
 
-/// Refuses a waveform the firmware would refuse: beyond [`MACHINE_LIMITS`] or, with the default
-/// DAC, beyond its linear range; the shared refusal's text, then `remedy`.
-pub fn check_drive_limits(spec: WaveformSpec, remedy: &str) -> Result<(), SimError> {
-    let beyond = |error: &dyn Display| {
-        SimError::Request(format!(
-            "{error}: beyond the machine's drive limits, which the firmware refuses{remedy}"
-        ))
+/// Why the firmware would refuse `spec`: the shared refusal of a waveform beyond
+/// [`MACHINE_LIMITS`] or, with the default DAC, beyond its linear range; `None` within them.
+pub fn beyond_drive_limits(spec: WaveformSpec) -> Option<String> {
+    let waveform = match Waveform::new(spec, &MACHINE_LIMITS) {
+        Ok(waveform) => waveform,
+        Err(error) => return Some(error.to_string()),
     };
-    let waveform = Waveform::new(spec, &MACHINE_LIMITS).map_err(|error| beyond(&error))?;
     DacCalibration::DEFAULT
         .levels(waveform.accel_mps2)
-        .map_err(|error| beyond(&error))?;
-    Ok(())
+        .err()
+        .map(|error| error.to_string())
+}
+
+/// Refuses a waveform the firmware would refuse ([`beyond_drive_limits`]): the shared refusal's
+/// text, then `remedy`.
+pub fn check_drive_limits(spec: WaveformSpec, remedy: &str) -> Result<(), SimError> {
+    match beyond_drive_limits(spec) {
+        Some(reason) => Err(SimError::Request(format!(
+            "{reason}: beyond the machine's drive limits, which the firmware refuses{remedy}"
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// The part's friction on the plate, gravity and the part's mass.

@@ -50,6 +50,9 @@ struct DriftReport<'a> {
     duty: f64,
     accel_mps2: f64,
     stroke_m: f64,
+    /// Why the waveform is beyond the machine's drive limits (run with --no-drive-limits); null
+    /// within them.
+    beyond_drive_limits: Option<String>,
     mu: f64,
     clock_hz: Option<u32>,
     cycles: u64,
@@ -74,7 +77,7 @@ pub fn run(args: &DriftArgs) -> Result<(), SimError> {
     args.output.check()?;
     let spec = args.wave.spec()?;
     let point = OperatingPoint::new(spec, args.contact.contact()?, args.timing.clock_hz())?;
-    args.drive_limits.check(spec)?;
+    let beyond_drive_limits = args.drive_limits.check(spec)?;
     let options = plate_options(args.cycles);
     let traced = args.output.csv.is_some() || args.output.plot.is_some();
     let cases = figures::open_loop_drift(&point, &figures::open_loop_cases()?, &options, traced)?;
@@ -95,6 +98,7 @@ pub fn run(args: &DriftArgs) -> Result<(), SimError> {
         duty: point.waveform.duty,
         accel_mps2: point.waveform.accel_mps2,
         stroke_m: point.waveform.stroke_m,
+        beyond_drive_limits,
         mu: point.contact.mu,
         clock_hz: match point.timing {
             Timing::Exact => None,
@@ -153,6 +157,9 @@ fn print_table(report: &DriftReport) {
         report.cycles,
         report.plate_mass_kg
     );
+    if let Some(reason) = &report.beyond_drive_limits {
+        say!("beyond the machine's drive limits, lifted by --no-drive-limits: {reason}");
+    }
     say!("");
     say!(
         "| non-ideality | feed rate (last {} cycles) | plate's mean position | end stop |",

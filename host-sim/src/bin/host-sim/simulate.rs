@@ -90,6 +90,9 @@ struct SimulateReport {
     accel_mps2: f64,
     stroke_m: f64,
     duty_sat_nqs: f64,
+    /// Why the waveform is beyond the machine's drive limits (run with --no-drive-limits); null
+    /// within them.
+    beyond_drive_limits: Option<String>,
     mu: f64,
     mu_static: f64,
     gravity_mps2: f64,
@@ -115,7 +118,12 @@ struct Measured {
 
 impl SimulateReport {
     /// The report of `measured` at `point`, with the shared model's prediction beside it.
-    fn new(point: &OperatingPoint, measured: Measured, plant: Option<PlantReport>) -> Self {
+    fn new(
+        point: &OperatingPoint,
+        measured: Measured,
+        beyond_drive_limits: Option<String>,
+        plant: Option<PlantReport>,
+    ) -> Self {
         let prediction = point.model();
         SimulateReport {
             feed_rate_mps: measured.feed_rate_mps,
@@ -131,6 +139,7 @@ impl SimulateReport {
             accel_mps2: point.waveform.accel_mps2,
             stroke_m: point.waveform.stroke_m,
             duty_sat_nqs: prediction.duty_sat_nqs,
+            beyond_drive_limits,
             mu: point.contact.mu,
             mu_static: point.contact.mu_static,
             gravity_mps2: point.contact.gravity_mps2,
@@ -149,10 +158,12 @@ pub fn run(args: &SimulateArgs) -> Result<(), SimError> {
     args.output.check()?;
     let spec = args.wave.spec()?;
     let point = OperatingPoint::new(spec, args.contact.contact()?, args.timing.clock_hz())?;
-    args.drive_limits.check(spec)?;
+    let beyond = args.drive_limits.check(spec)?;
     match args.plant.plate()? {
-        Some((path, params)) if !params.is_ideal() => run_real_plate(args, &point, path, &params),
-        ideal => run_ideal_plate(args, &point, ideal),
+        Some((path, params)) if !params.is_ideal() => {
+            run_real_plate(args, &point, beyond, path, &params)
+        }
+        ideal => run_ideal_plate(args, &point, beyond, ideal),
     }
 }
 
@@ -160,6 +171,7 @@ pub fn run(args: &SimulateArgs) -> Result<(), SimError> {
 fn run_ideal_plate(
     args: &SimulateArgs,
     point: &OperatingPoint,
+    beyond_drive_limits: Option<String>,
     plant: Option<(&Path, PlateParams)>,
 ) -> Result<(), SimError> {
     let options = RunOptions {
@@ -187,6 +199,7 @@ fn run_ideal_plate(
             plate_excursion_m: Some(run.plate_excursion_m),
             cycles_per_s: run.cycles as f64 / elapsed_s,
         },
+        beyond_drive_limits,
         plant,
     );
     // Continues from the final state for a few cycles with the event trace on.
@@ -221,6 +234,7 @@ fn run_ideal_plate(
 fn run_real_plate(
     args: &SimulateArgs,
     point: &OperatingPoint,
+    beyond_drive_limits: Option<String>,
     path: &Path,
     params: &PlateParams,
 ) -> Result<(), SimError> {
@@ -243,6 +257,7 @@ fn run_real_plate(
             plate_excursion_m: None,
             cycles_per_s: run.cycles as f64 / elapsed_s,
         },
+        beyond_drive_limits,
         Some(PlantReport::new(path, &run)),
     );
     let rows: [(); 0] = [];
@@ -310,6 +325,9 @@ fn print_simulation(report: &SimulateReport, point: &OperatingPoint, output: &Ou
         report.freq_hz,
         report.duty
     );
+    if let Some(reason) = &report.beyond_drive_limits {
+        say!("drive limits      beyond them, lifted by --no-drive-limits: {reason}");
+    }
     say!(
         "contact           μ = {}, μ_s = {}, g = {} m/s², m = {} kg, f_ext = {} N",
         report.mu,
