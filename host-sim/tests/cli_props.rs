@@ -1,6 +1,6 @@
 //! Random subcommands with random and extreme arguments and garbage files: the binary exits with
-//! 0 or 2, never panics, is never killed, prints at most one `error:` line, and finishes in
-//! bounded time and memory.
+//! 0, 1 (a run that failed its verdict, which its report names) or 2, never panics, is never
+//! killed, prints at most one `error:` line, and finishes in bounded time and memory.
 //!
 //! Counts are drawn around their limits but never at large valid values, and the commands that
 //! run many operating points always get a count: a point whose part never settles runs to the
@@ -330,12 +330,20 @@ fn check(outcome: &Outcome) -> Result<(), TestCaseError> {
     prop_assert!(!outcome.stderr.contains("panicked"), "{outcome:#?}");
     match outcome.code() {
         Some(0) => prop_assert_eq!(&outcome.stderr, "", "{:#?}", outcome),
+        Some(1) => {
+            prop_assert_eq!(&outcome.stderr, "", "{:#?}", outcome);
+            prop_assert!(
+                outcome.stdout.contains(": FAILED (")
+                    || outcome.stdout.contains("\"passed\": false"),
+                "{outcome:#?}"
+            );
+        }
         Some(2) => {
             let lines = outcome.stderr_lines();
             prop_assert_eq!(lines.len(), 1, "{:#?}", outcome);
             prop_assert!(lines[0].starts_with("error: "), "{outcome:#?}");
         }
-        _ => prop_assert!(false, "exit code other than 0 or 2: {outcome:#?}"),
+        _ => prop_assert!(false, "exit code other than 0, 1 or 2: {outcome:#?}"),
     }
     Ok(())
 }
