@@ -25,15 +25,6 @@ pub const FRICTION: feeder_shared::Friction = feeder_shared::Friction {
     gravity_mps2: feeder_shared::model::STANDARD_GRAVITY_MPS2,
 };
 
-/// The worst work between an edge and the next preload, in instructions, rounded up: 10,760
-/// measured under QEMU (`-icount shift=4`, `cargo xtask run cycles=1000`) at 50 and 100 Hz,
-/// wake-up and the `EVT` trace included, on the edge that takes a start request and a new plan.
-pub const EDGE_WORK_INSTRUCTIONS: f64 = 10_800.0;
-
-/// How many times the worst work per edge the shortest segment must last: segments shorter than
-/// this are refused by `shared` (`SegmentBelowFloor`), so a validated waveform cannot miss an edge.
-pub const EDGE_WORK_MARGIN: f64 = 3.0;
-
 /// Track control (`ports::PartSensor`): the barrier blocked for 0.5 s without a break means the
 /// track is full and the feeder pauses; clear for 1 s, the track has room and it feeds again.
 pub const TRACK: feeder_shared::closed_loop::TrackConfig =

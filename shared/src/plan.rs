@@ -23,6 +23,15 @@ use crate::segment::SegmentKind;
 use crate::waveform::Waveform;
 use libm::{fabs, round, sqrt};
 
+/// The worst work between an edge and the next preload, in instructions, rounded up: 10,760
+/// measured under QEMU (`-icount shift=4`, `cargo xtask run cycles=1000`) at 50 and 100 Hz,
+/// wake-up and the `EVT` trace included, on the edge that takes a start request and a new plan.
+pub const EDGE_WORK_INSTRUCTIONS: f64 = 10_800.0;
+
+/// How many times the worst work per edge the shortest segment must last: segments shorter than
+/// this are refused ([`Error::SegmentBelowFloor`]), so a validated waveform cannot miss an edge.
+pub const EDGE_WORK_MARGIN: f64 = 3.0;
+
 /// A timer that counts at `hz` and can time segments of at least `min_segment_ticks` and at most
 /// `max_segment_ticks` ticks (for example `u16::MAX` for a 16-bit auto-reload register).
 ///
@@ -61,6 +70,13 @@ impl TickClock {
             },
             ..self
         }
+    }
+
+    /// The same clock with the shortest segment of an output stage whose core takes
+    /// `instruction_s` per instruction: the worst work per edge ([`EDGE_WORK_INSTRUCTIONS`]) times
+    /// [`EDGE_WORK_MARGIN`].
+    pub fn with_edge_work_floor(self, instruction_s: f64) -> Self {
+        self.with_min_segment_s(EDGE_WORK_MARGIN * EDGE_WORK_INSTRUCTIONS * instruction_s)
     }
 
     pub const fn with_max_segment_ticks(self, max_segment_ticks: u32) -> Self {

@@ -1,8 +1,11 @@
-//! The scripted operator's `key=value` words: what each key accepts, and that every other word is
-//! refused with the word or value named.
+//! The scripted operator's `key=value` words: what each key accepts, that every other word is
+//! refused with the word or value named, and which runs the emulated board refuses before they
+//! start.
 
-use feeder_shared::scenario::{parse_setting, SCENARIO_KEYS};
-use feeder_shared::{ScenarioError, ScenarioSetting};
+use feeder_shared::scenario::{
+    parse_setting, qemu_clock, RefusalCause, RunWaveform, Scenario, ScenarioRefusal, SCENARIO_KEYS,
+};
+use feeder_shared::{Error, Quantity, ScenarioError, ScenarioSetting};
 use proptest::prelude::*;
 
 #[test]
@@ -171,4 +174,140 @@ fn the_stroke_takes_a_unit() {
         "stroke_m=2.5in: stroke_m must be a finite length in m or with its unit: the unit of a \
          length must be m, mm, um or µm"
     );
+}
+
+fn check(words: &[&'static str]) -> Result<(), ScenarioRefusal> {
+    Scenario::parse(words.iter().copied())
+        .expect("well-formed words")
+        .check(qemu_clock(), None)
+}
+
+#[test]
+fn the_default_run_and_the_documented_examples_pass() {
+    assert_eq!(check(&[]), Ok(()));
+    assert_eq!(
+        check(&["cycles=1000", "freq_hz=100", "stroke_m=0.0006"]),
+        Ok(())
+    );
+}
+
+#[test]
+fn a_duty_of_one_or_more_is_refused_by_the_waveform() {
+    let refusal = check(&["duty=1.2"]).expect_err("refused");
+    assert_eq!(
+        refusal,
+        ScenarioRefusal {
+            which: RunWaveform::Start,
+            duty: 1.2,
+            cause: RefusalCause::Waveform(Error::DutyTooHigh { duty: 1.2 })
+        }
+    );
+}
+
+#[test]
+fn a_frequency_outside_the_machines_band_is_refused() {
+    let refusal = check(&["freq_hz=120"]).expect_err("refused");
+    assert!(
+        matches!(
+            refusal,
+            ScenarioRefusal {
+                cause: RefusalCause::Waveform(Error::FrequencyOutOfBand { .. }),
+                ..
+            }
+        ),
+        "{refusal:?}"
+    );
+    let refusal = check(&["freq_hz=0"]).expect_err("refused");
+    assert!(
+        matches!(
+            refusal,
+            ScenarioRefusal {
+                cause: RefusalCause::Waveform(Error::NotPositive {
+                    quantity: Quantity::FrequencyHz,
+                    ..
+                }),
+                ..
+            }
+        ),
+        "{refusal:?}"
+    );
+}
+
+#[test]
+fn the_live_change_is_checked_with_its_default_duty() {
+    // d = 0.64 keeps the default 2.5 mm stroke within 200 m/s²; 0.66 allows 2.312 mm.
+    assert_eq!(check(&["duty=0.64", "new_duty=0.6"]), Ok(()));
+    let refusal = check(&["duty=0.64"]).expect_err("refused");
+    assert!(
+        matches!(
+            refusal,
+            ScenarioRefusal {
+                which: RunWaveform::LiveChange,
+                cause: RefusalCause::Waveform(Error::StrokeAboveAccelLimit { .. }),
+                ..
+            }
+        ),
+        "{refusal:?}"
+    );
+    assert!(matches!(
+        check(&["new_duty=0.5"]),
+        Err(ScenarioRefusal {
+            which: RunWaveform::LiveChange,
+            cause: RefusalCause::Waveform(Error::DutyTooLow { .. }),
+            ..
+        })
+    ));
+}
+
+#[test]
+fn strokes_beyond_the_limits_and_segments_below_the_boards_floor_are_refused() {
+    assert!(matches!(
+        check(&["stroke_m=0.009"]),
+        Err(ScenarioRefusal {
+            cause: RefusalCause::Waveform(
+                Error::StrokeAboveLimit { .. } | Error::StrokeAboveAccelLimit { .. }
+            ),
+            ..
+        })
+    ));
+    // At 50 Hz and d = 0.9 the forward acceleration lasts 56 µs, below QEMU's 519 µs floor.
+    assert!(matches!(
+        check(&["duty=0.9", "new_duty=0.9", "stroke_m=0.0001"]),
+        Err(ScenarioRefusal {
+            cause: RefusalCause::Waveform(Error::SegmentBelowFloor { min_ticks: 519, .. }),
+            ..
+        })
+    ));
+}
+
+#[test]
+fn a_refusal_says_which_waveform_and_why_in_words() {
+    let text = check(&["duty=1.2"]).expect_err("refused").to_string();
+    assert_eq!(
+        text,
+        "the waveform at start (freq_hz, duty, stroke_m): duty cycle 1.2 must be below 1: at 1 \
+         there is no time left for the backward swing"
+    );
+    let text = check(&["duty=0.64"]).expect_err("refused").to_string();
+    assert!(
+        text.starts_with(
+            "the live change's waveform (new_duty = 0.66): stroke 0.0025 m exceeds the 0.002312 m"
+        ),
+        "{text}"
+    );
+}
+
+#[test]
+fn where_the_closed_loop_runs_its_room_in_the_dacs_range_is_checked_too() {
+    let scenario = Scenario::parse(["duty=0.64", "new_duty=0.6"]).expect("well-formed words");
+    assert_eq!(scenario.check(qemu_clock(), None), Ok(()));
+    let linear_mps2 = feeder_shared::DacCalibration::DEFAULT.linear_limit_mps2();
+    assert!(matches!(
+        scenario.check(qemu_clock(), Some(linear_mps2)),
+        Err(ScenarioRefusal {
+            which: RunWaveform::Start,
+            cause: RefusalCause::Waveform(Error::AccelAboveLoopRoom { .. }),
+            ..
+        })
+    ));
 }

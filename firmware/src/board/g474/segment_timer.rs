@@ -21,10 +21,10 @@ use embassy_stm32::timer::low_level::{MasterMode, SlaveMode, Timer, TriggerSourc
 use embassy_stm32::timer::{CoreInstance, GeneralInstance4Channel};
 use embassy_stm32::Peri;
 use embassy_sync::waitqueue::AtomicWaker;
+use feeder_shared::plan::{EDGE_WORK_INSTRUCTIONS, EDGE_WORK_MARGIN};
 use feeder_shared::Segment;
 
 use super::setup::CORE_HZ;
-use crate::config;
 use crate::output::EdgeMissed;
 
 /// Cycles per instruction assumed for the edge work: Cortex-M4 code from flash at 4 wait states
@@ -35,7 +35,7 @@ const CYCLES_PER_INSTRUCTION: f64 = 1.5;
 /// The shortest segment either output stage takes: the worst work per edge measured in
 /// instructions, at this core's speed, times the margin (about 286 µs).
 pub const MIN_SEGMENT_S: f64 =
-    config::EDGE_WORK_MARGIN * config::EDGE_WORK_INSTRUCTIONS * CYCLES_PER_INSTRUCTION / CORE_HZ;
+    EDGE_WORK_MARGIN * EDGE_WORK_INSTRUCTIONS * CYCLES_PER_INSTRUCTION / CORE_HZ;
 
 /// CR1 of a segment timer, stopped: ARPE (bit 7, the auto-reload is preloaded) and URS (bit 2,
 /// only counter overflows raise the update interrupt), CEN (bit 0) clear.

@@ -2,6 +2,7 @@
 //! reported as an `EVT` line.
 
 use embassy_time::{Instant, Timer};
+use feeder_shared::scenario::{qemu_clock, QEMU_TICK_HZ};
 use feeder_shared::{DacLevels, DriveError, Segment, TickClock};
 
 use super::edge_work::{overrun_if_provoked, record_edge_work};
@@ -11,13 +12,8 @@ use crate::config;
 use crate::output::{EdgeMissed, SegmentOutput, SegmentStart, TrimmedCycle, TrimmedLevels};
 use crate::trace;
 
-/// Virtual time per instruction under `-icount shift=4`: 2⁴ ns.
-const INSTRUCTION_S: f64 = 16e-9;
-
-/// The shortest segment this board's output stage takes: the worst work per edge, at QEMU's
-/// speed, times the margin (about 518 µs).
-const MIN_SEGMENT_S: f64 =
-    config::EDGE_WORK_MARGIN * config::EDGE_WORK_INSTRUCTIONS * INSTRUCTION_S;
+// The output's clock (`feeder_shared::scenario::qemu_clock`) counts embassy's ticks.
+const _: () = assert!(embassy_time::TICK_HZ == QEMU_TICK_HZ as u64);
 
 /// The output stage: TIM2's semantics on the emulated clock. Each segment takes effect on its
 /// planned tick whatever the software does, which only preloads the next segment while the
@@ -121,7 +117,7 @@ impl ReportingOutput {
 
 impl SegmentOutput for ReportingOutput {
     fn clock(&self) -> TickClock {
-        TickClock::new(embassy_time::TICK_HZ as u32).with_min_segment_s(MIN_SEGMENT_S)
+        qemu_clock()
     }
 
     fn level_step_mps2(&self) -> f64 {

@@ -3,7 +3,8 @@
 //! (`-semihosting-config enable=on,target=native,arg=feeder-firmware,arg=cycles=1000`):
 //!
 //! Keys and values are read by `feeder_shared::scenario`, which refuses unknown keys and malformed
-//! values (the run then ends with a failure code):
+//! values and runs whose waveforms this board cannot play (`Scenario::check`, which
+//! `cargo xtask run` applies before it starts QEMU); the run then ends with a failure code:
 //!
 //! | argument            | meaning                                         | default              |
 //! |---------------------|-------------------------------------------------|----------------------|
@@ -39,17 +40,15 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m_semihosting::debug::{self, EXIT_SUCCESS};
 use cortex_m_semihosting::nr::GET_CMDLINE;
-use defmt::{info, unwrap};
+use defmt::{info, unwrap, Display2Format};
 use embassy_executor::SendSpawner;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::signal::Signal;
 use embassy_time::{Instant, Timer};
 #[cfg(feature = "encoder")]
 use feeder_shared::closed_loop::Stage;
-use feeder_shared::scenario::parse_setting;
-use feeder_shared::{
-    Drive, RunState, ScenarioError, ScenarioSetting, SupervisorEvent, TickClock, WaveformSpec,
-};
+use feeder_shared::scenario::Scenario;
+use feeder_shared::{RunState, SupervisorEvent, TickClock, WaveformSpec};
 
 use super::edge_work::{edge_work, provoke_late_preload};
 use super::exit::{self, after_fault, sleep_forever};
@@ -114,67 +113,6 @@ fn mask_interrupts(cycles: u64) {
         let until = time_driver::now_cycles() + cycles;
         while time_driver::now_cycles() < until {}
     });
-}
-
-struct Scenario {
-    stop_after_cycles: u32,
-    spec: WaveformSpec,
-    new_duty: f64,
-    ramp_cycles: u16,
-    panic_at_cycle: Option<u32>,
-    overflow_cycle: Option<u32>,
-    mask_cycle: Option<u32>,
-    late_preload_cycle: Option<u32>,
-    random_changes: u32,
-    seed: u32,
-    track_full_cycle: Option<u32>,
-    track_room_cycle: Option<u32>,
-}
-
-impl Scenario {
-    /// Reads the `key=value` words of the command line with the shared parser; the first word it
-    /// refuses ends the run.
-    fn parse(command_line: &str) -> Result<Self, ScenarioError<'_>> {
-        let mut scenario = Scenario {
-            stop_after_cycles: 300,
-            spec: config::WAVEFORM,
-            new_duty: f64::NAN,
-            ramp_cycles: config::RAMP_CYCLES,
-            panic_at_cycle: None,
-            overflow_cycle: None,
-            mask_cycle: None,
-            late_preload_cycle: None,
-            random_changes: 0,
-            seed: 1,
-            track_full_cycle: None,
-            track_room_cycle: None,
-        };
-        // The first word is the program's name (the kernel's path when QEMU got no `arg=`).
-        for word in command_line.split_whitespace().skip(1) {
-            match parse_setting(word)? {
-                ScenarioSetting::Cycles(n) => scenario.stop_after_cycles = n,
-                ScenarioSetting::FreqHz(f) => scenario.spec.period_s = 1.0 / f,
-                ScenarioSetting::Duty(d) => scenario.spec.duty = d,
-                ScenarioSetting::StrokeM(stroke_m) => {
-                    scenario.spec.drive = Drive::Stroke { stroke_m }
-                }
-                ScenarioSetting::NewDuty(d) => scenario.new_duty = d,
-                ScenarioSetting::Ramp(r) => scenario.ramp_cycles = r,
-                ScenarioSetting::PanicAt(c) => scenario.panic_at_cycle = Some(c),
-                ScenarioSetting::OverflowAt(c) => scenario.overflow_cycle = Some(c),
-                ScenarioSetting::MaskAt(c) => scenario.mask_cycle = Some(c),
-                ScenarioSetting::LatePreloadAt(c) => scenario.late_preload_cycle = Some(c),
-                ScenarioSetting::Changes(k) => scenario.random_changes = k,
-                ScenarioSetting::Seed(seed) => scenario.seed = seed,
-                ScenarioSetting::TrackFullAt(c) => scenario.track_full_cycle = Some(c),
-                ScenarioSetting::TrackRoomAt(c) => scenario.track_room_cycle = Some(c),
-            }
-        }
-        if scenario.new_duty.is_nan() {
-            scenario.new_duty = scenario.spec.duty + 0.02;
-        }
-        Ok(scenario)
-    }
 }
 
 /// Reads the semihosting command line into `buffer`.
@@ -350,13 +288,19 @@ impl Run {
 #[embassy_executor::task]
 async fn operator_task(clock: TickClock, spawner: SendSpawner) {
     let mut buffer = [0u8; 256];
-    let scenario = match Scenario::parse(command_line(&mut buffer)) {
+    // The first word is the program's name (the kernel's path when QEMU got no `arg=`).
+    let words = command_line(&mut buffer).split_whitespace().skip(1);
+    let scenario = match Scenario::parse(words) {
         Ok(scenario) => scenario,
         Err(error) => {
-            defmt::error!("scenario: {}", error);
+            defmt::error!("scenario: {}", Display2Format(&error));
             after_fault();
         }
     };
+    if let Err(refusal) = scenario.check(clock, config::LOOP_LINEAR_MPS2) {
+        defmt::error!("scenario: {}", Display2Format(&refusal));
+        after_fault();
+    }
     let plan = |duty| match ReadyPlan::new(
         clock,
         &WaveformSpec {
@@ -367,7 +311,7 @@ async fn operator_task(clock: TickClock, spawner: SendSpawner) {
     ) {
         Ok(ready) => ready,
         Err(error) => {
-            defmt::error!("scenario: waveform refused: {}", error);
+            defmt::error!("scenario: waveform refused: {}", Display2Format(&error));
             after_fault();
         }
     };
