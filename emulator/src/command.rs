@@ -15,7 +15,7 @@ const PROGRAM_NAME: &str = "feeder-firmware";
 
 /// `-icount shift=ICOUNT_SHIFT`: every instruction advances virtual time by 2^shift ns, so a run
 /// is deterministic and its timer cycles count instructions.
-pub const ICOUNT_SHIFT: u32 = 4;
+pub const ICOUNT_SHIFT: u32 = feeder_shared::scenario::QEMU_ICOUNT_SHIFT;
 
 /// Virtual time per instruction under [`ICOUNT_SHIFT`], in nanoseconds.
 pub const NS_PER_INSTRUCTION: u32 = 1 << ICOUNT_SHIFT;

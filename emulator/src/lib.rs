@@ -3,6 +3,8 @@
 //! a chosen backend, and the firmware's defmt log, which appears on QEMU's standard output,
 //! decoded by `defmt-print`.
 //!
+//! [`relay`] passes a decoded log on as it streams and reads the run's [`Progress`] from it.
+//!
 //! The `cosim` image runs in lockstep with a plant on the host over two FIFOs ([`plant`]):
 //! [`run_with_plant`] serves a [`plant::Plant`] on a thread while the firmware runs.
 //!
@@ -13,10 +15,12 @@ mod board;
 mod command;
 mod error;
 pub mod plant;
+mod progress;
 
 pub use board::{run_to_end, run_with_plant, Board, PlantRun, Run};
 pub use command::{command, Serial, ICOUNT_SHIFT, NS_PER_INSTRUCTION};
 pub use error::LaunchError;
+pub use progress::{relay, Progress};
 
 /// The emulator.
 pub const QEMU: &str = "qemu-system-arm";

@@ -22,9 +22,8 @@ use tempfile::TempDir;
 
 use crate::LaunchError;
 
-/// The rate of the ticks the firmware's messages carry: the QEMU board's output clock, embassy's
-/// default tick of 1 µs.
-pub const TICK_HZ: u32 = 1_000_000;
+/// The rate of the ticks the firmware's messages carry: the QEMU board's output clock.
+pub const TICK_HZ: u32 = feeder_shared::scenario::QEMU_TICK_HZ;
 
 /// The FIFO the firmware writes its messages to, in QEMU's working directory.
 pub const LEVELS_FILE: &str = "plant-levels";
