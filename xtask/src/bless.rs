@@ -12,7 +12,7 @@ use std::time::Duration;
 use feeder_shared::scenario::parse_setting;
 
 use crate::qemu::{self, Image};
-use crate::{cargo, exec, host_sim, root, tools, Result};
+use crate::{cargo, exec, exec_output, host_sim, root, tools, Result};
 
 /// A scripted run may take this long before it is ended and bless fails.
 const RUN_LIMIT: Duration = Duration::from_secs(120);
@@ -104,7 +104,8 @@ fn qemu_logs() -> Result {
                 run.status,
                 scenario.display(),
                 run.log
-            ));
+            )
+            .into());
         }
         write(&scenario.with_extension("log"), run.log.as_bytes())?;
     }
@@ -150,7 +151,7 @@ fn family_sample() -> Result {
 /// The figures' CSVs, written by the `host-sim` CLI (its report on standard output is left out).
 fn figures() -> Result {
     for (file, arguments) in FIGURES {
-        exec(
+        exec_output(
             host_sim()
                 .args(arguments)
                 .arg("--csv")
@@ -192,10 +193,12 @@ fn contents(dirs: &[PathBuf]) -> Result<BTreeMap<PathBuf, Vec<u8>>> {
 }
 
 fn write(path: &Path, bytes: &[u8]) -> Result {
-    fs::write(path, bytes).map_err(|error| format!("cannot write {}: {error}", path.display()))
+    fs::write(path, bytes)
+        .map_err(|error| format!("cannot write {}: {error}", path.display()).into())
 }
 
-/// Prints each file that is new or changed, relative to the workspace root.
+/// Prints each file that is new or changed, relative to the workspace root, on standard output;
+/// the count on standard error.
 fn report(before: &BTreeMap<PathBuf, Vec<u8>>, after: &BTreeMap<PathBuf, Vec<u8>>) {
     let root = root();
     let name = |path: &Path| {
@@ -215,12 +218,12 @@ fn report(before: &BTreeMap<PathBuf, Vec<u8>>, after: &BTreeMap<PathBuf, Vec<u8>
         changes += 1;
     }
     if changes == 0 {
-        println!(
+        eprintln!(
             "bless: every expected output is unchanged ({} files)",
             after.len()
         );
     } else {
         let files = if changes == 1 { "file" } else { "files" };
-        println!("bless: {changes} {files} changed; review them with `git diff`");
+        eprintln!("bless: {changes} {files} changed; review them with `git diff`");
     }
 }

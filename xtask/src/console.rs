@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use feeder_emulator::{Board, Serial};
 
 use crate::qemu::{self, Image};
-use crate::{exec, host_sim, root, tools, workspace_binary, Result};
+use crate::{exec, exec_output, host_sim, root, tools, workspace_binary, Result};
 
 /// Longest to wait for QEMU to open its serial port.
 const PORT_OPEN_TIMEOUT: Duration = Duration::from_secs(20);
@@ -45,17 +45,17 @@ pub fn console() -> Result {
     let operator = {
         let mut feeder = Feeder::start(&elf, &log)?;
         eprintln!(
-            "xtask: the feeder runs under QEMU, its console on 127.0.0.1:{} and its log in {}; \
+            "xtask: the feeder runs under QEMU, its console on {} and its log in {}; \
              `help` lists the commands, `quit`, `exit` or Ctrl-D leave and check the run",
-            feeder.port,
+            address(feeder.port),
             log.display()
         );
         let operator = operate(feeder.port).and_then(|()| bring_to_rest(feeder.port));
         feeder.stop()?;
         operator
     };
-    println!("\nWhat the firmware did, checked by host-sim hil:");
-    let check = exec(
+    eprintln!("\nWhat the firmware did, checked by host-sim hil:");
+    let check = exec_output(
         host_sim()
             .args(["hil", "--input"])
             .arg(&log)
@@ -88,9 +88,7 @@ impl Feeder {
         let deadline = Instant::now() + PORT_OPEN_TIMEOUT;
         loop {
             if let Ok(Some(status)) = self.board.try_exit_status() {
-                return Err(format!(
-                    "QEMU ended before its serial port opened: {status}"
-                ));
+                return Err(format!("QEMU ended before its serial port opened: {status}").into());
             }
             // QEMU takes the next client once this probe has disconnected.
             if TcpStream::connect(("127.0.0.1", self.port)).is_ok() {
@@ -99,7 +97,8 @@ impl Feeder {
             if Instant::now() > deadline {
                 return Err(format!(
                     "QEMU did not open its serial port within {PORT_OPEN_TIMEOUT:?}"
-                ));
+                )
+                .into());
             }
             thread::sleep(PORT_POLL_INTERVAL);
         }
@@ -107,8 +106,13 @@ impl Feeder {
 
     /// Ends QEMU and waits for the decoder to write the rest of the log.
     fn stop(&mut self) -> Result {
-        self.board.stop().map_err(|error| error.to_string())
+        self.board.stop().map_err(|error| error.to_string().into())
     }
+}
+
+/// The console's address on the loopback port `port`, as `feeder-ctl --tcp` takes it.
+fn address(port: u16) -> String {
+    format!("127.0.0.1:{port}")
 }
 
 /// A loopback port nobody listens on (free when this returns; QEMU takes it right after).
@@ -116,15 +120,15 @@ fn free_port() -> Result<u16> {
     TcpListener::bind("127.0.0.1:0")
         .and_then(|listener| listener.local_addr())
         .map(|address| address.port())
-        .map_err(|error| format!("no free loopback port: {error}"))
+        .map_err(|error| format!("no free loopback port: {error}").into())
 }
 
 /// The `feeder-ctl` prompt on this terminal, connected to the console on `port`.
 fn operate(port: u16) -> Result {
-    exec(
+    exec_output(
         workspace_binary("feeder-ctl")
             .arg("--tcp")
-            .arg(format!("127.0.0.1:{port}")),
+            .arg(address(port)),
     )
 }
 
@@ -132,7 +136,7 @@ fn operate(port: u16) -> Result {
 fn command(port: u16, words: &[&str]) -> Result<String> {
     let output = workspace_binary("feeder-ctl")
         .arg("--tcp")
-        .arg(format!("127.0.0.1:{port}"))
+        .arg(address(port))
         .args(words)
         .stderr(Stdio::inherit())
         .output()
@@ -140,9 +144,11 @@ fn command(port: u16, words: &[&str]) -> Result<String> {
     match output.status.code() {
         Some(0 | 1) => Ok(String::from_utf8_lossy(&output.stdout).trim().to_string()),
         _ => Err(format!(
-            "feeder-ctl {words:?} failed with {}",
+            "feeder-ctl {} failed with {}",
+            words.join(" "),
             output.status
-        )),
+        )
+        .into()),
     }
 }
 

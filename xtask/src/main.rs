@@ -17,20 +17,66 @@
 
 mod bless;
 mod console;
+mod progress;
 mod qemu;
 mod size;
 mod tools;
 
+use std::fmt;
+use std::io::{self, IsTerminal};
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode, Stdio};
+use std::thread;
 
 use clap::{Args, Parser, Subcommand};
 use feeder_emulator::{Board, Serial};
-use feeder_shared::scenario::{parse_setting, SCENARIO_KEYS};
+use feeder_shared::scenario::{parse_setting, qemu_clock, Scenario, SCENARIO_KEYS};
+use feeder_shared::DacCalibration;
+use host_sim::plate::PlantFile;
+
+use progress::Meter;
 
 const THUMB_TARGET: &str = "thumbv7em-none-eabihf";
 
-type Result<T = ()> = std::result::Result<T, String>;
+/// Why a command did not succeed.
+#[derive(Debug)]
+enum Failure {
+    /// The input was refused before anything was installed, built or started (exit code 2).
+    Refused(String),
+    /// A step failed (exit code 1).
+    Failed(String),
+}
+
+impl Failure {
+    fn exit_code(&self) -> ExitCode {
+        match self {
+            Failure::Refused(_) => ExitCode::from(2),
+            Failure::Failed(_) => ExitCode::FAILURE,
+        }
+    }
+}
+
+impl fmt::Display for Failure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Failure::Refused(message) | Failure::Failed(message) => f.write_str(message),
+        }
+    }
+}
+
+impl From<String> for Failure {
+    fn from(message: String) -> Self {
+        Failure::Failed(message)
+    }
+}
+
+impl From<&str> for Failure {
+    fn from(message: &str) -> Self {
+        Failure::Failed(message.to_string())
+    }
+}
+
+type Result<T = ()> = std::result::Result<T, Failure>;
 
 #[derive(Parser)]
 #[command(
@@ -114,7 +160,7 @@ fn scenario_help() -> String {
 }
 
 /// A scenario word, checked by the parser the firmware uses.
-fn scenario_word(word: &str) -> Result<String> {
+fn scenario_word(word: &str) -> std::result::Result<String, String> {
     parse_setting(word)
         .map(|_| word.to_string())
         .map_err(|error| error.to_string())
@@ -122,24 +168,20 @@ fn scenario_word(word: &str) -> Result<String> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let launch_path = std::env::var_os("PATH").unwrap_or_default();
-    let outcome = tools::isolate().and_then(|()| {
-        tools::ensure_thumb_target(&launch_path)?;
-        match cli.task {
-            Task::Run(args) => run(&args),
-            Task::Test => test(),
-            Task::Size => firmware_size(),
-            Task::Console => console::console(),
-            Task::Soak(args) => soak_alone(&args),
-            Task::Family(args) => exec(host_sim().arg("family").args(&args.flags)),
-            Task::Bless => bless::bless(),
-        }
+    let outcome = tools::isolate().and_then(|()| match cli.task {
+        Task::Run(args) => run(&args),
+        Task::Test => test(),
+        Task::Size => firmware_size(&mut io::stdout()),
+        Task::Console => console::console(),
+        Task::Soak(args) => soak_alone(&args),
+        Task::Family(args) => exec_output(host_sim().arg("family").args(&args.flags)),
+        Task::Bless => bless::bless(),
     });
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
-        Err(message) => {
-            eprintln!("xtask: {message}");
-            ExitCode::FAILURE
+        Err(failure) => {
+            eprintln!("xtask: {failure}");
+            failure.exit_code()
         }
     }
 }
@@ -155,16 +197,56 @@ fn firmware_dir() -> PathBuf {
     root().join("firmware")
 }
 
-/// Runs a command to completion, failing with its description if it fails.
+/// Runs a command to completion, its standard output going to standard error with the rest of
+/// what xtask says while it works; fails with its description if it fails.
 fn exec(command: &mut Command) -> Result {
-    eprintln!("xtask: running {command:?}");
+    exec_output(command.stdout(io::stderr()))
+}
+
+/// Runs a command to completion with its standard output on xtask's: the result of the task
+/// (a report, or JSON alone); fails with its description if it fails.
+fn exec_output(command: &mut Command) -> Result {
+    let shown = shown(command);
+    eprintln!("xtask: running {shown}");
     let status = command
         .status()
-        .map_err(|error| format!("cannot start {command:?}: {error}"))?;
+        .map_err(|error| format!("cannot start {shown}: {error}"))?;
     if status.success() {
         Ok(())
     } else {
-        Err(format!("{command:?} failed with {status}"))
+        Err(format!("{shown} failed with {status}").into())
+    }
+}
+
+/// `command` as one would type it in a shell: the directory it runs in when that is not the
+/// workspace root, the program's file name (xtask's `PATH` finds it), and the arguments, each
+/// in single quotes only where a shell needs them.
+fn shown(command: &Command) -> String {
+    let root = root();
+    let mut words = Vec::new();
+    if let Some(dir) = command.get_current_dir().filter(|dir| *dir != root) {
+        let dir = dir.strip_prefix(&root).unwrap_or(dir);
+        words.extend([
+            "cd".to_string(),
+            quoted(&dir.to_string_lossy()),
+            "&&".into(),
+        ]);
+    }
+    let program = Path::new(command.get_program());
+    let name = program.file_name().unwrap_or(program.as_os_str());
+    words.push(quoted(&name.to_string_lossy()));
+    words.extend(command.get_args().map(|arg| quoted(&arg.to_string_lossy())));
+    words.join(" ")
+}
+
+/// `word` as a shell reads it back: as it is if it holds only characters no shell treats
+/// specially, otherwise in single quotes (a quote inside written `'\''`).
+fn quoted(word: &str) -> String {
+    let plain = |c: char| c.is_ascii_alphanumeric() || "-_./:=,+@%".contains(c);
+    if !word.is_empty() && word.chars().all(plain) {
+        word.to_string()
+    } else {
+        format!("'{}'", word.replace('\'', r"'\''"))
     }
 }
 
@@ -204,53 +286,94 @@ fn host_sim() -> Command {
     workspace_binary("host-sim")
 }
 
+/// The scenario of `words`, refused (exit code 2) unless the firmware takes it and both of its
+/// waveforms play on the QEMU board as the firmware plans them, with the closed loop's room in
+/// the DAC's linear range where it runs (`closed_loop`).
+fn checked_scenario(words: &[String], closed_loop: bool) -> Result<Scenario> {
+    let scenario = Scenario::parse(words.iter().map(String::as_str))
+        .map_err(|error| Failure::Refused(error.to_string()))?;
+    let loop_linear_mps2 = closed_loop.then(|| DacCalibration::DEFAULT.linear_limit_mps2());
+    scenario
+        .check(qemu_clock(), loop_linear_mps2)
+        .map_err(|refusal| Failure::Refused(format!("scenario refused: {refusal}")))?;
+    Ok(scenario)
+}
+
 /// The prediction at the paper's operating point (`host-sim simulate`, with a plot), then the
 /// firmware under QEMU piped through the defmt decoder into `host-sim hil`, which checks every
 /// edge and simulates the part on the actual edge times. Scenario settings (`key=value`) come
-/// first, `hil` flags after `--`.
+/// first, `hil` flags after `--`. The scenario (and with `--plant`, the plant file) is checked
+/// before anything is installed, built or started. Only `hil`'s report (or JSON) goes to
+/// standard output; the prediction, the builds and the run's progress go to standard error.
 fn run(args: &RunArgs) -> Result {
     if let Some(plant) = &args.plant {
         return run_plant(plant, args);
     }
-    let (scenario, hil_flags) = (&args.scenario, &args.hil_flags);
+    let scenario = checked_scenario(&args.scenario, false)?;
     tools::ensure_linker()?;
     tools::ensure_emulation()?;
     let elf = qemu::build_firmware(qemu::Image::Scripted)?;
     exec(cargo().args(["build", "--release", "--locked", "--package", "host-sim"]))?;
-    println!("Prediction at the paper's operating point (50 Hz, d = 0.586, 2.5 mm, μ = 1):");
+    eprintln!("Prediction at the paper's operating point (50 Hz, d = 0.586, 2.5 mm, μ = 1):");
     exec(
         host_sim()
             .args(["simulate", "--plot"])
             .arg(root().join("target").join("paper-operating-point.svg")),
     )?;
-    println!("\nThe firmware under QEMU driving the simulated part:");
+    eprintln!("\nThe firmware under QEMU driving the simulated part:");
     let mut hil = host_sim();
     hil.arg("hil");
-    if !hil_flags.iter().any(|flag| flag == "--plot") {
+    if !args.hil_flags.iter().any(|flag| flag == "--plot") {
         hil.arg("--plot")
             .arg(root().join("target").join("hil-run.svg"));
     }
-    hil.args(hil_flags);
-    let mut board = Board::start(&elf, scenario, Serial::None, Stdio::piped())
+    hil.args(&args.hil_flags).stdin(Stdio::piped());
+    let mut board = Board::start(&elf, &args.scenario, Serial::None, Stdio::piped())
         .map_err(|error| error.to_string())?;
-    hil.stdin(board.decoded_log().map_err(|error| error.to_string())?);
-    let report = hil
-        .status()
+    let log = board.decoded_log().map_err(|error| error.to_string())?;
+    eprintln!("xtask: running {}", shown(&hil));
+    let mut hil = hil
+        .spawn()
         .map_err(|error| format!("cannot run host-sim hil: {error}"))?;
+    let hil_input = hil
+        .stdin
+        .take()
+        .ok_or("no standard input to host-sim hil")?;
+    let mut meter = Meter::new(
+        io::stderr(),
+        io::stderr().is_terminal(),
+        scenario.stop_after_cycles,
+    );
+    let relay = thread::spawn(move || {
+        let mut hil_input = hil_input;
+        let relayed = feeder_emulator::relay(log, &mut hil_input, |progress| meter.show(progress));
+        // The line is erased before hil sees the end of its input and writes its report.
+        meter.finish();
+        relayed
+    });
+    let report = hil
+        .wait()
+        .map_err(|error| format!("cannot run host-sim hil: {error}"))?;
+    let relayed = relay
+        .join()
+        .map_err(|_| "the log relay to host-sim hil panicked")?;
     let firmware_status = board.wait().map_err(|error| error.to_string())?;
     if !firmware_status.success() {
-        return Err(format!("the firmware ended with {firmware_status}"));
+        return Err(format!("the firmware ended with {firmware_status}").into());
     }
     if !report.success() {
         return Err("the firmware-in-the-loop check failed".into());
     }
+    relayed.map_err(|error| format!("cannot pass the log on to host-sim hil: {error}"))?;
     Ok(())
 }
 
 /// The closed-loop image (or with `--open-loop` the `cosim` image) under QEMU driving the plate
 /// of `plant` in lockstep (`host-sim cosim`); its decoded log goes to target/cosim-run.log, for
-/// `host-sim hil --input`.
+/// `host-sim hil --input`. The plant file and the scenario are checked first.
 fn run_plant(plant: &Path, args: &RunArgs) -> Result {
+    PlantFile::from_path(plant).map_err(|error| Failure::Refused(error.to_string()))?;
+    checked_scenario(&args.scenario, !args.open_loop)?;
     tools::ensure_linker()?;
     tools::ensure_emulation()?;
     let image = match args.open_loop {
@@ -270,12 +393,25 @@ fn run_plant(plant: &Path, args: &RunArgs) -> Result {
     if args.open_loop {
         cosim.arg("--open-loop");
     }
-    exec(cosim.args(&args.hil_flags).arg("--").args(&args.scenario))
+    exec_output(cosim.args(&args.hil_flags).arg("--").args(&args.scenario))
 }
 
 fn test() -> Result {
     exec(cargo().args(["test", "--workspace", "--locked"]))?;
     exec(&mut fuzz_check())?;
+    exec(
+        cargo()
+            .args([
+                "test",
+                "--locked",
+                "--package",
+                "xtask",
+                "--test",
+                "run_output",
+            ])
+            .args(["--", "--ignored"]),
+    )?;
+    tools::ensure_linker()?;
     for features in ["", "defmt"] {
         exec(cargo().args([
             "build",
@@ -288,14 +424,13 @@ fn test() -> Result {
             features,
         ]))?;
     }
-    tools::ensure_linker()?;
     exec(firmware_cargo().args(["build", "--release", "--locked"]))?;
     exec(
         firmware_cargo()
             .args(["build", "--release", "--locked", "--features", "console"])
             .args(["--target-dir", "target/console"]),
     )?;
-    firmware_size()?;
+    firmware_size(&mut io::stderr())?;
     tools::ensure_emulation()?;
     let scripted = qemu::build_firmware(qemu::Image::Scripted)?;
     exec(&mut ignored_tests("feeder-tests", "qemu", &scripted))?;
@@ -362,7 +497,9 @@ fn soak(elf: &Path, args: &SoakArgs) -> Result {
     exec(&mut command)
 }
 
-fn firmware_size() -> Result {
+/// Writes the flash and static RAM of both board images against their budgets to `out`; fails
+/// if one is over.
+fn firmware_size(out: &mut dyn io::Write) -> Result {
     for (image, directory, budget) in [
         ("default", "target", size::DEFAULT_BUDGET),
         ("console", "target/console", size::CONSOLE_BUDGET),
@@ -373,7 +510,8 @@ fn firmware_size() -> Result {
             .join("release")
             .join("feeder-firmware");
         let report = size::measure(&elf)?;
-        println!("{image} image: {}", report.against(&budget));
+        writeln!(out, "{image} image: {}", report.against(&budget))
+            .map_err(|error| format!("cannot write the size report: {error}"))?;
         report
             .check(&budget)
             .map_err(|error| format!("{image} image: {error}"))?;
@@ -432,6 +570,27 @@ mod tests {
     }
 
     #[test]
+    fn a_command_is_shown_as_typed_in_a_shell() {
+        let mut command = Command::new("/toolchain/bin/cargo");
+        command.current_dir(root().join("firmware")).args([
+            "run",
+            "--",
+            "--tcp",
+            "127.0.0.1:42493",
+            "a b",
+            "it's",
+            "",
+        ]);
+        assert_eq!(
+            shown(&command),
+            r"cd firmware && cargo run -- --tcp 127.0.0.1:42493 'a b' 'it'\''s' ''"
+        );
+        let mut command = cargo();
+        command.arg("line\nbreak");
+        assert_eq!(shown(&command), "cargo 'line\nbreak'");
+    }
+
+    #[test]
     fn the_fuzz_targets_are_checked_on_stable_without_libfuzzer() {
         let command = fuzz_check();
         let arguments: Vec<_> = command.get_args().collect();
@@ -439,7 +598,9 @@ mod tests {
             arguments[..4],
             ["check", "--locked", "--bins", "--no-default-features"]
         );
-        assert!(!arguments.iter().any(|a| a.to_string_lossy().starts_with('+')));
+        assert!(!arguments
+            .iter()
+            .any(|a| a.to_string_lossy().starts_with('+')));
         let manifest = Path::new(arguments[5]);
         assert_eq!(manifest, root().join("fuzz").join("Cargo.toml"));
         let text = std::fs::read_to_string(manifest).expect("fuzz/Cargo.toml");

@@ -10,6 +10,7 @@
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
+use std::sync::OnceLock;
 
 use crate::{exec, root, Result, THUMB_TARGET};
 
@@ -76,8 +77,11 @@ fn toolchain_bin() -> Result<PathBuf> {
         .parent()
         .filter(|dir| dir.join("rustc").exists() || dir.join("rustc.exe").exists())
         .map(Path::to_path_buf)
-        .ok_or_else(|| format!("no rustc beside {}", Path::new(&cargo).display()))
+        .ok_or_else(|| format!("no rustc beside {}", Path::new(&cargo).display()).into())
 }
+
+/// The `PATH` xtask was started with, kept by [`isolate`]: rustup is looked up on it.
+static LAUNCH_PATH: OnceLock<OsString> = OnceLock::new();
 
 /// Sets this process's `PATH` (inherited by every command it starts) to `target/tools/bin`,
 /// the active toolchain and the rest of `PATH` without `$CARGO_HOME/bin`, and points `CARGO`
@@ -86,6 +90,7 @@ pub fn isolate() -> Result {
     let toolchain = toolchain_bin()?;
     let hidden = cargo_home_bin();
     let inherited = std::env::var_os("PATH").unwrap_or_default();
+    LAUNCH_PATH.get_or_init(|| inherited.clone());
     let mut directories = vec![tools_root().join("bin"), toolchain.clone()];
     directories.extend(std::env::split_paths(&inherited).filter(|dir| {
         hidden
@@ -114,11 +119,14 @@ fn answers(program: &str, probe: &str) -> bool {
 }
 
 /// Adds the thumb target to the active toolchain if missing (rustup is looked up on the `PATH`
-/// xtask was started with, saved by `main` before [`isolate`]).
-pub fn ensure_thumb_target(rustup_path: &OsString) -> Result {
+/// xtask was started with).
+fn ensure_thumb_target() -> Result {
     let rustup = |args: &[&str]| {
         let mut command = Command::new("rustup");
-        command.args(args).env("PATH", rustup_path);
+        command.args(args);
+        if let Some(path) = LAUNCH_PATH.get() {
+            command.env("PATH", path);
+        }
         command
     };
     let installed = rustup(&["target", "list", "--installed"])
@@ -161,7 +169,8 @@ fn ensure_cargo_tool(tool: &CargoTool) -> Result {
             "{} was installed into {} but does not run",
             tool.program,
             tools_root().display()
-        ))
+        )
+        .into())
     }
 }
 
@@ -210,7 +219,8 @@ fn ensure_apt_tool(tool: &AptTool) -> Result {
         return Err(format!(
             "{} is installed but `{} --version` does not run; it is needed for {}",
             tool.package, tool.program, tool.needed_by
-        ));
+        )
+        .into());
     }
     let by_hand = format!(
         "{} is needed for {}: install it with `sudo apt-get install --no-install-recommends \
@@ -218,13 +228,13 @@ fn ensure_apt_tool(tool: &AptTool) -> Result {
         tool.program, tool.needed_by, tool.package
     );
     if !is_root() {
-        return Err(format!("{by_hand}; xtask installs it itself only as root"));
+        return Err(format!("{by_hand}; xtask installs it itself only as root").into());
     }
     install_packages(&[tool.package]).map_err(|error| format!("{by_hand} ({error})"))?;
     if answers(tool.program, "--version") {
         Ok(())
     } else {
-        Err(by_hand)
+        Err(by_hand.into())
     }
 }
 
@@ -241,7 +251,8 @@ fn install_packages(packages: &[&str]) -> Result {
             "apt-get cannot install {} without removing packages or otherwise ({})",
             packages.join(" "),
             simulation.status
-        ));
+        )
+        .into());
     }
     let simulation = String::from_utf8_lossy(&simulation.stdout);
     eprintln!(
@@ -251,8 +262,9 @@ fn install_packages(packages: &[&str]) -> Result {
     exec(&mut apt_install(packages, false))
 }
 
-/// The linker every firmware build needs.
+/// The thumb target and the linker every firmware build needs.
 pub fn ensure_linker() -> Result {
+    ensure_thumb_target()?;
     ensure_cargo_tool(&FLIP_LINK)
 }
 
