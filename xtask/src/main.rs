@@ -214,8 +214,31 @@ fn exec_output(command: &mut Command) -> Result {
     if status.success() {
         Ok(())
     } else {
-        Err(format!("{shown} failed with {status}").into())
+        Err(format!("{} failed with {status}", brief(command)).into())
     }
+}
+
+/// `command` in a few words, for its failure after [`shown`] has printed it whole: the program,
+/// its first argument and, for cargo, the package and what runs after `--`.
+fn brief(command: &Command) -> String {
+    let arguments: Vec<_> = command.get_args().map(|a| a.to_string_lossy()).collect();
+    let program = Path::new(command.get_program());
+    let mut words = vec![program
+        .file_name()
+        .unwrap_or(program.as_os_str())
+        .to_string_lossy()];
+    words.extend(arguments.first().cloned());
+    let after = |flag: &str| {
+        let at = arguments.iter().position(|a| a == flag)?;
+        arguments.get(at + 1).cloned()
+    };
+    if let Some(package) = after("--package") {
+        words.extend(["--package".into(), package]);
+    }
+    if let Some(program) = after("--").filter(|_| arguments.first().is_some_and(|a| a == "run")) {
+        words.extend(["--".into(), program]);
+    }
+    words.join(" ")
 }
 
 /// `command` as one would type it in a shell: the directory it runs in when that is not the
@@ -588,6 +611,17 @@ mod tests {
         let mut command = cargo();
         command.arg("line\nbreak");
         assert_eq!(shown(&command), "cargo 'line\nbreak'");
+    }
+
+    #[test]
+    fn a_failed_command_is_named_in_a_few_words() {
+        let mut cosim = host_sim();
+        cosim.args(["cosim", "--elf", "fw.elf", "--plant", "plate.toml"]);
+        assert_eq!(brief(&cosim), "cargo run --package host-sim -- cosim");
+        assert_eq!(
+            brief(firmware_cargo().args(["build", "--release", "--locked"])),
+            "cargo build"
+        );
     }
 
     #[test]
