@@ -1,5 +1,6 @@
 //! The plant: a point-mass part under Coulomb friction on a plate of piecewise-constant
-//! acceleration (paper, Section III, with the errata's stick–slip corrections).
+//! acceleration (paper, Section III, with the stick–slip corrections among the errata of
+//! `shared/README.md`).
 //!
 //! The state is the part's velocity relative to the plate, `w = v_part − v_plate`. Within one
 //! segment of constant plate acceleration `a_p` the part's acceleration is constant too:

@@ -49,7 +49,7 @@ pub fn velocity_ratio_quasi_static(duty: f64) -> f64 {
     (2.0 * duty - 1.0) / (2.0 * (1.0 - duty) * (1.0 - duty)) * (duty + root)
 }
 
-/// Eq. 8 in removable form (errata 4): the duty giving `v_eq = r·v_max`,
+/// Eq. 8 in removable form (errata 2): the duty giving `v_eq = r·v_max`,
 /// `d = (1 + 2√r + 2r) / (2(1 + √r)²)`.
 pub fn duty_for_velocity_ratio(ratio: f64) -> f64 {
     let root = sqrt(ratio);
@@ -78,7 +78,7 @@ pub fn duty_sat_non_quasi_static(accel_mps2: f64, friction: &Friction) -> f64 {
         / (8.0 * accel_mps2 * accel_mps2)
 }
 
-/// Eq. 17, corrected (errata 8): for `d < 5/8` the part saturates when `a/(μg)` is below
+/// Eq. 17, corrected (errata 5): for `d < 5/8` the part saturates when `a/(μg)` is below
 /// `(1 + 2√(2d − 1)) / (5 − 8d)`; at `d ≥ 5/8` it always does.
 pub fn saturation_accel_ratio(duty: f64) -> f64 {
     if duty >= DUTY_SAT_QUASI_STATIC {

@@ -2,8 +2,8 @@
 //!
 //! One period `T` is split into a forward semicycle `F = dT` and a backward semicycle
 //! `B = (1 − d)T`. The acceleration is `+a` on `[0, t1)`, `0` on `[t1, t2)`, `−a` on `[t2, t3)` and
-//! `+a` on `[t3, T)`, with `t3 = F + B/2` (errata: the backward swing turns at the middle of `B`).
-//! The plate is at rest at `t = 0`, `F` and `T`, and returns to its start every cycle.
+//! `+a` on `[t3, T)`, with `t3 = F + B/2` (errata 1: the backward swing turns at the middle of
+//! `B`). The plate is at rest at `t = 0`, `F` and `T`, and returns to its start every cycle.
 
 use crate::error::{finite, positive, Error, Quantity};
 use crate::segment::SegmentKind;

@@ -1,5 +1,5 @@
 //! Analytic models cross-checked against each other, against hand-derived values and against
-//! the paper's worked numbers (with the errata).
+//! the paper's worked numbers (with the errata listed in `shared/README.md`).
 
 use feeder_shared::model::{self, DUTY_OPT, DUTY_SAT_QUASI_STATIC};
 use feeder_shared::{Drive, Error, Friction, Limits, Regime, Waveform, WaveformSpec};
@@ -38,7 +38,7 @@ fn quasi_static_constants() {
     ));
     assert!(close(model::duty_for_velocity_ratio(0.5), DUTY_OPT, 1e-12));
     assert!(close(model::duty_for_velocity_ratio(1.0), 0.625, 1e-12));
-    // Errata 4: the printed Eq. 8 is 0/0 at r = 1/4; the removable form gives d = 5/9 there.
+    // Errata 2: the printed Eq. 8 is 0/0 at r = 1/4; the removable form gives d = 5/9 there.
     assert!(close(
         model::duty_for_velocity_ratio(0.25),
         5.0 / 9.0,
@@ -85,7 +85,7 @@ fn paper_section_iv_c_viscosity() {
     let friction = Friction::new(0.5, 9.81).unwrap();
     let k = model::viscosity_ns_per_m(&w, &friction, 1e-4).unwrap();
     assert!(close(k, 1.962e-3, 1e-12));
-    // Errata 10: the fit intercept −4.72 dyn with slope 1.95 implies v_eq = 2.42 cm/s, d ≈ 0.5484.
+    // Errata 8: the fit intercept −4.72 dyn with slope 1.95 implies v_eq = 2.42 cm/s, d ≈ 0.5484.
     let v_eq_mps: f64 = 4.72 / 1.95 / 100.0;
     let duty: f64 = 0.5 + 2.0 * v_eq_mps / (100.0 * 0.01);
     assert!((duty - 0.5484).abs() < 1e-4, "{duty}");
@@ -268,7 +268,7 @@ proptest! {
         };
         let weighted = (meet_s * w.v_max_mps + (period_s - meet_s) * (w.v_max_mps + h_a) / 2.0) / period_s;
         prop_assert!(close(weighted, state.feed_rate_mps, 1e-9), "{} vs {}", weighted, state.feed_rate_mps);
-        // Beyond saturation the rate is below the quasi-static prediction (errata 6, 13).
+        // Beyond saturation the rate is below the quasi-static prediction (errata 3, 7).
         prop_assert!(state.feed_rate_mps < model::feed_rate_quasi_static_mps(&w));
     }
 
@@ -288,7 +288,7 @@ proptest! {
         let v0 = model::feed_rate_under_force_mps(&w, &friction, mass_kg, 0.0).unwrap();
         prop_assert!(close(v0, model::feed_rate_sliding_mps(&w), 1e-12));
         if let Ok(v) = model::feed_rate_under_force_mps(&w, &friction, mass_kg, force_n) {
-            // Errata 7: a forward push makes the part faster, f = +K(v′ − v_eq).
+            // Errata 4: a forward push makes the part faster, f = +K(v′ − v_eq).
             prop_assert!(close(force_n, k * (v - v0), 1e-9) || force_n.abs() < 1e-15);
         }
     }

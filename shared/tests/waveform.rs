@@ -39,7 +39,8 @@ fn integrate(waveform: &Waveform) -> (f64, f64, f64) {
 #[test]
 fn paper_operating_point_matches_section_iv_a() {
     let waveform = paper_point();
-    // Errata 14: x_max = 0.25 cm at T = 0.02 s, d = 0.586 gives a ≈ 14,586 cm/s².
+    // Section IV.A's a ≈ 15,000 cm/s² is rounded: Eq. 5 with x_max = 0.25 cm at T = 0.02 s,
+    // d = 0.586 gives a ≈ 14,586 cm/s².
     let expected_accel = 0.0025 / (0.02 * (1.0 - 0.586) / 2.0_f64).powi(2);
     assert!(close(waveform.accel_mps2, expected_accel, 1e-12));
     assert!((waveform.accel_mps2 - 145.86).abs() < 0.01);
@@ -373,7 +374,8 @@ proptest! {
             || (w.plateau_s.powi(2) - (w.forward_s.powi(2) - w.backward_s.powi(2))).abs() < 1e-15);
         prop_assert!(0.0 < w.t1_s && w.t1_s < w.t2_s && w.t2_s < w.t3_s && w.t3_s < w.period_s);
         prop_assert!(close(w.t1_s + w.t2_s, w.forward_s, 1e-12));
-        // Equal areas (errata 1): ((F + P)/2)·v_max = B·|v_min|/2.
+        // Equal areas: ((F + P)/2)·v_max = B·|v_min|/2 (the forward trapezoid's area is
+        // ((F + P)/2)·v_max; the paper prints half of it, though Eq. 1 uses the right one).
         prop_assert!(close((w.forward_s + w.plateau_s) / 2.0 * w.v_max_mps, w.backward_s * -w.v_min_mps / 2.0, 1e-9));
         // Independent kinematics: back at rest and at the start; the peak is x_max (Eq. 3, 5).
         let (velocity, position, peak) = integrate(w);

@@ -1,5 +1,5 @@
-//! The exact simulator against the paper's closed forms (with the errata), against the fixed-step
-//! reference integrator, and against physical invariants.
+//! The exact simulator against the paper's closed forms (with the errata of `shared/README.md`),
+//! against the fixed-step reference integrator, and against physical invariants.
 //!
 //! Expected values are written out here from the equations, independently of the shared model
 //! code, which is compared as a second opinion only.
@@ -92,7 +92,8 @@ fn saturated_feed_rate_matches_eq18_and_stick_time() {
                 error <= 1e-9,
                 "a = {accel}, d = {duty}: relative error {error:e}"
             );
-            // Errata 9: once the part sticks, every cycle repeats the last one exactly.
+            // Errata 6: beyond d_sat,nqs the part sticks every cycle, so once it has stuck every
+            // cycle repeats the last one exactly.
             let means: Vec<f64> = run
                 .cycle_stats
                 .iter()
@@ -130,7 +131,7 @@ fn paper_operating_point_feeds_at_eq15_with_stroke_eq5() {
 
 #[test]
 fn viscosity_fit_matches_eq10() {
-    // Section IV.C in SI: T = 0.01 s, a = 100 m/s², μ = 0.5, m = 0.1 g, d from errata 10,
+    // Section IV.C in SI: T = 0.01 s, a = 100 m/s², μ = 0.5, m = 0.1 g, d from errata 8,
     // f = −15..15 dyn in 1 dyn steps.
     let (mu, mass, accel, period, duty) = (0.5, 1e-4, 100.0, 0.01, 0.5484);
     let forces: Vec<f64> = (-15..=15).map(|dyn_| f64::from(dyn_) * 1e-5).collect();

@@ -1,6 +1,8 @@
 //! The plants the closed loop is designed for: the spread of real linear-motor and flexure
-//! feeders (`shared/notes/real-plate.md`), written down once. The host's plant family draws from
-//! it, and a plant outside it is to be refused with the [`Cause`] named.
+//! feeders (a drive's zero offset and unequal ± gains, a current loop of finite bandwidth, slide
+//! friction, a flexure's centring spring, a position sensor's resolution), written down once. The
+//! host's plant family draws from it, and a plant outside it is to be refused with the [`Cause`]
+//! named.
 
 use crate::error::Error;
 

@@ -26,7 +26,7 @@ use crate::plot::{self, Labels, Mark, Series};
 pub struct ViscosityArgs {
     #[command(flatten)]
     frequency: FrequencyArgs,
-    /// d ≈ 0.5484, implied by the paper's fitted intercept (errata 10).
+    /// d ≈ 0.5484, implied by the paper's fitted intercept through Eq. 15.
     #[arg(long, default_value_t = 0.5484, allow_hyphen_values = true)]
     duty: f64,
     #[arg(long, default_value_t = 100.0, allow_hyphen_values = true)]
