@@ -5,7 +5,7 @@
 //! (`50 Hz`), that must be the documented one. A decimal comma (`0,6`) is refused as such.
 
 use super::refusal::ReplyError;
-use crate::number::split_decimal;
+use crate::number::{parse_length, split_decimal, LengthUnit};
 use crate::recipe::{RecipeSlot, RECIPE_SLOTS};
 use crate::settings::Setting;
 
@@ -100,8 +100,8 @@ impl Param {
                 units: &[],
             },
             Param::Stroke => Value {
-                what: "the stroke in mm",
-                units: &["mm"],
+                what: "the stroke in mm (or m, µm)",
+                units: &["mm", "m", "um", "µm"],
             },
             Param::Accel => Value {
                 what: "the peak acceleration in m/s2",
@@ -217,7 +217,7 @@ fn setting<'a>(
     Ok(match param {
         Param::Frequency => Setting::FrequencyHz(number(value, words)?),
         Param::Duty => Setting::Duty(number(value, words)?),
-        Param::Stroke => Setting::StrokeMm(number(value, words)?),
+        Param::Stroke => Setting::StrokeMm(length_mm(value, words)?),
         Param::Accel => Setting::AccelMps2(number(value, words)?),
         Param::Feed => Setting::FeedMmps(number(value, words)?),
         Param::Ramp => Setting::RampCycles(whole(value, words, u16::MAX)?),
@@ -257,6 +257,41 @@ fn whole<'a>(
 
 /// A finite number with an optional unit, attached or as the next word.
 fn number<'a>(value: Value, words: &mut impl Iterator<Item = &'a str>) -> Result<f64, ReplyError> {
+    let (number, _, unit) = numeral(value, words)?;
+    match unit {
+        Some(unit) if !value.units.iter().any(|u| u.eq_ignore_ascii_case(unit)) => {
+            Err(ReplyError::WrongUnit { what: value.what })
+        }
+        _ => Ok(number),
+    }
+}
+
+/// A length in millimetres, typed in `mm` (or bare), `m` or `µm` (`um`): the unit's power of ten
+/// is applied to the number's decimal exponent before its one rounding
+/// ([`crate::number::parse_length`]), so `0.0025 m` is exactly `2.5` mm.
+fn length_mm<'a>(
+    value: Value,
+    words: &mut impl Iterator<Item = &'a str>,
+) -> Result<f64, ReplyError> {
+    let (_, word, unit) = numeral(value, words)?;
+    let typed = match unit {
+        Some(unit) => {
+            LengthUnit::from_word(unit).ok_or(ReplyError::WrongUnit { what: value.what })?
+        }
+        None => LengthUnit::Millimetre,
+    };
+    let digits = word.get(..word.len() - split_decimal(word).map_or(0, |(_, rest)| rest.len()));
+    digits
+        .and_then(|digits| parse_length(digits, typed, LengthUnit::Millimetre).ok())
+        .ok_or(ReplyError::BadNumber { what: value.what })
+}
+
+/// The next word's number, the word itself and the unit written after it (attached, or as the
+/// following word), refusing a decimal comma, a non-number and a non-finite value.
+fn numeral<'a>(
+    value: Value,
+    words: &mut impl Iterator<Item = &'a str>,
+) -> Result<(f64, &'a str, Option<&'a str>), ReplyError> {
     let word = words
         .next()
         .ok_or(ReplyError::MissingArgument { what: value.what })?;
@@ -276,12 +311,7 @@ fn number<'a>(value: Value, words: &mut impl Iterator<Item = &'a str>) -> Result
     } else {
         Some(attached)
     };
-    match unit {
-        Some(unit) if !value.units.iter().any(|u| u.eq_ignore_ascii_case(unit)) => {
-            Err(ReplyError::WrongUnit { what: value.what })
-        }
-        _ => Ok(number),
-    }
+    Ok((number, word, unit))
 }
 
 /// `text` starts with a comma followed by a digit: a decimal comma (`0,6` leaves `,6`).

@@ -35,25 +35,85 @@ fn every_command_by_table() {
         ("start", faulted(0), Err(61), Some(Action::None)),
         ("stop", running(0), Ok("OK stopping"), Some(Action::Stop)),
         ("stop", stopped(0), Ok("OK stopping"), Some(Action::Stop)),
-        ("reset", faulted(0), Ok("OK fault cleared"), Some(Action::Reset)),
-        ("reset", stopped(0), Ok("OK no fault latched"), Some(Action::None)),
+        (
+            "reset",
+            faulted(0),
+            Ok("OK fault cleared"),
+            Some(Action::Reset),
+        ),
+        (
+            "reset",
+            stopped(0),
+            Ok("OK no fault latched"),
+            Some(Action::None),
+        ),
         (
             "status",
             running(617),
             Ok("OK state=running freq_hz=50 duty=0.586 stroke_mm=2.5 "),
             Some(Action::None),
         ),
-        ("get freq", running(0), Ok("OK freq_hz=50"), Some(Action::None)),
-        ("get duty", running(0), Ok("OK duty=0.586"), Some(Action::None)),
-        ("get stroke", running(0), Ok("OK stroke_mm=2.5"), Some(Action::None)),
-        ("get accel", running(0), Ok("OK accel_mps2="), Some(Action::None)),
-        ("get feed", running(0), Ok("OK feed_mmps="), Some(Action::None)),
-        ("get ramp", running(0), Ok("OK ramp_cycles=25"), Some(Action::None)),
+        (
+            "get freq",
+            running(0),
+            Ok("OK freq_hz=50"),
+            Some(Action::None),
+        ),
+        (
+            "get duty",
+            running(0),
+            Ok("OK duty=0.586"),
+            Some(Action::None),
+        ),
+        (
+            "get stroke",
+            running(0),
+            Ok("OK stroke_mm=2.5"),
+            Some(Action::None),
+        ),
+        (
+            "get accel",
+            running(0),
+            Ok("OK accel_mps2="),
+            Some(Action::None),
+        ),
+        (
+            "get feed",
+            running(0),
+            Ok("OK feed_mmps="),
+            Some(Action::None),
+        ),
+        (
+            "get ramp",
+            running(0),
+            Ok("OK ramp_cycles=25"),
+            Some(Action::None),
+        ),
         ("set freq 55", running(0), Ok("OK freq_hz=55 "), None),
-        ("set duty 0.6", running(0), Ok("OK freq_hz=50 duty=0.6 "), None),
-        ("set stroke 2", running(0), Ok("OK freq_hz=50 duty=0.586 stroke_mm=2 "), None),
-        ("set accel 100", running(0), Ok("OK freq_hz=50 duty=0.586 stroke_mm="), None),
-        ("set feed 30", running(0), Ok("OK freq_hz=50 duty=0.5"), None),
+        (
+            "set duty 0.6",
+            running(0),
+            Ok("OK freq_hz=50 duty=0.6 "),
+            None,
+        ),
+        (
+            "set stroke 2",
+            running(0),
+            Ok("OK freq_hz=50 duty=0.586 stroke_mm=2 "),
+            None,
+        ),
+        (
+            "set accel 100",
+            running(0),
+            Ok("OK freq_hz=50 duty=0.586 stroke_mm="),
+            None,
+        ),
+        (
+            "set feed 30",
+            running(0),
+            Ok("OK freq_hz=50 duty=0.5"),
+            None,
+        ),
         ("set ramp 5", running(0), Ok("OK freq_hz=50 "), None),
         ("set ramp 5", faulted(0), Ok("OK freq_hz=50 "), None),
         ("set freq 20", stopped(0), Err(44), Some(Action::None)),
@@ -66,8 +126,18 @@ fn every_command_by_table() {
         ("set duty 0,6", running(0), Err(24), Some(Action::None)),
         ("set feed 0.0001", stopped(0), Err(48), Some(Action::None)),
         ("set feed 1e6", stopped(0), Err(53), Some(Action::None)),
-        ("recipe save 3", stopped(0), Ok("OK recipe 3 saved"), Some(Action::None)),
-        ("recipe save 3", faulted(0), Ok("OK recipe 3 saved"), Some(Action::None)),
+        (
+            "recipe save 3",
+            stopped(0),
+            Ok("OK recipe 3 saved"),
+            Some(Action::None),
+        ),
+        (
+            "recipe save 3",
+            faulted(0),
+            Ok("OK recipe 3 saved"),
+            Some(Action::None),
+        ),
         ("recipe save 3", running(0), Err(60), Some(Action::None)),
         (
             "recipe save 3",
@@ -81,11 +151,26 @@ fn every_command_by_table() {
             Err(60),
             Some(Action::None),
         ),
-        ("recipe load 4", running(0), Ok("OK recipe 4 loaded freq_hz=55 "), None),
+        (
+            "recipe load 4",
+            running(0),
+            Ok("OK recipe 4 loaded freq_hz=55 "),
+            None,
+        ),
         ("recipe load 5", running(0), Err(63), Some(Action::None)),
         ("recipe load 5", stopped(0), Err(63), Some(Action::None)),
-        ("recipe list", running(0), Ok("OK recipes 0=empty "), Some(Action::None)),
-        ("help", running(0), Ok("OK commands: start | stop "), Some(Action::None)),
+        (
+            "recipe list",
+            running(0),
+            Ok("OK recipes 0=empty "),
+            Some(Action::None),
+        ),
+        (
+            "help",
+            running(0),
+            Ok("OK commands: start | stop "),
+            Some(Action::None),
+        ),
         ("?", running(0), Ok("OK commands: "), Some(Action::None)),
         ("launch", running(0), Err(20), Some(Action::None)),
         ("set", running(0), Err(21), Some(Action::None)),
@@ -146,7 +231,10 @@ fn a_stroke_above_what_the_motor_allows_names_the_stroke_and_its_limit() {
         assert_eq!(outcome.action, Action::None);
     }
     let accepted = run(&mut controller, "set stroke 3.4", &running(0), &mut store);
-    assert!(accepted.reply.as_str().starts_with("OK freq_hz=50 duty=0.586 stroke_mm=3.4 "));
+    assert!(accepted
+        .reply
+        .as_str()
+        .starts_with("OK freq_hz=50 duty=0.586 stroke_mm=3.4 "));
 }
 
 #[test]

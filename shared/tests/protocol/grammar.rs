@@ -37,6 +37,10 @@ fn every_command_parses() {
         ("set duty .6", Set(Setting::Duty(0.6))),
         ("set stroke 2.5", Set(Setting::StrokeMm(2.5))),
         ("set stroke 2.5mm", Set(Setting::StrokeMm(2.5))),
+        ("set stroke 0.0025 m", Set(Setting::StrokeMm(2.5))),
+        ("set stroke 0.0025M", Set(Setting::StrokeMm(2.5))),
+        ("set stroke 2500um", Set(Setting::StrokeMm(2.5))),
+        ("set stroke 2500 µm", Set(Setting::StrokeMm(2.5))),
         ("set accel 150", Set(Setting::AccelMps2(150.0))),
         ("set accel 150 m/s2", Set(Setting::AccelMps2(150.0))),
         ("set accel 150m/s^2", Set(Setting::AccelMps2(150.0))),
@@ -100,7 +104,9 @@ fn every_parse_error_has_its_code() {
         ("set ramp infinity", 25),
         ("set freq 50 kHz", 26),
         ("set freq 50mm", 26),
-        ("set stroke 2.5 m", 26),
+        ("set stroke 2.5 cm", 26),
+        ("set stroke 2.5 m/s2", 26),
+        ("set stroke 2.5 in", 26),
         ("set duty 0.6 %", 26),
         ("set feed 30 m/s", 26),
         ("set accel 150 g", 26),
@@ -123,7 +129,7 @@ fn every_parse_error_has_its_code() {
 fn a_decimal_comma_is_named() {
     for (line, what) in [
         ("set duty 0,6", "the duty cycle as a plain fraction"),
-        ("set stroke 2,5 mm", "the stroke in mm"),
+        ("set stroke 2,5 mm", "the stroke in mm (or m, µm)"),
         ("set accel ,5", "the peak acceleration in m/s2"),
     ] {
         assert_eq!(
@@ -176,5 +182,19 @@ proptest! {
             Ok(cycles) => prop_assert_eq!(parsed, Ok(Command::Set(Setting::RampCycles(cycles)))),
             Err(_) => prop_assert_eq!(parsed.map_err(|e| e.code()), Err(28)),
         }
+    }
+
+    /// A stroke typed in any length unit is the same number of millimetres, exactly: the unit's
+    /// power of ten moves the decimal point, it is not a multiplication that rounds.
+    #[test]
+    fn a_stroke_reads_the_same_in_every_length_unit(micrometres in 1u32..100_000) {
+        let mm = |line: String| match protocol::parse(&line) {
+            Ok(Command::Set(Setting::StrokeMm(mm))) => mm,
+            other => panic!("{line:?}: {other:?}"),
+        };
+        let expected: f64 = format!("{}.{:03}", micrometres / 1000, micrometres % 1000).parse().unwrap();
+        prop_assert_eq!(mm(format!("set stroke {micrometres}um")), expected);
+        prop_assert_eq!(mm(format!("set stroke {micrometres}e-3 mm")), expected);
+        prop_assert_eq!(mm(format!("set stroke {micrometres}e-6 m")), expected);
     }
 }
