@@ -7,7 +7,5 @@
 fn documented_sessions_print_what_the_pages_show() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     std::env::set_current_dir(&root).expect("the repository's root");
-    trycmd::TestCases::new()
-        .case("README.md")
-        .case("docs/*.md");
+    trycmd::TestCases::new().case("README.md").case("docs/*.md");
 }
