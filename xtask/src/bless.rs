@@ -1,7 +1,8 @@
 //! `cargo xtask bless`: makes every expected output anew and says which changed. The QEMU logs
 //! come from the scripted image started by `feeder-emulator`, as the QEMU tests start it; the
-//! closed-loop co-simulation's log and the plant family's sample from their tests; the figures' CSVs from the `host-sim` CLI; the
-//! command-line snapshots from their `trycmd` runners.
+//! closed-loop co-simulation's log and the plant family's sample from their tests; the figures'
+//! CSVs from the `host-sim` CLI; the command-line snapshots and the documentation's sessions
+//! (`docs/`) from their `trycmd` runners.
 
 use std::collections::BTreeMap;
 use std::fs;
@@ -42,7 +43,8 @@ fn expected_dir() -> PathBuf {
 
 /// Makes every expected output anew, then prints which files changed.
 pub fn bless() -> Result {
-    let watched: Vec<PathBuf> = std::iter::once(expected_dir())
+    let watched: Vec<PathBuf> = [expected_dir(), root().join("docs")]
+        .into_iter()
         .chain(snapshot_packages().map(|(_, dir)| dir.join("tests").join("cmd")))
         .collect();
     let before = contents(&watched)?;
@@ -58,6 +60,18 @@ pub fn bless() -> Result {
                 .env("TRYCMD", "overwrite"),
         )?;
     }
+    exec(
+        cargo()
+            .args([
+                "test",
+                "--locked",
+                "--package",
+                "host-sim",
+                "--test",
+                "docs",
+            ])
+            .env("TRYCMD", "overwrite"),
+    )?;
     report(&before, &contents(&watched)?);
     Ok(())
 }
