@@ -23,10 +23,11 @@ use crate::segment::SegmentKind;
 use crate::waveform::Waveform;
 use libm::{fabs, round, sqrt};
 
-/// The worst work between an edge and the next preload, in instructions, rounded up: 10,760
-/// measured under QEMU (`-icount shift=4`, `cargo xtask run cycles=1000`) at 50 and 100 Hz,
-/// wake-up and the `EVT` trace included, on the edge that takes a start request and a new plan.
-pub const EDGE_WORK_INSTRUCTIONS: f64 = 10_800.0;
+/// The worst work between an edge and the next preload, in instructions, rounded up: 10,875
+/// measured under QEMU (`-icount shift=4`, `cargo xtask run cycles=1000`, at 50 Hz and at 100 Hz
+/// with `stroke_m=0.0006`), wake-up and the `EVT` trace included, on the edge that takes a start
+/// request and a new plan.
+pub const EDGE_WORK_INSTRUCTIONS: f64 = 10_900.0;
 
 /// How many times the worst work per edge the shortest segment must last: segments shorter than
 /// this are refused ([`Error::SegmentBelowFloor`]), so a validated waveform cannot miss an edge.
