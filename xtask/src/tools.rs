@@ -83,6 +83,10 @@ fn toolchain_bin() -> Result<PathBuf> {
 /// The `PATH` xtask was started with, kept by [`isolate`]: rustup is looked up on it.
 static LAUNCH_PATH: OnceLock<OsString> = OnceLock::new();
 
+/// Carries [`LAUNCH_PATH`] to an xtask that a test started by xtask starts in turn, whose own
+/// `PATH` is already the isolated one.
+const LAUNCH_PATH_VAR: &str = "FEEDER_XTASK_LAUNCH_PATH";
+
 /// Sets this process's `PATH` (inherited by every command it starts) to `target/tools/bin`,
 /// the active toolchain and the rest of `PATH` without `$CARGO_HOME/bin`, and points `CARGO`
 /// at the toolchain's cargo rather than the rustup proxy.
@@ -90,7 +94,8 @@ pub fn isolate() -> Result {
     let toolchain = toolchain_bin()?;
     let hidden = cargo_home_bin();
     let inherited = std::env::var_os("PATH").unwrap_or_default();
-    LAUNCH_PATH.get_or_init(|| inherited.clone());
+    let launch = std::env::var_os(LAUNCH_PATH_VAR).unwrap_or_else(|| inherited.clone());
+    LAUNCH_PATH.get_or_init(|| launch.clone());
     let mut directories = vec![tools_root().join("bin"), toolchain.clone()];
     directories.extend(std::env::split_paths(&inherited).filter(|dir| {
         hidden
@@ -102,6 +107,7 @@ pub fn isolate() -> Result {
     // Single-threaded here: nothing else reads the environment concurrently.
     std::env::set_var("PATH", path);
     std::env::set_var("CARGO", toolchain.join("cargo"));
+    std::env::set_var(LAUNCH_PATH_VAR, launch);
     Ok(())
 }
 
