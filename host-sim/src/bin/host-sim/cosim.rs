@@ -9,16 +9,17 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use clap::Args;
-use feeder_emulator::plant::TICK_HZ;
+use feeder_emulator::plant::{Plant, TICK_HZ};
 use feeder_shared::DacCalibration;
 use host_sim::closed_loop::{Verdict, MEAN_POSITION_LIMIT_M};
 use host_sim::cosim::{cycles, judge, CosimCycle, LoopLog, PlatePlant, PlateSample, PlateState};
 use host_sim::plate::{EndStop, PlantFile};
 use host_sim::SimError;
+use indicatif::ProgressBar;
 use serde::Serialize;
 
 use crate::args::{ContactArgs, OutputArgs};
-use crate::output::{check_writable, emit, file_name, join_failures, say};
+use crate::output::{check_writable, emit, file_name, join_failures, say, spinner};
 use crate::plot::{self, Mark, Panel, Series};
 use crate::simulate::end_stop_failure;
 
@@ -87,6 +88,38 @@ struct ClosedLoopReport {
     verdict: Verdict,
 }
 
+/// The plate served to the firmware, showing on a spinner how far the run has come: the cycle
+/// starts the firmware has sampled and the plate's time, against the wall time.
+struct Watched {
+    plant: PlatePlant,
+    bar: ProgressBar,
+    cycle_starts: u64,
+}
+
+impl Plant for Watched {
+    fn level(&mut self, tick: u64, code: i32) {
+        self.plant.level(tick, code);
+    }
+
+    fn sample(&mut self, tick: u64) -> i32 {
+        self.cycle_starts += 1;
+        self.bar.set_message(format!(
+            "co-simulation: cycle start {}, {:.2} s of plate time",
+            self.cycle_starts,
+            tick as f64 / f64::from(TICK_HZ)
+        ));
+        self.plant.sample(tick)
+    }
+
+    fn configure(&mut self, interval_ticks: u64, resolution_nm: i32) -> Result<(), String> {
+        self.plant.configure(interval_ticks, resolution_nm)
+    }
+
+    fn stream(&mut self, tick: u64) -> Vec<(u64, i32)> {
+        self.plant.stream(tick)
+    }
+}
+
 /// Runs `host-sim cosim`; false when the closed loop failed its figures (the report is out).
 pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
     args.output.check()?;
@@ -101,8 +134,14 @@ pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
         TICK_HZ,
     )?;
     let started = Instant::now();
-    let run = feeder_emulator::run_with_plant(&args.elf, &args.scenario, LIMIT, plant)
+    let watched = Watched {
+        plant,
+        bar: spinner(args.output.json),
+        cycle_starts: 0,
+    };
+    let run = feeder_emulator::run_with_plant(&args.elf, &args.scenario, LIMIT, watched)
         .map_err(|error| SimError::Request(format!("the co-simulation failed: {error}")))?;
+    run.plant.bar.finish_and_clear();
     let wall_s = started.elapsed().as_secs_f64();
     let log_written = args.log.as_deref().map_or(Ok(()), |path| {
         std::fs::write(path, &run.run.log).map_err(|error| SimError::Output {
@@ -110,7 +149,7 @@ pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
             reason: error.to_string(),
         })
     });
-    let plate = &run.plant;
+    let plate = &run.plant.plant;
     if let Some(error) = plate.error() {
         return join_failures([Err(error.clone()), log_written]).map(|()| false);
     }

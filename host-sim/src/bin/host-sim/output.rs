@@ -111,6 +111,19 @@ pub fn progress(total: usize, json: bool) -> ProgressBar {
     bar
 }
 
+/// A spinner on stderr with a message the run updates, hidden for `--json` or when stderr is not a
+/// terminal.
+pub fn spinner(json: bool) -> ProgressBar {
+    if json || !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new_spinner();
+    if let Ok(style) = ProgressStyle::with_template("{spinner} {msg} ({elapsed})") {
+        bar.set_style(style);
+    }
+    bar
+}
+
 fn print_json<T: Serialize + ?Sized>(value: &T) -> Result<(), SimError> {
     let text = serde_json::to_string_pretty(value).map_err(|e| SimError::Output {
         path: "stdout".into(),
