@@ -14,9 +14,6 @@ use host_sim::plant::PAPER_PART_MASS_KG;
 use host_sim::plate::{PlateParams, PlateRunOptions};
 use host_sim::{Contact, SimError};
 
-use crate::output::check_writable;
-use crate::plot;
-
 /// Timer clock of the tick plan when neither `--clock-hz` nor `--exact-times` is given.
 const DEFAULT_CLOCK_HZ: u32 = 1_000_000;
 /// Peak-to-peak stroke when neither `--stroke-m` nor `--accel-mps2` is given.
@@ -244,21 +241,6 @@ pub struct OutputArgs {
     /// Also draw a chart to this file (.svg or .png).
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
-}
-
-impl OutputArgs {
-    /// Refuses an output file that cannot be written (see [`check_writable`]) and a chart format
-    /// that cannot be drawn, before anything is computed.
-    pub fn check(&self) -> Result<(), SimError> {
-        if let Some(path) = &self.csv {
-            check_writable(path)?;
-        }
-        if let Some(path) = &self.plot {
-            plot::check_path(path)?;
-            check_writable(path)?;
-        }
-        Ok(())
-    }
 }
 
 /// A clap parser for a count from `min` to `max`; a refusal names the range.

@@ -11,6 +11,22 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 
 use crate::args::OutputArgs;
+use crate::plot;
+
+impl OutputArgs {
+    /// Refuses an output file that cannot be written (see [`check_writable`]) and a chart format
+    /// that cannot be drawn, before anything is computed.
+    pub fn check(&self) -> Result<(), SimError> {
+        if let Some(path) = &self.csv {
+            check_writable(path)?;
+        }
+        if let Some(path) = &self.plot {
+            plot::check_path(path)?;
+            check_writable(path)?;
+        }
+        Ok(())
+    }
+}
 
 /// Prints a line to stdout; a closed pipe (`host-sim … | head`) ends the output quietly.
 macro_rules! say {
