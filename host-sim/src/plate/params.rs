@@ -1,16 +1,12 @@
-//! The plate's physical parameters, read from a TOML plant file.
+//! The plate's physical parameters: the top-level keys of a plant file.
 //!
 //! Every key is optional and defaults to the ideal plate, which follows the commanded acceleration
 //! exactly: no offset, unit gains, an instantaneous current loop, no force limit, a frictionless
 //! free slide and no end stops ([`PlateParams::is_ideal`]).
 
-use std::path::Path;
-
 use serde::Deserialize;
 
 use crate::error::SimError;
-
-use super::plant_file::PlantFile;
 
 /// A linear-motor slide carrying the plate, and the drive that powers it.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
@@ -67,16 +63,6 @@ const NON_NEGATIVE: &str = "finite and ≥ 0";
 const FRACTION: &str = "between -1 and 1";
 
 impl PlateParams {
-    /// Parses and validates a plant file's text (its `[sensors]` table, if any, too).
-    pub fn from_toml_str(text: &str) -> Result<Self, SimError> {
-        Ok(PlantFile::from_toml_str("TOML text", text)?.plate)
-    }
-
-    /// Reads, parses and validates the plant file at `path` (its `[sensors]` table, if any, too).
-    pub fn from_path(path: &Path) -> Result<Self, SimError> {
-        Ok(PlantFile::from_path(path)?.plate)
-    }
-
     /// Refuses every value outside its physical range, naming the key.
     pub fn validate(&self) -> Result<(), SimError> {
         check("mass_kg", self.mass_kg, POSITIVE, |x| x > 0.0)?;

@@ -61,6 +61,18 @@ impl PlantFile {
     }
 }
 
+impl PlateParams {
+    /// Parses and validates a plant file's text (its `[sensors]` table, if any, too).
+    pub fn from_toml_str(text: &str) -> Result<Self, SimError> {
+        Ok(PlantFile::from_toml_str("TOML text", text)?.plate)
+    }
+
+    /// Reads, parses and validates the plant file at `path` (its `[sensors]` table, if any, too).
+    pub fn from_path(path: &Path) -> Result<Self, SimError> {
+        Ok(PlantFile::from_path(path)?.plate)
+    }
+}
+
 /// One key of a plant file, at any depth, where the text holds it.
 struct Entry {
     /// The key's path from the top level: `["sensors", "accelerometer", "adc", "bits"]`.
