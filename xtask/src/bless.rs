@@ -12,8 +12,10 @@ use std::time::Duration;
 
 use feeder_shared::scenario::parse_setting;
 
+use crate::command::{cargo, cargo_test, exec, exec_output, host_sim, root};
+use crate::failure::Result;
 use crate::qemu::{self, Image};
-use crate::{cargo, exec, exec_output, host_sim, root, tools, Result};
+use crate::tools;
 
 /// A scripted run may take this long before it is ended and bless fails.
 const RUN_LIMIT: Duration = Duration::from_secs(120);
@@ -60,18 +62,7 @@ pub fn bless() -> Result {
                 .env("TRYCMD", "overwrite"),
         )?;
     }
-    exec(
-        cargo()
-            .args([
-                "test",
-                "--locked",
-                "--package",
-                "host-sim",
-                "--test",
-                "docs",
-            ])
-            .env("TRYCMD", "overwrite"),
-    )?;
+    exec(cargo_test("host-sim", "docs").env("TRYCMD", "overwrite"))?;
     report(&before, &contents(&watched)?);
     Ok(())
 }
@@ -133,15 +124,7 @@ fn closed_loop_log() -> Result {
     tools::ensure_emulation()?;
     let elf = qemu::build_firmware(Image::ClosedLoop)?;
     exec(
-        cargo()
-            .args([
-                "test",
-                "--locked",
-                "--package",
-                "feeder-tests",
-                "--test",
-                "cosim",
-            ])
+        cargo_test("feeder-tests", "cosim")
             .args([
                 "--",
                 "--ignored",

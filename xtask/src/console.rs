@@ -13,8 +13,10 @@ use std::time::{Duration, Instant};
 
 use feeder_emulator::{Board, Serial};
 
+use crate::command::{cargo, exec, exec_output, host_sim, root, workspace_binary};
+use crate::failure::Result;
 use crate::qemu::{self, Image};
-use crate::{exec, exec_output, host_sim, root, tools, workspace_binary, Result};
+use crate::tools;
 
 /// Longest to wait for QEMU to open its serial port.
 const PORT_OPEN_TIMEOUT: Duration = Duration::from_secs(20);
@@ -36,11 +38,12 @@ pub fn console() -> Result {
     tools::ensure_linker()?;
     tools::ensure_emulation()?;
     let elf = qemu::build_firmware(Image::Console)?;
-    exec(
-        crate::cargo()
-            .args(["build", "--release", "--locked"])
-            .args(["--package", "feeder-ctl", "--package", "host-sim"]),
-    )?;
+    exec(cargo().args(["build", "--release", "--locked"]).args([
+        "--package",
+        "feeder-ctl",
+        "--package",
+        "host-sim",
+    ]))?;
     let log = log_path();
     let operator = {
         let mut feeder = Feeder::start(&elf, &log)?;

@@ -3,7 +3,8 @@
 
 use std::path::PathBuf;
 
-use crate::{exec, firmware_cargo, firmware_dir, Result, THUMB_TARGET};
+use crate::command::{exec, firmware_cargo, firmware_dir, THUMB_TARGET};
+use crate::failure::Result;
 
 /// The QEMU firmware with the scripted operator, with the serial console instead, or with the
 /// scripted operator and the lockstep link to a plant on the host, without or with the plant's

@@ -1,8 +1,13 @@
-//! Flash and static RAM use of a firmware ELF, as `size` reports them (text + data, data + bss).
+//! `cargo xtask size`: flash and static RAM use of the board images, as `size` reports them
+//! (text + data, data + bss), against their budgets.
 
 use object::{Object, ObjectSection, SectionKind};
 use std::fmt;
+use std::io;
 use std::path::Path;
+
+use crate::command::{firmware_dir, THUMB_TARGET};
+use crate::failure;
 
 /// Flash and static RAM an image may use.
 pub struct Budget {
@@ -11,13 +16,13 @@ pub struct Budget {
 }
 
 /// The board firmware without the serial console.
-pub const DEFAULT_BUDGET: Budget = Budget {
+const DEFAULT_BUDGET: Budget = Budget {
     flash_bytes: 32 * 1024,
     ram_bytes: 16 * 1024,
 };
 /// With the serial console (`console` feature): command parsing, validation on the target and
 /// the recipe flash driver.
-pub const CONSOLE_BUDGET: Budget = Budget {
+const CONSOLE_BUDGET: Budget = Budget {
     flash_bytes: 64 * 1024,
     ram_bytes: 16 * 1024,
 };
@@ -32,7 +37,7 @@ pub struct SizeReport {
 
 /// Flash holds every allocated section with contents (code, read-only data and the initial
 /// values of `.data`); RAM holds every allocated section placed at or above `RAM_ORIGIN`.
-pub fn measure(elf: &Path) -> Result<SizeReport, String> {
+fn measure(elf: &Path) -> Result<SizeReport, String> {
     let bytes =
         std::fs::read(elf).map_err(|error| format!("cannot read {}: {error}", elf.display()))?;
     let file = object::File::parse(&*bytes)
@@ -98,4 +103,26 @@ impl fmt::Display for Against<'_> {
             100.0 * used.ram_bytes as f64 / budget.ram_bytes as f64
         )
     }
+}
+
+/// Writes the flash and static RAM of both board images against their budgets to `out`; fails
+/// if one is over.
+pub fn firmware_size(out: &mut dyn io::Write) -> failure::Result {
+    for (image, directory, budget) in [
+        ("default", "target", DEFAULT_BUDGET),
+        ("console", "target/console", CONSOLE_BUDGET),
+    ] {
+        let elf = firmware_dir()
+            .join(directory)
+            .join(THUMB_TARGET)
+            .join("release")
+            .join("feeder-firmware");
+        let report = measure(&elf)?;
+        writeln!(out, "{image} image: {}", report.against(&budget))
+            .map_err(|error| format!("cannot write the size report: {error}"))?;
+        report
+            .check(&budget)
+            .map_err(|error| format!("{image} image: {error}"))?;
+    }
+    Ok(())
 }

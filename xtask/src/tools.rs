@@ -12,7 +12,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::OnceLock;
 
-use crate::{exec, root, Result, THUMB_TARGET};
+use crate::command::{exec, root, THUMB_TARGET};
+use crate::failure::Result;
 
 /// A tool from crates.io, installed with `cargo install --locked` at a pinned version.
 struct CargoTool {

@@ -1,0 +1,43 @@
+//! `cargo xtask soak`: the random-operator soak (`ctl/tests/soak`) against the QEMU console image,
+//! at any length; `cargo xtask test` runs it too.
+
+use std::path::Path;
+
+use clap::Args;
+
+use crate::command::{exec, ignored_tests};
+use crate::failure::Result;
+use crate::{qemu, tools};
+
+/// The flags of `cargo xtask soak`.
+#[derive(Args)]
+pub struct SoakArgs {
+    /// Motion cycles to run (default: FEEDER_SOAK_CYCLES, else 20000).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub cycles: Option<u64>,
+    /// Seed of the operator's script (default: FEEDER_SOAK_SEED, else random).
+    #[arg(long, value_name = "SEED")]
+    pub seed: Option<u64>,
+}
+
+/// Builds the console image and runs the soak on it.
+pub fn soak_alone(args: &SoakArgs) -> Result {
+    tools::ensure_linker()?;
+    tools::ensure_emulation()?;
+    let elf = qemu::build_firmware(qemu::Image::Console)?;
+    soak(&elf, args)
+}
+
+/// The random-operator soak against the console image `elf`, its progress shown as it runs;
+/// unset arguments leave FEEDER_SOAK_CYCLES and FEEDER_SOAK_SEED to the environment.
+pub fn soak(elf: &Path, args: &SoakArgs) -> Result {
+    let mut command = ignored_tests("feeder-ctl", "soak", elf);
+    command.arg("--nocapture");
+    if let Some(cycles) = args.cycles {
+        command.env("FEEDER_SOAK_CYCLES", cycles.to_string());
+    }
+    if let Some(seed) = args.seed {
+        command.env("FEEDER_SOAK_SEED", seed.to_string());
+    }
+    exec(&mut command)
+}

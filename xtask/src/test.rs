@@ -1,0 +1,93 @@
+//! `cargo xtask test`: the whole test suite. The host tests, a type check of the fuzz targets,
+//! the `no_std` crate and the firmware for the thumb target, the firmware size budget, then the
+//! firmware-in-the-loop scenarios and the soak under QEMU.
+
+use std::io;
+use std::process::Command;
+
+use crate::command::{cargo, cargo_test, exec, firmware_cargo, ignored_tests, root, THUMB_TARGET};
+use crate::failure::Result;
+use crate::soak::{soak, SoakArgs};
+use crate::{qemu, size, tools};
+
+/// The soak's seed in `test`, so that every run sends the same operator lines (the firmware's
+/// timing against them still varies); `FEEDER_SOAK_SEED` or `cargo xtask soak` choose others.
+const TEST_SOAK_SEED: u64 = 3_709_873_859_707_123_073;
+
+/// Runs every test, step by step; the first step that fails ends it.
+pub fn test() -> Result {
+    exec(cargo().args(["test", "--workspace", "--locked"]))?;
+    exec(&mut fuzz_check())?;
+    exec(cargo_test("xtask", "run_output").args(["--", "--ignored"]))?;
+    tools::ensure_linker()?;
+    for features in ["", "defmt"] {
+        exec(cargo().args([
+            "build",
+            "--locked",
+            "--package",
+            "feeder-shared",
+            "--target",
+            THUMB_TARGET,
+            "--features",
+            features,
+        ]))?;
+    }
+    exec(firmware_cargo().args(["build", "--release", "--locked"]))?;
+    exec(
+        firmware_cargo()
+            .args(["build", "--release", "--locked", "--features", "console"])
+            .args(["--target-dir", "target/console"]),
+    )?;
+    size::firmware_size(&mut io::stderr())?;
+    tools::ensure_emulation()?;
+    let scripted = qemu::build_firmware(qemu::Image::Scripted)?;
+    exec(&mut ignored_tests("feeder-tests", "qemu", &scripted))?;
+    let cosim = qemu::build_firmware(qemu::Image::Cosim)?;
+    let closed_loop = qemu::build_firmware(qemu::Image::ClosedLoop)?;
+    exec(
+        ignored_tests("feeder-tests", "cosim", &cosim)
+            .env("FEEDER_COSIM_ELF", &cosim)
+            .env("FEEDER_CLOSED_LOOP_ELF", &closed_loop),
+    )?;
+    let console = qemu::build_firmware(qemu::Image::Console)?;
+    exec(&mut ignored_tests("feeder-ctl", "qemu_session", &console))?;
+    let seed = std::env::var_os("FEEDER_SOAK_SEED")
+        .is_none()
+        .then_some(TEST_SOAK_SEED);
+    soak(&console, &SoakArgs { cycles: None, seed })
+}
+
+/// A type check of every fuzz target (`fuzz/`, its own workspace) on the stable toolchain:
+/// without libFuzzer, which only `cargo +nightly fuzz` builds and links.
+fn fuzz_check() -> Command {
+    let mut command = cargo();
+    command
+        .args(["check", "--locked", "--bins", "--no-default-features"])
+        .arg("--manifest-path")
+        .arg(root().join("fuzz").join("Cargo.toml"));
+    command
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+
+    #[test]
+    fn the_fuzz_targets_are_checked_on_stable_without_libfuzzer() {
+        let command = fuzz_check();
+        let arguments: Vec<_> = command.get_args().collect();
+        assert_eq!(
+            arguments[..4],
+            ["check", "--locked", "--bins", "--no-default-features"]
+        );
+        assert!(!arguments
+            .iter()
+            .any(|a| a.to_string_lossy().starts_with('+')));
+        let manifest = Path::new(arguments[5]);
+        assert_eq!(manifest, root().join("fuzz").join("Cargo.toml"));
+        let text = std::fs::read_to_string(manifest).expect("fuzz/Cargo.toml");
+        assert!(text.contains("default-features = false"), "{text}");
+    }
+}
