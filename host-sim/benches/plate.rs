@@ -7,10 +7,10 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use feeder_shared::{Drive, Limits, Waveform, WaveformSpec};
-use host_sim::plant::{Contact, PlateSegment};
+use host_sim::contact::Contact;
 use host_sim::plate::reference::run_fixed_step;
 use host_sim::plate::{self, PlateParams, PlateRunOptions};
-use host_sim::segments::exact_cycle;
+use host_sim::segments::{exact_cycle, PlateSegment};
 
 const CYCLES: u64 = 200;
 const OPTIONS: PlateRunOptions = PlateRunOptions {

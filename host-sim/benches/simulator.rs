@@ -11,9 +11,9 @@ use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Through
 use feeder_shared::model::STANDARD_GRAVITY_MPS2;
 use feeder_shared::{Drive, WaveformSpec};
 use host_sim::figures;
-use host_sim::reference::run_fixed_step;
+use host_sim::ideal::fixed_step::run_fixed_step;
+use host_sim::ideal::simulator::CycleTable;
 use host_sim::segments::{exact_cycle, scheduler_segments};
-use host_sim::sim::CycleTable;
 use host_sim::{run_segments, run_table, Contact, OperatingPoint, RunOptions, Timing};
 
 /// The paper's operating point: 50 Hz, μ = 1, a 0.1 g part, a_max giving a 2.5 mm stroke at

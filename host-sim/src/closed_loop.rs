@@ -11,9 +11,10 @@ use feeder_shared::closed_loop::{
 };
 use feeder_shared::{DacCalibration, Scheduler, Segment, SegmentKind, TickPlan};
 
+use crate::contact::Contact;
 use crate::error::SimError;
-use crate::plant::{Contact, PlateSegment};
 use crate::plate::{EndStop, PlantFile, PlateParams, Stepper};
+use crate::segments::PlateSegment;
 use crate::sensors::EncoderConfig;
 
 pub mod family;

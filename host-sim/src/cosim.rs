@@ -7,11 +7,12 @@ use feeder_emulator::plant::Plant;
 use feeder_shared::DacCalibration;
 
 use crate::closed_loop::{JudgedCycle, RunFacts, Verdict, FEED_RATE_CYCLES};
+use crate::contact::Contact;
 use crate::error::SimError;
 use crate::hil::{parse_line, Event};
-use crate::plant::{Contact, PlateSegment};
 use crate::plate::{EndStop, PlantFile, Stepper};
 use crate::scenario::OperatingPoint;
+use crate::segments::PlateSegment;
 use crate::sensors::EncoderConfig;
 
 /// The plate at a sample request: a cycle start of the firmware's output.

@@ -12,8 +12,8 @@ use feeder_shared::{Drive, WaveformSpec};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use crate::contact::Contact;
 use crate::error::SimError;
-use crate::plant::Contact;
 use crate::plate::{self, EndStop, PlateParams, PlatePoint, PlateRunOptions};
 use crate::scenario::OperatingPoint;
 

@@ -3,11 +3,13 @@
 use feeder_shared::model::{self, Regime};
 use feeder_shared::{Limits, TickClock, TickPlan, Waveform, WaveformSpec};
 
+use crate::contact::Contact;
 use crate::error::SimError;
-use crate::plant::{Contact, PlateSegment};
+use crate::ideal::simulator::{
+    run_segments, run_table, Criteria, CycleTable, RunOptions, RunResult,
+};
 use crate::plate::{self, PlateParams, PlateRun, PlateRunOptions};
-use crate::segments::{exact_cycle, scheduler_segments};
-use crate::sim::{run_segments, run_table, Criteria, CycleTable, RunOptions, RunResult};
+use crate::segments::{exact_cycle, scheduler_segments, PlateSegment};
 
 /// Where the segment edges come from.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,9 +1,25 @@
-//! The plate's segments, taken only from the shared crate: one cycle of the waveform's exact
-//! real-valued times (Eq. 1–5), or the scheduler's integer-tick plan divided by its clock.
+//! The plate's commanded segments ([`PlateSegment`]), taken only from the shared crate: one cycle
+//! of the waveform's exact real-valued times (Eq. 1–5), or the scheduler's integer-tick plan
+//! divided by its clock. Both the ideal plate and a real one run on them.
 
 use feeder_shared::{Scheduler, Segment, SegmentKind, TickPlan, Waveform};
 
-use crate::plant::PlateSegment;
+/// A stretch of constant commanded plate acceleration.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlateSegment {
+    pub duration_s: f64,
+    pub accel_mps2: f64,
+    /// True for the first segment of a waveform cycle (or of an idle period); per-cycle
+    /// statistics are closed here.
+    pub starts_cycle: bool,
+}
+
+impl PlateSegment {
+    /// A finite duration `≥ 0` and a finite acceleration.
+    pub fn is_valid(&self) -> bool {
+        self.duration_s >= 0.0 && self.duration_s.is_finite() && self.accel_mps2.is_finite()
+    }
+}
 
 /// One cycle of the waveform's exact real-valued segments (`Waveform::segments`, Eq. 1–5).
 pub fn exact_cycle(waveform: &Waveform) -> [PlateSegment; 4] {

@@ -6,7 +6,7 @@ use std::path::Path;
 use feeder_shared::{Drive, Limits, TickClock, TickPlan, Waveform, WaveformSpec};
 use host_sim::closed_loop::verdict::feed_rate_mps;
 use host_sim::closed_loop::{run_closed_loop, ClosedLoopOptions, ClosedLoopRun};
-use host_sim::plant::Contact;
+use host_sim::contact::Contact;
 use host_sim::plate::PlantFile;
 use host_sim::{OperatingPoint, SimError};
 

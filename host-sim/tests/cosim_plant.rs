@@ -3,8 +3,8 @@
 
 use feeder_emulator::plant::Plant;
 use feeder_shared::DacCalibration;
+use host_sim::contact::Contact;
 use host_sim::cosim::PlatePlant;
-use host_sim::plant::Contact;
 use host_sim::plate::{PlantFile, PlateParams};
 use host_sim::sensors::{EncoderConfig, SensorsConfig};
 use host_sim::SimError;

@@ -3,8 +3,8 @@
 //! leaves its mean position where the ideal plate's is.
 
 use feeder_shared::{Drive, WaveformSpec};
+use host_sim::contact::PAPER_PART_MASS_KG;
 use host_sim::figures::{self, DriftCase};
-use host_sim::plant::PAPER_PART_MASS_KG;
 use host_sim::plate::PlateRunOptions;
 use host_sim::{Contact, OperatingPoint};
 

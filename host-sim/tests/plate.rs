@@ -2,10 +2,10 @@
 //! hand-derived motions, and the plant files.
 
 use feeder_shared::{Drive, Limits, Waveform, WaveformSpec};
-use host_sim::plant::{Contact, PlateSegment};
+use host_sim::contact::Contact;
+use host_sim::ideal::simulator::{run_segments, Criteria, RunOptions};
 use host_sim::plate::{self, PlateParams, PlateRunOptions, Stepper};
-use host_sim::segments::exact_cycle;
-use host_sim::sim::{run_segments, Criteria, RunOptions};
+use host_sim::segments::{exact_cycle, PlateSegment};
 
 fn waveform(duty: f64) -> Waveform {
     let spec = WaveformSpec::from_frequency(50.0, duty, Drive::Accel { accel_mps2: 146.0 });

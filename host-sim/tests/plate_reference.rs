@@ -4,10 +4,10 @@
 use std::path::Path;
 
 use feeder_shared::{Drive, Limits, Waveform, WaveformSpec};
-use host_sim::plant::{Contact, PlateSegment};
+use host_sim::contact::Contact;
 use host_sim::plate::reference::run_fixed_step;
 use host_sim::plate::{self, PlateParams, PlateRun, PlateRunOptions};
-use host_sim::segments::exact_cycle;
+use host_sim::segments::{exact_cycle, PlateSegment};
 use proptest::prelude::*;
 
 fn cycles(duty: f64) -> impl Iterator<Item = PlateSegment> + Clone {

@@ -2,8 +2,9 @@
 
 use std::path::Path;
 
-use host_sim::plant::{Contact, PlateSegment};
+use host_sim::contact::Contact;
 use host_sim::plate::{PlantFile, PlateParams, Stepper};
+use host_sim::segments::PlateSegment;
 use host_sim::sensors::{Accelerometer, AccelerometerConfig, AdcConfig, Encoder, EncoderConfig};
 use host_sim::sensors::{LightBarrier, LightBarrierConfig, PartMotion, PlateMotion};
 use host_sim::SimError;

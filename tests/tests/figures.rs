@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use feeder_shared::model::STANDARD_GRAVITY_MPS2;
 use feeder_shared::{Drive, WaveformSpec};
 use host_sim::figures;
-use host_sim::sim::RunOptions;
+use host_sim::ideal::simulator::RunOptions;
 use host_sim::{Contact, OperatingPoint};
 use serde::Serialize;
 

@@ -6,8 +6,8 @@ use feeder_shared::event::{EdgeWork, Event, SegmentEvent};
 use feeder_shared::{
     Drive, Limits, Scheduler, Segment, SegmentKind, TickClock, TickPlan, Waveform, WaveformSpec,
 };
+use host_sim::contact::Contact;
 use host_sim::hil::{self, Checker};
-use host_sim::plant::Contact;
 
 const CLOCK_HZ: u32 = 1_000_000;
 

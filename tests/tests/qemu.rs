@@ -13,8 +13,8 @@ use std::time::Duration;
 use feeder_emulator::{Run, NS_PER_INSTRUCTION};
 use feeder_shared::{Limits, SegmentKind, TickClock, TickPlan, Waveform, WaveformSpec};
 use feeder_tests::EDGE_WORK_BUDGET_INSTRUCTIONS;
+use host_sim::contact::Contact;
 use host_sim::hil::{self, CheckReport, Checker, Edge, EdgeTimes, Event, SegmentEvent, Stream};
-use host_sim::plant::Contact;
 use host_sim::scenario::OperatingPoint;
 
 /// A scenario may take this long before it is killed and failed.

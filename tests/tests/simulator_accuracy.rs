@@ -7,10 +7,10 @@
 use feeder_shared::model::{self, STANDARD_GRAVITY_MPS2};
 use feeder_shared::{Drive, Error, Limits, Waveform, WaveformSpec};
 use host_sim::figures;
-use host_sim::plant::EventKind;
-use host_sim::reference::run_fixed_step;
+use host_sim::ideal::fixed_step::run_fixed_step;
+use host_sim::ideal::simulator::{CycleTable, RunOptions};
+use host_sim::ideal::stick_slip::EventKind;
 use host_sim::segments::exact_cycle;
-use host_sim::sim::{CycleTable, RunOptions};
 use host_sim::{run_segments, Contact, OperatingPoint, SimError};
 
 const G: f64 = STANDARD_GRAVITY_MPS2;

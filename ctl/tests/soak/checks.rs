@@ -2,8 +2,8 @@
 
 use feeder_shared::protocol::Param;
 use feeder_shared::{Drive, Limits, TickClock, TickPlan, Waveform};
+use host_sim::contact::Contact;
 use host_sim::hil::{self, CheckReport, EdgeTimes};
-use host_sim::plant::Contact;
 
 use crate::log::{Plan, Summary};
 use crate::operator::{echo_tolerance, Parameters};

@@ -17,8 +17,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Uniform};
 use serde::Serialize;
 
+use crate::contact::Contact;
 use crate::error::SimError;
-use crate::plant::Contact;
 use crate::plate::{PlantFile, PlateParams};
 use crate::scenario::OperatingPoint;
 use crate::sensors::{EncoderConfig, SensorsConfig};

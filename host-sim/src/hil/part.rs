@@ -4,10 +4,11 @@
 
 use serde::Serialize;
 
+use crate::contact::Contact;
 use crate::error::SimError;
-use crate::plant::{Contact, PlateSegment};
+use crate::ideal::simulator::{run_segments, Criteria, CycleStats, RunOptions};
 use crate::plate::{self, PlateParams, PlatePoint, PlateRun, PlateRunOptions};
-use crate::sim::{run_segments, Criteria, CycleStats, RunOptions};
+use crate::segments::PlateSegment;
 
 use super::edge::{Edge, EdgeSource, EdgeTimes};
 

@@ -1199,7 +1199,7 @@ mod tests {
     use super::super::params::PlateParams;
     use super::super::regime::Regimes;
     use super::{Course, FreeSlide};
-    use crate::plant::Contact;
+    use crate::contact::Contact;
 
     /// A free slide with a current loop of 0.1 Hz to 100 kHz (or none), a spring up to
     /// 10⁷ N/m (up to 7 kHz on the lightest plate) and damping up to 5000 N·s/m.

@@ -1,6 +1,6 @@
 //! A real plate in the simulator: a linear-motor slide with drive offset, unequal gains, a
 //! current loop, a force limit, slide friction, a centring spring and end stops, carrying the
-//! same part under the same Coulomb contact as [`crate::plant`].
+//! same part under the same Coulomb contact ([`crate::contact`]).
 //!
 //! [`params`] are the plate's keys of a TOML plant file ([`PlantFile`]: with its sensors); [`motion`] solves the plate and part
 //! exactly between events ([`linear`]: matrix exponential and bracketed root finding;
@@ -8,7 +8,7 @@
 //! where the slide has no Coulomb friction; [`Stepper`] advances them one commanded segment
 //! at a time and [`run()`] over a stream of segments; [`Trajectory`] is the recorded motion at
 //! any instant, for sensors; [`mod@reference`] is a fixed-step integrator for validation only. When [`PlateParams::is_ideal`] holds, callers keep the exact
-//! piecewise-linear simulator of [`crate::sim`].
+//! piecewise-linear simulator of the ideal plate ([`crate::ideal`]).
 
 pub mod free;
 pub mod linear;

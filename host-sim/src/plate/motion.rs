@@ -21,7 +21,7 @@
 //! Roots are bracketed and refined to adjacent floats, and the regime's end state is taken at
 //! the root.
 
-use crate::plant::Contact;
+use crate::contact::Contact;
 
 use super::linear::{self, Matrix, State, F, ONE, P, Q, U, V, X};
 use super::params::PlateParams;

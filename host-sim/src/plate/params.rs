@@ -101,7 +101,7 @@ impl PlateParams {
     }
 
     /// True when the plate follows the command exactly, so the exact piecewise-linear simulator
-    /// ([`crate::sim`]) applies unchanged.
+    /// ([`crate::ideal`]) applies unchanged.
     pub fn is_ideal(&self) -> bool {
         self.zero_offset_fraction == 0.0
             && self.gain_positive == 1.0

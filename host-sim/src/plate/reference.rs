@@ -8,8 +8,9 @@
 //! event's time inside the step is bisected on RK4 steps of the shortened length, so the error
 //! stays fourth order in `dt`.
 
+use crate::contact::Contact;
 use crate::error::SimError;
-use crate::plant::{Contact, PlateSegment};
+use crate::segments::PlateSegment;
 
 use super::params::PlateParams;
 use super::run::{PlateRun, PlateRunOptions};

@@ -1,7 +1,8 @@
 //! Running the real plate and its part over a stream of commanded segments.
 
+use crate::contact::Contact;
 use crate::error::SimError;
-use crate::plant::{Contact, PlateSegment};
+use crate::segments::PlateSegment;
 
 use std::collections::VecDeque;
 

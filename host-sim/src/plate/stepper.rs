@@ -1,8 +1,9 @@
 //! The real plate and its part advanced one commanded segment at a time, for callers that choose
 //! each segment from what the plate did before (a closed loop) as well as for [`super::run()`].
 
+use crate::contact::Contact;
 use crate::error::SimError;
-use crate::plant::{Contact, PlateSegment};
+use crate::segments::PlateSegment;
 
 use super::free::{Course, FreeSlide};
 use super::linear::{self, Matrix, State, F, P, Q, U, V, X};

@@ -10,7 +10,7 @@ use feeder_shared::drive::MACHINE_LIMITS;
 use feeder_shared::model::STANDARD_GRAVITY_MPS2;
 use feeder_shared::number::{parse_length, LengthUnit};
 use feeder_shared::{DacCalibration, Drive, Waveform, WaveformSpec};
-use host_sim::plant::PAPER_PART_MASS_KG;
+use host_sim::contact::PAPER_PART_MASS_KG;
 use host_sim::plate::{PlateParams, PlateRunOptions};
 use host_sim::{Contact, SimError};
 

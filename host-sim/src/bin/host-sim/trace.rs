@@ -4,8 +4,8 @@
 use std::path::Path;
 
 use clap::Args;
+use host_sim::ideal::simulator::TracePoint;
 use host_sim::plate::{self, EndStop, PlateParams, PlatePoint, PlateRunOptions};
-use host_sim::sim::TracePoint;
 use host_sim::{OperatingPoint, RunOptions, SimError};
 
 use crate::args::{count, ContactArgs, OutputArgs, PlantArgs, TimingArgs, WaveArgs};

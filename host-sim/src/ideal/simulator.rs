@@ -1,7 +1,7 @@
-//! Running the plant over a stream of plate segments: per-cycle statistics, steady-state
-//! detection, plate excursion and the optional event trace.
+//! Running the part on the ideal plate over a stream of plate segments: per-cycle statistics,
+//! steady-state detection, plate excursion and the optional event trace.
 //!
-//! Two drivers share the same event stepping ([`crate::plant::advance`]):
+//! Two drivers share the same event stepping ([`advance`]):
 //! * [`run_table`] repeats one precomputed cycle ([`CycleTable`]); it is the fast path for the
 //!   exact waveform times.
 //! * [`run_segments`] consumes any iterator of [`PlateSegment`]s: the shared scheduler's tick plan,
@@ -9,8 +9,10 @@
 
 use serde::Serialize;
 
-use crate::plant::{advance, Contact, EventKind, Observer, PlateSegment, Rates, Span};
-use crate::segments::exact_cycle;
+use crate::contact::Contact;
+use crate::segments::{exact_cycle, PlateSegment};
+
+use super::stick_slip::{advance, EventKind, Observer, Rates, Span};
 
 /// When a run counts as converged.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,11 +1,13 @@
-//! A fixed-step reference integrator of the same plant, for validation and benchmarks.
+//! A fixed-step reference integrator of the part on the ideal plate, for validation and
+//! benchmarks.
 //!
 //! Each step of `dt` applies the plate's mean acceleration over the step (so the plate's velocity
 //! is exact at every step point) and the part's Coulomb acceleration at the step's start. When the
 //! relative velocity changes sign within a step, the part sticks for the rest of the step if
 //! static friction can hold it. Its error is first order in `dt`.
 
-use crate::plant::{Contact, PlateSegment};
+use crate::contact::Contact;
+use crate::segments::PlateSegment;
 
 /// The outcome of a fixed-step run.
 #[derive(Debug, Clone, Copy, PartialEq)]
