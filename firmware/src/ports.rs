@@ -57,7 +57,8 @@ pub trait Watchdog {
     /// the watchdog's timeout is shorter than the longest work in thread mode.
     const WATCHES_THREAD_MODE: bool;
 
-    fn feed(&mut self);
+    /// Feeds the watchdog unless the board holds the feed back; true if it fed.
+    fn feed(&mut self) -> bool;
 }
 
 /// An operator besides the button: a serial console or a script.

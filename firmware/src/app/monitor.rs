@@ -44,8 +44,8 @@ pub fn spawn(spawner: SendSpawner, control_spawner: SendSpawner, watchdog: Board
     }
 }
 
-/// Feeds the watchdog every monitor period while the application makes progress, and logs the
-/// CPU cost of the edges.
+/// Feeds the watchdog every monitor period while the application makes progress, runs the
+/// board's hook after each feed (`board::after_feed`), and logs the CPU cost of the edges.
 ///
 /// The control loop beats at every segment start, so it may go a whole segment without one: the
 /// monitor stops feeding (and warns, once) only when it has not beaten for
@@ -65,8 +65,8 @@ async fn monitor_task(mut watchdog: BoardWatchdog) {
         let thread_mode_alive = thread_mode
             .as_mut()
             .is_none_or(|progress| progress.check("thread mode"));
-        if control_alive && thread_mode_alive {
-            watchdog.feed();
+        if control_alive && thread_mode_alive && watchdog.feed() {
+            board::after_feed();
         }
         periods += 1;
         if periods == REPORT_EVERY_MONITOR_PERIODS && CYCLE_COUNTER_RUNS.load(Ordering::Relaxed) {

@@ -5,6 +5,7 @@
 //! * `run`, which brings the board up with the output at zero and the driver disabled, hands its
 //!   parts to the application and runs the executors;
 //! * `announce`, which logs what the firmware came up on;
+//! * `after_feed`, which the watchdog monitor calls after every feed (the board's fault drills);
 //! * `SAFE_STATE_WRITES` and `after_fault`, for the fault handlers (`crate::fault`).
 
 #[cfg(all(feature = "board-g474", feature = "board-qemu"))]
@@ -17,4 +18,4 @@ mod chosen;
 #[path = "qemu/mod.rs"]
 mod chosen;
 
-pub use chosen::{after_fault, announce, run, Hardware, SAFE_STATE_WRITES};
+pub use chosen::{after_fault, after_feed, announce, run, Hardware, SAFE_STATE_WRITES};

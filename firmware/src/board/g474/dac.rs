@@ -8,7 +8,7 @@ use embassy_stm32::{bind_interrupts, pac, triggers, Peri};
 use feeder_shared::{DacLevels, DriveError, Segment, TickClock};
 
 use super::segment_timer::{SegmentTimer, UpdateInterrupt, CR1_STOPPED, EGR_UPDATE, MIN_SEGMENT_S};
-use super::setup::DRIVER_DISABLE;
+use super::pins::DRIVER_DISABLE;
 use crate::config;
 use crate::output::{EdgeMissed, SegmentOutput, SegmentStart, TrimmedCycle, TrimmedLevels};
 use crate::ports::RegisterWrite;

@@ -7,7 +7,7 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use embassy_stm32::pac;
 use embassy_stm32::pac::gpio::vals::Odr;
 
-use super::setup::{CORE_HZ, DRIVER_ENABLE_PIN};
+use super::pins::{CORE_HZ, DRIVER_ENABLE_PIN};
 use super::watchdog::OutputWatchdog;
 use crate::ports::Watchdog;
 
@@ -70,7 +70,8 @@ const DUE_AFTER_FEEDS: u32 = (2_000_000 / <OutputWatchdog as Watchdog>::MONITOR_
 /// Feeds made with the driver enabled so far.
 static ENABLED_FEEDS: AtomicU32 = AtomicU32::new(0);
 
-/// Called at every feed: provokes the drill once the driver has been enabled long enough.
+/// Called after every feed (see `after_feed`): provokes the drill once the driver has been
+/// enabled long enough.
 pub fn provoke_when_due() {
     let Some(drill) = DRILL else {
         return;

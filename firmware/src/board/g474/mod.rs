@@ -47,6 +47,7 @@ mod operator;
 #[cfg(not(feature = "console"))]
 #[path = "button_only.rs"]
 mod operator;
+mod pins;
 #[cfg(feature = "output-pwm")]
 mod pwm;
 #[cfg(feature = "console")]
@@ -109,6 +110,11 @@ pub fn run(app: fn(SendSpawner, Board<Hardware>)) -> ! {
         let (spawner, board) = setup::init(spawner.make_send());
         app(spawner, board)
     })
+}
+
+/// After every feed of the watchdog by the monitor: the fault drill built in, once it is due.
+pub fn after_feed() {
+    drill::provoke_when_due();
 }
 
 /// Logs the image's output stage.

@@ -24,7 +24,7 @@ use embassy_sync::waitqueue::AtomicWaker;
 use feeder_shared::plan::{EDGE_WORK_INSTRUCTIONS, EDGE_WORK_MARGIN};
 use feeder_shared::Segment;
 
-use super::setup::CORE_HZ;
+use super::pins::CORE_HZ;
 use crate::output::EdgeMissed;
 
 /// Cycles per instruction assumed for the edge work: Cortex-M4 code from flash at 4 wait states

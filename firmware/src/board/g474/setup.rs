@@ -6,32 +6,15 @@ use embassy_stm32::exti::{self, ExtiInput};
 use embassy_stm32::gpio::{self, Level, Pull, Speed};
 use embassy_stm32::interrupt::typelevel::{self, Handler};
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
-use embassy_stm32::{bind_interrupts, pac, rcc, Config};
+use embassy_stm32::{bind_interrupts, pac};
 
 use super::light_barrier::LightBarrier;
+use super::pins::clocks;
 use super::watchdog::OutputWatchdog;
 use super::{operator, Hardware, Stage};
 #[cfg(feature = "encoder")]
 use crate::output::SegmentOutput;
-use crate::ports::{Board, RegisterWrite};
-
-/// Core clock ([`clocks`]).
-pub const CORE_HZ: f64 = 170e6;
-
-/// Pin number of the driver enable on GPIOA (PA10).
-pub const DRIVER_ENABLE_PIN: usize = 10;
-
-/// GPIOA_BSRR: a 1 in bit 16 + n drives PAn low (RM0440, GPIO, "GPIO port bit set/reset register").
-const GPIOA_BSRR: u32 = 0x4800_0018;
-
-/// The first store of the safe state: the driver enable (PA10) low.
-pub const DRIVER_DISABLE: RegisterWrite = RegisterWrite {
-    address: GPIOA_BSRR,
-    value: 1 << (16 + DRIVER_ENABLE_PIN),
-};
-
-// The raw value above means what its comment says, as the PAC decodes it.
-const _: () = assert!(pac::gpio::regs::Bsrr(1 << (16 + DRIVER_ENABLE_PIN)).br(DRIVER_ENABLE_PIN));
+use crate::ports::Board;
 
 static CONTROL_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 
@@ -129,22 +112,6 @@ pub fn init(thread_spawner: SendSpawner) -> (SendSpawner, Board<Hardware>) {
         background_spawner: thread_spawner,
     };
     (task_spawner, board)
-}
-
-/// 170 MHz from HSI16: /4 × 85 /2, range 1 boost.
-fn clocks() -> Config {
-    let mut config = Config::default();
-    config.rcc.pll = Some(rcc::Pll {
-        source: rcc::PllSource::HSI,
-        prediv: rcc::PllPreDiv::DIV4,
-        mul: rcc::PllMul::MUL85,
-        divp: None,
-        divq: None,
-        divr: Some(rcc::PllRDiv::DIV2),
-    });
-    config.rcc.sys = rcc::Sysclk::PLL1_R;
-    config.rcc.boost = true;
-    config
 }
 
 /// On a debugger halt the segment timers and the edge counter stop (DBGMCU_APB1FZR1, APB2FZR):

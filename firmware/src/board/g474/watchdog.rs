@@ -5,7 +5,7 @@ use embassy_stm32::peripherals::{IWDG, PB5};
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::Peri;
 
-use super::{drill, segment_timer};
+use super::segment_timer;
 use crate::ports::Watchdog;
 
 /// Independent watchdog timeout: what the plate affords.
@@ -56,12 +56,12 @@ impl Watchdog for OutputWatchdog {
     const WATCHES_THREAD_MODE: bool = true;
 
     /// Feeds unless the output replays a segment.
-    fn feed(&mut self) {
+    fn feed(&mut self) -> bool {
         if segment_timer::replaying() {
-            return;
+            return false;
         }
         self.iwdg.pet();
         self.feed_pulses.toggle();
-        drill::provoke_when_due();
+        true
     }
 }

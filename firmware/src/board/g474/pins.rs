@@ -1,0 +1,40 @@
+//! The pin and clock facts the other modules share: the core clock, the driver enable's pin and
+//! the store that disables the driver.
+
+use embassy_stm32::{pac, rcc, Config};
+
+use crate::ports::RegisterWrite;
+
+/// Core clock ([`clocks`]).
+pub const CORE_HZ: f64 = 170e6;
+
+/// Pin number of the driver enable on GPIOA (PA10).
+pub const DRIVER_ENABLE_PIN: usize = 10;
+
+/// GPIOA_BSRR: a 1 in bit 16 + n drives PAn low (RM0440, GPIO, "GPIO port bit set/reset register").
+const GPIOA_BSRR: u32 = 0x4800_0018;
+
+/// The first store of the safe state: the driver enable (PA10) low.
+pub const DRIVER_DISABLE: RegisterWrite = RegisterWrite {
+    address: GPIOA_BSRR,
+    value: 1 << (16 + DRIVER_ENABLE_PIN),
+};
+
+// The raw value above means what its comment says, as the PAC decodes it.
+const _: () = assert!(pac::gpio::regs::Bsrr(1 << (16 + DRIVER_ENABLE_PIN)).br(DRIVER_ENABLE_PIN));
+
+/// 170 MHz from HSI16: /4 × 85 /2, range 1 boost.
+pub fn clocks() -> Config {
+    let mut config = Config::default();
+    config.rcc.pll = Some(rcc::Pll {
+        source: rcc::PllSource::HSI,
+        prediv: rcc::PllPreDiv::DIV4,
+        mul: rcc::PllMul::MUL85,
+        divp: None,
+        divq: None,
+        divr: Some(rcc::PllRDiv::DIV2),
+    });
+    config.rcc.sys = rcc::Sysclk::PLL1_R;
+    config.rcc.boost = true;
+    config
+}
