@@ -12,7 +12,7 @@ use feeder_shared::number::{parse_length, LengthUnit};
 use feeder_shared::{DacCalibration, Drive, Waveform, WaveformSpec};
 use host_sim::contact::PAPER_PART_MASS_KG;
 use host_sim::plate::{PlateParams, PlateRunOptions};
-use host_sim::{Contact, SimError};
+use host_sim::{Contact, OperatingPoint, SimError};
 
 /// Timer clock of the tick plan when neither `--clock-hz` nor `--exact-times` is given.
 const DEFAULT_CLOCK_HZ: u32 = 1_000_000;
@@ -217,6 +217,50 @@ impl PlantArgs {
             .as_deref()
             .map(|path| Ok((path, PlateParams::from_path(path)?)))
             .transpose()
+    }
+}
+
+/// An operating point: the plate's waveform, the part's contact, the drive limits' flag `L`
+/// ([`DriveLimitArgs`], or [`NoLimitFlag`] where a command has none) and where the switching
+/// times come from, in that order.
+#[derive(Args, Clone)]
+pub struct PointArgs<L: Args = NoLimitFlag> {
+    #[command(flatten)]
+    pub wave: WaveArgs,
+    #[command(flatten)]
+    pub contact: ContactArgs,
+    #[command(flatten)]
+    pub drive_limits: L,
+    #[command(flatten)]
+    pub timing: TimingArgs,
+}
+
+/// No flag for the drive limits: a paper study, or a command that always holds a waveform to
+/// them.
+#[derive(Args, Clone)]
+pub struct NoLimitFlag {}
+
+impl<L: Args> PointArgs<L> {
+    /// The waveform's spec and the operating point; the waveform is checked before the contact.
+    fn spec_and_point(&self) -> Result<(WaveformSpec, OperatingPoint), SimError> {
+        let spec = self.wave.spec()?;
+        let point = OperatingPoint::new(spec, self.contact.contact()?, self.timing.clock_hz())?;
+        Ok((spec, point))
+    }
+
+    /// The operating point.
+    pub fn point(&self) -> Result<OperatingPoint, SimError> {
+        self.spec_and_point().map(|(_, point)| point)
+    }
+}
+
+impl PointArgs<DriveLimitArgs> {
+    /// The operating point, refused beyond the machine's drive limits unless
+    /// `--no-drive-limits` lifts them; with them lifted, why it is beyond them (`None` within
+    /// them), for the report.
+    pub fn limited_point(&self) -> Result<(OperatingPoint, Option<String>), SimError> {
+        let (spec, point) = self.spec_and_point()?;
+        Ok((point, self.drive_limits.check(spec)?))
     }
 }
 

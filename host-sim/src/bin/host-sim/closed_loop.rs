@@ -15,7 +15,7 @@ use host_sim::plate::{PlantFile, PlateParams};
 use host_sim::{OperatingPoint, SimError, Timing};
 use serde::Serialize;
 
-use crate::args::{check_drive_limits, count, ContactArgs, OutputArgs, TimingArgs, WaveArgs};
+use crate::args::{check_drive_limits, count, OutputArgs, PointArgs};
 use crate::output::{emit, file_name, say};
 use crate::plot::{self, Mark, Moment, Panel, Series};
 
@@ -43,11 +43,7 @@ pub struct ClosedLoopArgs {
     #[arg(long, value_name = "FILE")]
     plant: PathBuf,
     #[command(flatten)]
-    wave: WaveArgs,
-    #[command(flatten)]
-    contact: ContactArgs,
-    #[command(flatten)]
-    timing: TimingArgs,
+    point: PointArgs,
     /// Cycles the feeder runs after the probe and the centring, soft start included (at most
     /// 100 000).
     #[arg(
@@ -181,12 +177,12 @@ struct ClosedLoopReport {
 /// which (0 passed, 1 failed, 2 the loop gave up).
 pub fn run(args: &ClosedLoopArgs) -> Result<ExitCode, SimError> {
     args.output.check()?;
-    let clock_hz = args.timing.clock_hz().ok_or(SimError::BadRange {
+    let clock_hz = args.point.timing.clock_hz().ok_or(SimError::BadRange {
         what: "the closed loop trims the shared scheduler's tick plan cycle by cycle: leave out \
                --exact-times",
     })?;
-    let contact = args.contact.contact()?;
-    let spec = args.wave.spec()?;
+    let contact = args.point.contact.contact()?;
+    let spec = args.point.wave.spec()?;
     let point = OperatingPoint::new(spec, contact, Some(clock_hz))?;
     check_drive_limits(spec, "")?;
     let change = match (args.change_duty_at, args.to_duty) {
@@ -199,7 +195,7 @@ pub fn run(args: &ClosedLoopArgs) -> Result<ExitCode, SimError> {
                     args.cycles
                 )));
             }
-            let mut wave = args.wave.clone();
+            let mut wave = args.point.wave.clone();
             wave.duty = duty;
             let new_spec = wave.spec()?;
             let new_point = OperatingPoint::new(new_spec, contact, Some(clock_hz))?;

@@ -5,13 +5,10 @@ use std::path::Path;
 
 use clap::Args;
 use host_sim::figures::{self, DriftCase, CASE_PLATE_MASS_KG};
-use host_sim::{OperatingPoint, SimError, Timing};
+use host_sim::{SimError, Timing};
 use serde::Serialize;
 
-use crate::args::{
-    count, plate_options, ContactArgs, DriveLimitArgs, OutputArgs, TimingArgs, WaveArgs,
-    PLATE_CYCLES,
-};
+use crate::args::{count, plate_options, DriveLimitArgs, OutputArgs, PointArgs, PLATE_CYCLES};
 use crate::output::{emit, say};
 use crate::plot::{self, Labels, Mark, Options, Series, YAxis};
 
@@ -24,13 +21,7 @@ const PLOT_SAMPLES_PER_CYCLE: f64 = 16.0;
 #[derive(Args)]
 pub struct DriftArgs {
     #[command(flatten)]
-    wave: WaveArgs,
-    #[command(flatten)]
-    contact: ContactArgs,
-    #[command(flatten)]
-    drive_limits: DriveLimitArgs,
-    #[command(flatten)]
-    timing: TimingArgs,
+    point: PointArgs<DriveLimitArgs>,
     /// Cycles each plate runs from rest (at most 1 000), unless it hits an end stop.
     #[arg(
         long,
@@ -75,9 +66,7 @@ struct DriftSample {
 /// Runs `host-sim drift`.
 pub fn run(args: &DriftArgs) -> Result<(), SimError> {
     args.output.check()?;
-    let spec = args.wave.spec()?;
-    let point = OperatingPoint::new(spec, args.contact.contact()?, args.timing.clock_hz())?;
-    let beyond_drive_limits = args.drive_limits.check(spec)?;
+    let (point, beyond_drive_limits) = args.point.limited_point()?;
     let options = plate_options(args.cycles);
     let traced = args.output.csv.is_some() || args.output.plot.is_some();
     let cases = figures::open_loop_drift(&point, &figures::open_loop_cases()?, &options, traced)?;

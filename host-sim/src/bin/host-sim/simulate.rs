@@ -11,8 +11,7 @@ use host_sim::{OperatingPoint, RunOptions, SimError, Timing};
 use serde::Serialize;
 
 use crate::args::{
-    count, plate_options, ContactArgs, DriveLimitArgs, OutputArgs, PlantArgs, TimingArgs, WaveArgs,
-    PLATE_CYCLES,
+    count, plate_options, DriveLimitArgs, OutputArgs, PlantArgs, PointArgs, PLATE_CYCLES,
 };
 use crate::output::{emit, say};
 use crate::trace::plot_trace;
@@ -26,13 +25,7 @@ const MAX_CYCLES: u64 = 10_000_000;
 #[derive(Args)]
 pub struct SimulateArgs {
     #[command(flatten)]
-    wave: WaveArgs,
-    #[command(flatten)]
-    contact: ContactArgs,
-    #[command(flatten)]
-    drive_limits: DriveLimitArgs,
-    #[command(flatten)]
-    timing: TimingArgs,
+    point: PointArgs<DriveLimitArgs>,
     /// Run exactly N cycles (at most 10 000 000) instead of detecting steady state.
     #[arg(
         long,
@@ -156,9 +149,7 @@ impl SimulateReport {
 /// Runs `host-sim simulate`.
 pub fn run(args: &SimulateArgs) -> Result<(), SimError> {
     args.output.check()?;
-    let spec = args.wave.spec()?;
-    let point = OperatingPoint::new(spec, args.contact.contact()?, args.timing.clock_hz())?;
-    let beyond = args.drive_limits.check(spec)?;
+    let (point, beyond) = args.point.limited_point()?;
     match args.plant.plate()? {
         Some((path, params)) if !params.is_ideal() => {
             run_real_plate(args, &point, beyond, path, &params)

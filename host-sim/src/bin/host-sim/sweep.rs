@@ -92,16 +92,16 @@ fn run_ideal_plate(
     duties: &[f64],
     contact: &Contact,
 ) -> Result<(), SimError> {
-    let progress = progress(args.accel_mps2.len() * duties.len(), args.output.json);
-    let points = figures::sweep(
-        period_s,
-        &args.accel_mps2,
-        duties,
-        contact,
-        args.timing.clock_hz(),
-        &|| progress.inc(1),
-    )?;
-    progress.finish_and_clear();
+    let points = with_progress(args, duties, |on_point| {
+        figures::sweep(
+            period_s,
+            &args.accel_mps2,
+            duties,
+            contact,
+            args.timing.clock_hz(),
+            on_point,
+        )
+    })?;
     emit(
         &args.output,
         &points,
@@ -120,18 +120,18 @@ fn run_real_plate(
     params: &PlateParams,
 ) -> Result<(), SimError> {
     let options = plate_options(args.cycles.unwrap_or(PLATE_CYCLES));
-    let progress = progress(args.accel_mps2.len() * duties.len(), args.output.json);
-    let points = figures::plate_sweep(
-        period_s,
-        &args.accel_mps2,
-        duties,
-        contact,
-        args.timing.clock_hz(),
-        params,
-        &options,
-        &|| progress.inc(1),
-    )?;
-    progress.finish_and_clear();
+    let points = with_progress(args, duties, |on_point| {
+        figures::plate_sweep(
+            period_s,
+            &args.accel_mps2,
+            duties,
+            contact,
+            args.timing.clock_hz(),
+            params,
+            &options,
+            on_point,
+        )
+    })?;
     emit(
         &args.output,
         &points,
@@ -139,6 +139,18 @@ fn run_real_plate(
         &points,
         || print_plate_table(&points),
     )
+}
+
+/// The points `sweep` computes over every a_max and `duties`, a progress bar counting them.
+fn with_progress<P>(
+    args: &SweepArgs,
+    duties: &[f64],
+    sweep: impl FnOnce(&(dyn Fn() + Sync)) -> Result<Vec<P>, SimError>,
+) -> Result<Vec<P>, SimError> {
+    let progress = progress(args.accel_mps2.len() * duties.len(), args.output.json);
+    let points = sweep(&|| progress.inc(1))?;
+    progress.finish_and_clear();
+    Ok(points)
 }
 
 fn print_plate_table(points: &[PlateSweepPoint]) {

@@ -8,7 +8,7 @@ use host_sim::ideal::simulator::TracePoint;
 use host_sim::plate::{self, EndStop, PlateParams, PlatePoint, PlateRunOptions};
 use host_sim::{OperatingPoint, RunOptions, SimError};
 
-use crate::args::{count, ContactArgs, OutputArgs, PlantArgs, TimingArgs, WaveArgs};
+use crate::args::{count, OutputArgs, PlantArgs, PointArgs};
 use crate::output::{emit, say};
 use crate::plot::{self, Labels, Mark, Moment, Panel, Series};
 
@@ -19,11 +19,7 @@ const MAX_CYCLES: u64 = 10_000;
 #[derive(Args)]
 pub struct TraceArgs {
     #[command(flatten)]
-    wave: WaveArgs,
-    #[command(flatten)]
-    contact: ContactArgs,
-    #[command(flatten)]
-    timing: TimingArgs,
+    point: PointArgs,
     /// Cycles to trace from rest (at most 10 000).
     #[arg(
         long,
@@ -42,11 +38,7 @@ pub struct TraceArgs {
 /// Runs `host-sim trace`.
 pub fn run(args: &TraceArgs) -> Result<(), SimError> {
     args.output.check()?;
-    let point = OperatingPoint::new(
-        args.wave.spec()?,
-        args.contact.contact()?,
-        args.timing.clock_hz(),
-    )?;
+    let point = args.point.point()?;
     if let Some((_, params)) = args.plant.plate()? {
         if !params.is_ideal() {
             return run_real_plate(args, &point, &params);
@@ -59,13 +51,7 @@ pub fn run(args: &TraceArgs) -> Result<(), SimError> {
     };
     let run = point.run(&options);
     let plot = |path: &Path| {
-        let title = format!(
-            "Plate and part velocity: {} Hz, d = {}, a_max = {:.1} m/s², μ = {}",
-            point.waveform.frequency_hz(),
-            point.waveform.duty,
-            point.waveform.accel_mps2,
-            point.contact.mu
-        );
+        let title = title("Plate and part velocity", &point);
         plot_trace(path, &title, &run.trace, None)
     };
     emit(&args.output, &run.trace, plot, &run.trace, || {
@@ -85,18 +71,23 @@ fn run_real_plate(
     };
     let (run, trace) = plate::trace(params, &point.contact, point.segments(), &options)?;
     let plot = |path: &Path| {
-        let title = format!(
-            "Real plate, open loop: {} Hz, d = {}, a_max = {:.1} m/s², μ = {}",
-            point.waveform.frequency_hz(),
-            point.waveform.duty,
-            point.waveform.accel_mps2,
-            point.contact.mu
-        );
+        let title = title("Real plate, open loop", point);
         plot_plate_trace(path, &title, &trace, &[], run.end_stop)
     };
     emit(&args.output, &trace, plot, &trace, || {
         print_plate_trace(&trace)
     })
+}
+
+/// A chart's title: `what`, then the operating point's frequency, duty, a_max and μ.
+fn title(what: &str, point: &OperatingPoint) -> String {
+    format!(
+        "{what}: {} Hz, d = {}, a_max = {:.1} m/s², μ = {}",
+        point.waveform.frequency_hz(),
+        point.waveform.duty,
+        point.waveform.accel_mps2,
+        point.contact.mu
+    )
 }
 
 fn print_plate_trace(trace: &[PlatePoint]) {
