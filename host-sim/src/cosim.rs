@@ -10,8 +10,8 @@ use crate::closed_loop::{JudgedCycle, RunFacts, Verdict, FEED_RATE_CYCLES};
 use crate::contact::Contact;
 use crate::error::SimError;
 use crate::hil::{parse_line, Event};
+use crate::operating_point::OperatingPoint;
 use crate::plate::{EndStop, PlantFile, Stepper};
-use crate::scenario::OperatingPoint;
 use crate::segments::PlateSegment;
 use crate::sensors::EncoderConfig;
 

@@ -14,8 +14,8 @@ use serde::Serialize;
 
 use crate::contact::Contact;
 use crate::error::SimError;
+use crate::operating_point::OperatingPoint;
 use crate::plate::{self, EndStop, PlateParams, PlatePoint, PlateRunOptions};
-use crate::scenario::OperatingPoint;
 
 /// One point of a duty sweep.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]

@@ -15,7 +15,7 @@ use feeder_shared::{Limits, SegmentKind, TickClock, TickPlan, Waveform, Waveform
 use feeder_tests::EDGE_WORK_BUDGET_INSTRUCTIONS;
 use host_sim::contact::Contact;
 use host_sim::hil::{self, CheckReport, Checker, Edge, EdgeTimes, Event, SegmentEvent, Stream};
-use host_sim::scenario::OperatingPoint;
+use host_sim::operating_point::OperatingPoint;
 
 /// A scenario may take this long before it is killed and failed.
 const TIMEOUT: Duration = Duration::from_secs(120);

@@ -19,8 +19,8 @@ use serde::Serialize;
 
 use crate::contact::Contact;
 use crate::error::SimError;
+use crate::operating_point::OperatingPoint;
 use crate::plate::{PlantFile, PlateParams};
-use crate::scenario::OperatingPoint;
 use crate::sensors::{EncoderConfig, SensorsConfig};
 
 use super::{run_closed_loop, ClosedLoopOptions, Verdict};

@@ -1,6 +1,6 @@
-//! The part simulated on the recorded edges: the plant driven by the levels the firmware output,
-//! at their actual or planned instants, with the feed rate, the plate's drift and where each halt
-//! left the plate.
+//! The part simulated on the recorded edges: the ideal plate driven by the levels the firmware
+//! output, at their actual or planned instants, with the feed rate, the plate's drift and where
+//! each halt left the plate.
 
 use serde::Serialize;
 

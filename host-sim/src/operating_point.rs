@@ -1,4 +1,5 @@
-//! An operating point of the feeder (waveform, contact, timing) and its analytic predictions.
+//! An operating point of the feeder (waveform, contact, timing), its run on the ideal plate or a
+//! real one, and its analytic predictions.
 
 use feeder_shared::model::{self, Regime};
 use feeder_shared::{Limits, TickClock, TickPlan, Waveform, WaveformSpec};
@@ -84,7 +85,7 @@ impl OperatingPoint {
         }
     }
 
-    /// Runs the plant from a part at rest on the plate at rest.
+    /// Runs the ideal plate from a part at rest on the plate at rest.
     pub fn run(&self, options: &RunOptions) -> RunResult {
         match self.timing {
             Timing::Exact => run_table(&CycleTable::exact(&self.waveform, &self.contact), options),
