@@ -1,7 +1,12 @@
 //! The output stage as the application sees it: a timer that starts each segment in hardware,
 //! with the next segment preloaded by software while the current one plays.
 
+#[cfg(any(feature = "board-qemu", not(feature = "output-pwm")))]
+use feeder_shared::DacLevels;
 use feeder_shared::{DriveError, Level, Segment, TickClock};
+
+#[cfg(any(feature = "board-qemu", not(feature = "output-pwm")))]
+use crate::config;
 
 /// A segment could not be prepared before its edge: the output timing is lost.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
@@ -57,6 +62,55 @@ impl<T: Copy> TrimmedLevels<T> {
             Level::Zero => self.zero,
             Level::Negative => self.negative,
         })
+    }
+}
+
+/// The DAC codes of a stage that drives [`config::DAC`]: the plan's levels at the peak
+/// acceleration set last and the closed loop's trimmed cycle, for the DAC stage and the
+/// emulated one alike.
+#[cfg(any(feature = "board-qemu", not(feature = "output-pwm")))]
+pub struct DacCodes {
+    /// The codes of the plan's levels; `None` (a refused acceleration): zero.
+    levels: Option<DacLevels>,
+    /// The codes of the cycle the closed loop trimmed last.
+    trimmed: Option<TrimmedLevels<u16>>,
+}
+
+#[cfg(any(feature = "board-qemu", not(feature = "output-pwm")))]
+impl DacCodes {
+    /// No levels yet: zero until [`DacCodes::set_peak_accel`].
+    pub const fn new() -> Self {
+        Self {
+            levels: None,
+            trimmed: None,
+        }
+    }
+
+    /// See [`SegmentOutput::set_peak_accel`].
+    pub fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
+        self.levels = None;
+        self.levels = Some(config::DAC.levels(peak_accel_mps2)?);
+        Ok(())
+    }
+
+    /// See [`SegmentOutput::trim`].
+    pub fn trim(&mut self, trimmed: &TrimmedCycle) -> Result<(), DriveError> {
+        self.trimmed = Some(TrimmedLevels::convert(trimmed, |accel_mps2| {
+            config::DAC.code(accel_mps2)
+        })?);
+        Ok(())
+    }
+
+    /// The code of `segment`: its trimmed cycle's, or the plan's, at the zero code while the
+    /// plan's levels are refused.
+    pub fn code(&self, segment: &Segment) -> u16 {
+        match (&self.trimmed, &self.levels) {
+            (Some(trimmed), Some(levels)) => trimmed
+                .of(segment)
+                .unwrap_or_else(|| levels.code(segment.level, segment.amplitude)),
+            (None, Some(levels)) => levels.code(segment.level, segment.amplitude),
+            (_, None) => config::DAC.zero_code,
+        }
     }
 }
 

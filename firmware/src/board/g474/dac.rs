@@ -5,12 +5,12 @@ use embassy_stm32::mode::Blocking;
 use embassy_stm32::peripherals::{DAC1, PA4, PA8, PA9, TIM1, TIM2, TIM3};
 use embassy_stm32::timer::low_level::{Timer, TriggerSource};
 use embassy_stm32::{bind_interrupts, pac, triggers, Peri};
-use feeder_shared::{DacLevels, DriveError, Segment, TickClock};
+use feeder_shared::{DriveError, Segment, TickClock};
 
 use super::segment_timer::{SegmentTimer, UpdateInterrupt, CR1_STOPPED, EGR_UPDATE, MIN_SEGMENT_S};
 use super::pins::DRIVER_DISABLE;
 use crate::config;
-use crate::output::{EdgeMissed, SegmentOutput, SegmentStart, TrimmedCycle, TrimmedLevels};
+use crate::output::{DacCodes, EdgeMissed, SegmentOutput, SegmentStart, TrimmedCycle};
 use crate::ports::RegisterWrite;
 
 /// DAC1_DHR12R1: channel 1's 12-bit right-aligned holding register.
@@ -28,9 +28,7 @@ bind_interrupts!(struct Irqs {
 pub struct DacStage {
     dac: DacChannel<'static, Blocking>,
     timer: SegmentTimer<TIM2>,
-    levels: Option<DacLevels>,
-    /// The closed loop's levels of the cycle it trimmed last.
-    trimmed: Option<TrimmedLevels<u16>>,
+    codes: DacCodes,
     /// Preload slack of the preloaded segment and of the playing one (`None`: restarted).
     queued_slack_ticks: Option<u32>,
     playing_slack_ticks: Option<u32>,
@@ -99,22 +97,9 @@ impl DacStage {
         Self {
             dac,
             timer: SegmentTimer::new(timer, edge_counter, TriggerSource::ITR1, Irqs),
-            levels: None,
-            trimmed: None,
+            codes: DacCodes::new(),
             queued_slack_ticks: None,
             playing_slack_ticks: None,
-        }
-    }
-
-    /// The code of `segment`: its trimmed cycle's, or the plan's, at the zero code while the
-    /// plan's levels are refused.
-    fn code(&self, segment: &Segment) -> u16 {
-        match (&self.trimmed, &self.levels) {
-            (Some(trimmed), Some(levels)) => trimmed
-                .of(segment)
-                .unwrap_or_else(|| levels.code(segment.level, segment.amplitude)),
-            (None, Some(levels)) => levels.code(segment.level, segment.amplitude),
-            (_, None) => config::DAC.zero_code,
         }
     }
 }
@@ -129,20 +114,15 @@ impl SegmentOutput for DacStage {
     }
 
     fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
-        self.levels = None;
-        self.levels = Some(config::DAC.levels(peak_accel_mps2)?);
-        Ok(())
+        self.codes.set_peak_accel(peak_accel_mps2)
     }
 
     fn trim(&mut self, trimmed: &TrimmedCycle) -> Result<(), DriveError> {
-        self.trimmed = Some(TrimmedLevels::convert(trimmed, |accel_mps2| {
-            config::DAC.code(accel_mps2)
-        })?);
-        Ok(())
+        self.codes.trim(trimmed)
     }
 
     fn restart(&mut self, segment: &Segment) {
-        let code = self.code(segment);
+        let code = self.codes.code(segment);
         let dac = &mut self.dac;
         self.timer.stop_and_load(|timer| {
             dac.set(Value::Bit12Right(code));
@@ -166,7 +146,7 @@ impl SegmentOutput for DacStage {
         self.timer.prepare_capture(segment);
         let counter = self.timer.timer().regs_gp32();
         let playing_reload = counter.arr().read();
-        self.dac.set(Value::Bit12Right(self.code(segment)));
+        self.dac.set(Value::Bit12Right(self.codes.code(segment)));
         counter.arr().write_value(segment.ticks - 1);
         self.queued_slack_ticks = Some(
             playing_reload

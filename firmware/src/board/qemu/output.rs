@@ -3,13 +3,13 @@
 
 use embassy_time::{Instant, Timer};
 use feeder_shared::scenario::{qemu_clock, QEMU_TICK_HZ};
-use feeder_shared::{DacLevels, DriveError, Segment, TickClock};
+use feeder_shared::{DriveError, Segment, TickClock};
 
 use super::edge_work::{overrun_if_provoked, record_edge_work};
 use super::time_driver::{self, CYCLES_PER_TICK};
 use super::{exit, register_read, register_write, OUTPUT_CODE, OUTPUT_RUN};
 use crate::config;
-use crate::output::{EdgeMissed, SegmentOutput, SegmentStart, TrimmedCycle, TrimmedLevels};
+use crate::output::{DacCodes, EdgeMissed, SegmentOutput, SegmentStart, TrimmedCycle};
 use crate::trace;
 
 // The output's clock (`feeder_shared::scenario::qemu_clock`) counts embassy's ticks.
@@ -36,10 +36,8 @@ pub struct ReportingOutput {
     playing: Option<(Segment, Option<u32>)>,
     /// The preloaded segment, its slack and its DAC code.
     queued: Option<(Segment, u32, u32)>,
-    /// The codes of the plan's levels; `None` (a refused acceleration): zero.
-    levels: Option<DacLevels>,
-    /// The codes of the cycle the closed loop trimmed last.
-    trimmed: Option<TrimmedLevels<u16>>,
+    /// The codes of the plan's levels and of the trimmed cycle, as the board's DAC stage has them.
+    codes: DacCodes,
     /// Timer cycle of the edge that began the playing segment, until the next preload.
     edge_cycles: Option<u64>,
     /// The missed edge's replay, until the halt reports it.
@@ -62,8 +60,7 @@ impl ReportingOutput {
             timeline_ticks: u64::MAX,
             playing: None,
             queued: None,
-            levels: None,
-            trimmed: None,
+            codes: DacCodes::new(),
             edge_cycles: None,
             replay: None,
         }
@@ -91,17 +88,9 @@ impl ReportingOutput {
         }
     }
 
-    /// The DAC code of `segment`: its trimmed cycle's, or the plan's, at the zero code while
-    /// the plan's levels are refused.
+    /// The DAC code of `segment` as the output register holds it.
     fn code(&self, segment: &Segment) -> u32 {
-        let code = match (&self.trimmed, &self.levels) {
-            (Some(trimmed), Some(levels)) => trimmed
-                .of(segment)
-                .unwrap_or_else(|| levels.code(segment.level, segment.amplitude)),
-            (None, Some(levels)) => levels.code(segment.level, segment.amplitude),
-            (_, None) => config::DAC.zero_code,
-        };
-        u32::from(code)
+        u32::from(self.codes.code(segment))
     }
 
     /// The clock tick of scheduler tick `tick`.
@@ -125,17 +114,11 @@ impl SegmentOutput for ReportingOutput {
     }
 
     fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
-        // The same levels the board's DAC stage computes.
-        self.levels = None;
-        self.levels = Some(config::DAC.levels(peak_accel_mps2)?);
-        Ok(())
+        self.codes.set_peak_accel(peak_accel_mps2)
     }
 
     fn trim(&mut self, trimmed: &TrimmedCycle) -> Result<(), DriveError> {
-        self.trimmed = Some(TrimmedLevels::convert(trimmed, |accel_mps2| {
-            config::DAC.code(accel_mps2)
-        })?);
-        Ok(())
+        self.codes.trim(trimmed)
     }
 
     fn restart(&mut self, segment: &Segment) {
