@@ -5,7 +5,6 @@
 //! norm ≤ ½ (the norm taken over the state columns, which govern convergence; the input column
 //! is carried along, `[B b; 0 0]ⁿ = [Bⁿ Bⁿ⁻¹b; 0 0]`), its Taylor series is summed to 18 terms
 //! (remainder below ½¹⁸/18! ≈ 6·10⁻²², under the unit roundoff) and squared `s` times.
-//! Root finding on linear functionals `c·z(t)` is bracketed (Illinois) to adjacent floats.
 
 /// Length of the state vector `z`.
 pub const N: usize = 7;
@@ -139,54 +138,4 @@ pub fn exp(a: &Matrix, t: f64) -> Matrix {
         e = multiply(&e, &e);
     }
     e
-}
-
-/// A point of `(lo, hi]` next to a sign change of `f`, given `f(lo) > 0 ≥ f(hi)` (or the
-/// reverse): the Illinois variant of regula falsi, falling back to bisection when the bracket
-/// does not at least halve, stopped when `lo` and `hi` are adjacent floats. Returns the end of
-/// the final bracket with the sign of `f(hi)`.
-pub fn root(f: impl Fn(f64) -> f64, mut lo: f64, mut f_lo: f64, mut hi: f64, mut f_hi: f64) -> f64 {
-    let mut side = 0_i8;
-    for _ in 0..200 {
-        let width = hi - lo;
-        let mid = 0.5 * (lo + hi);
-        if mid <= lo || mid >= hi || f_hi == 0.0 {
-            break;
-        }
-        let secant = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
-        let t = if secant > lo && secant < hi {
-            secant
-        } else {
-            mid
-        };
-        let f_t = f(t);
-        if (f_t > 0.0) == (f_lo > 0.0) {
-            lo = t;
-            f_lo = f_t;
-            if side == -1 {
-                f_hi *= 0.5;
-            }
-            side = -1;
-        } else {
-            hi = t;
-            f_hi = f_t;
-            if side == 1 {
-                f_lo *= 0.5;
-            }
-            side = 1;
-        }
-        if hi - lo > 0.5 * width {
-            let mid = 0.5 * (lo + hi);
-            let f_mid = f(mid);
-            if (f_mid > 0.0) == (f_lo > 0.0) {
-                lo = mid;
-                f_lo = f_mid;
-            } else {
-                hi = mid;
-                f_hi = f_mid;
-            }
-            side = 0;
-        }
-    }
-    hi
 }

@@ -2,22 +2,28 @@
 //! current loop, a force limit, slide friction, a centring spring and end stops, carrying the
 //! same part under the same Coulomb contact ([`crate::contact`]).
 //!
-//! [`params`] are the plate's keys of a TOML plant file ([`PlantFile`]: with its sensors); [`motion`] solves the plate and part
-//! exactly between events ([`linear`]: matrix exponential and bracketed root finding;
-//! [`regime`]: what is kept of each regime), and [`free`] the same in scalar closed form
-//! where the slide has no Coulomb friction; [`Stepper`] advances them one commanded segment
-//! at a time and [`run()`] over a stream of segments; [`Trajectory`] is the recorded motion at
-//! any instant, for sensors; [`mod@reference`] is a fixed-step integrator for validation only. When [`PlateParams::is_ideal`] holds, callers keep the exact
-//! piecewise-linear simulator of the ideal plate ([`crate::ideal`]).
+//! [`params`] are the plate's keys of a TOML plant file ([`PlantFile`]: with its sensors);
+//! [`model`] is the plate and part as a linear system per contact state ([`linear`]: its state
+//! and matrix exponential). Two [`solver`]s find the next event of a stretch exactly: [`motion`]
+//! whatever the slide ([`dynamics`]: what it keeps of each regime), and [`free`] in scalar
+//! closed form where the slide has no Coulomb friction; both find roots with [`roots`].
+//! [`Stepper`] advances the plate one commanded segment at a time and [`run()`] over a stream
+//! of segments; [`Trajectory`] is the recorded motion at any instant, for sensors;
+//! [`mod@reference`] is a fixed-step integrator for validation only. When
+//! [`PlateParams::is_ideal`] holds, callers keep the exact piecewise-linear simulator of the
+//! ideal plate ([`crate::ideal`]).
 
-pub mod free;
-pub mod linear;
-pub mod motion;
+mod dynamics;
+mod free;
+mod linear;
+mod model;
+mod motion;
 pub mod params;
 pub mod plant_file;
 pub mod reference;
-pub mod regime;
+mod roots;
 pub mod run;
+mod solver;
 pub mod stepper;
 pub mod trajectory;
 

@@ -5,11 +5,12 @@ use crate::contact::Contact;
 use crate::error::SimError;
 use crate::segments::PlateSegment;
 
-use super::free::{Course, FreeSlide};
+use super::free::FreeSolver;
 use super::linear::{self, Matrix, State, F, P, Q, U, V, X};
-use super::motion::{Event, Model, Part, Slide};
+use super::model::{Event, Model, Part, Slide};
+use super::motion::GeneralSolver;
 use super::params::PlateParams;
-use super::regime::Regimes;
+use super::solver::Solver;
 use super::trajectory::{Piece, Trajectory};
 
 /// Samples per segment of a trace, evenly spaced, besides every event.
@@ -44,10 +45,9 @@ pub struct PlatePoint {
 #[derive(Debug)]
 pub struct Stepper {
     model: Model,
-    /// The scalar solution, where the slide is free, and its course through the segment.
-    free: Option<FreeSlide>,
-    course: Course,
-    regimes: Regimes,
+    /// The free slide's scalar solution where the slide has no Coulomb friction, else the
+    /// general solver.
+    solver: Box<dyn Solver>,
     z: State,
     slide: Slide,
     part: Part,
@@ -68,11 +68,13 @@ impl Stepper {
             Slide::Free
         };
         let model = Model::new(*params, *contact);
+        let solver: Box<dyn Solver> = match FreeSolver::new(&model) {
+            Some(free) => Box::new(free),
+            None => Box::new(GeneralSolver::new(&model)),
+        };
         Ok(Stepper {
-            free: FreeSlide::new(&model),
-            course: Course::default(),
             model,
-            regimes: Regimes::default(),
+            solver,
             z: [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0],
             slide,
             part: Part::Stuck,
@@ -177,24 +179,14 @@ impl Stepper {
         let held_s = next
             .filter(|next| next.accel_mps2 == segment.accel_mps2 && next.duration_s.is_finite())
             .map_or(0.0, |next| next.duration_s.max(0.0));
-        self.course
+        self.solver
             .begin(target_n, segment.duration_s, segment.duration_s + held_s);
         let mut offset_s = 0.0;
         for _ in 0..MAX_EVENTS_PER_SEGMENT {
             model.settle(&mut self.z, &mut self.slide, &mut self.part);
-            let (next, end_z) = match self.free.as_ref() {
-                Some(free) => {
-                    self.course
-                        .next_event(free, self.part, &self.z, offset_s, &mut self.peak_m)
-                }
-                None => {
-                    let regime = self.regimes.get(model, self.slide, self.part, target_n);
-                    let rest_s = (segment.duration_s - offset_s).max(0.0);
-                    let peak_m = &mut self.peak_m;
-                    let turn = |x: f64| *peak_m = peak_m.max(x.abs());
-                    model.next_event(regime, &self.z, rest_s, turn)
-                }
-            };
+            let (next, end_z) =
+                self.solver
+                    .next_event(self.slide, self.part, &self.z, offset_s, &mut self.peak_m);
             let until_s = next.map_or(segment.duration_s, |(_, t)| offset_s + t);
             if self.points.is_some() || self.pieces.is_some() {
                 let a = model.matrix(self.slide, self.part, target_n);

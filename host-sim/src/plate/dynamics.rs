@@ -1,4 +1,4 @@
-//! What the solver keeps of each regime it meets (regimes recur every cycle): the matrix `A`,
+//! What the general solver keeps of each regime it meets (regimes recur every cycle): the matrix `A`,
 //! the functionals it watches with their Taylor rows, the current loop's mode, and a ladder of
 //! step exponentials.
 //!
@@ -11,7 +11,7 @@
 //! `h_J = h_0/2^J ≤ min(1/(8ρ), 1/‖A‖)`.
 
 use super::linear::{self, Matrix, State, F, ONE, V};
-use super::motion::{Event, Model, Part, Slide};
+use super::model::{Event, Model, Part, Slide};
 
 /// Rows `c·A^k` kept per functional: the value to 23 Taylor terms and its slope.
 pub const TAYLOR_ROWS: usize = 24;
@@ -58,9 +58,9 @@ impl Lag {
 
 type Key = (u8, u8, u64);
 
-/// One regime: fixed slide and part contact, fixed drive target.
+/// The dynamics of one regime: fixed slide and part contact, fixed drive target.
 #[derive(Debug, Clone)]
-pub struct Regime {
+pub struct Dynamics {
     key: Key,
     pub a: Matrix,
     pub functionals: Vec<Functional>,
@@ -73,7 +73,7 @@ pub struct Regime {
     norm: f64,
 }
 
-impl Regime {
+impl Dynamics {
     fn new(model: &Model, slide: Slide, part: Part, target_n: f64) -> Self {
         let a = model.matrix(slide, part, target_n);
         let eigenvector = model
@@ -119,7 +119,7 @@ impl Regime {
         let ladder = (0..=levels)
             .map(|j| linear::exp(&a, coarse_step_s / f64::from(1_u32 << j)))
             .collect();
-        Regime {
+        Dynamics {
             key: key(slide, part, target_n),
             a,
             functionals,
@@ -226,17 +226,17 @@ fn lag_eigenvector(a: &Matrix, rate_per_s: f64) -> Option<State> {
     Some(r)
 }
 
-/// The regimes met so far.
+/// The dynamics of the regimes met so far.
 #[derive(Debug, Default)]
-pub struct Regimes {
-    entries: Vec<Regime>,
+pub struct DynamicsCache {
+    entries: Vec<Dynamics>,
 }
 
-impl Regimes {
+impl DynamicsCache {
     const CAPACITY: usize = 64;
 
-    /// The regime of `slide`, `part` and `target_n`, built on first use.
-    pub fn get(&mut self, model: &Model, slide: Slide, part: Part, target_n: f64) -> &Regime {
+    /// The dynamics of `slide`, `part` and `target_n`, built on first use.
+    pub fn get(&mut self, model: &Model, slide: Slide, part: Part, target_n: f64) -> &Dynamics {
         let wanted = key(slide, part, target_n);
         let index = match self.entries.iter().position(|r| r.key == wanted) {
             Some(index) => index,
@@ -244,7 +244,8 @@ impl Regimes {
                 if self.entries.len() == Self::CAPACITY {
                     self.entries.clear();
                 }
-                self.entries.push(Regime::new(model, slide, part, target_n));
+                self.entries
+                    .push(Dynamics::new(model, slide, part, target_n));
                 self.entries.len() - 1
             }
         };
