@@ -9,7 +9,7 @@ use std::time::Instant;
 use clap::Args;
 use feeder_shared::closed_loop::Identified;
 use host_sim::closed_loop::{
-    run_closed_loop, ClosedLoopOptions, ClosedLoopRun, CycleRecord, Verdict, MEAN_POSITION_LIMIT_M,
+    run_closed_loop, ClosedLoopOptions, ClosedLoopRun, CycleRecord, Verdict,
 };
 use host_sim::plate::{PlantFile, PlateParams};
 use host_sim::{OperatingPoint, SimError, Timing};
@@ -463,23 +463,8 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
     };
     let run_end_s = run.simulated_s;
     let start_s = running.first().map_or(run_end_s, |c| c.time_s);
-    let limit_um = MEAN_POSITION_LIMIT_M * 1e6;
-    let line = |name: String, points: Vec<(f64, f64)>, mark: Mark, color: usize| Series {
-        name,
-        points,
-        mark,
-        color,
-    };
-    let level = |name: String, value: f64, from_s: f64, color: usize| {
-        line(
-            name,
-            vec![(from_s, value), (run_end_s, value)],
-            Mark::DashedLine,
-            color,
-        )
-    };
     let mut excursion = vec![
-        line(
+        Series::new(
             if verdict.startup_peak_m == verdict.peak_excursion_m {
                 format!(
                     "largest |x| per cycle: peak {:.0} µm",
@@ -499,10 +484,10 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
             Mark::ThinLine,
             0,
         ),
-        level(
+        Series::level(
             format!("start-up bound {:.0} µm", verdict.startup_limit_m * 1e6),
             verdict.startup_limit_m * 1e6,
-            0.0,
+            0.0..run_end_s,
             1,
         ),
     ];
@@ -512,7 +497,7 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
             .unwrap_or(verdict.peak_excursion_m)
             .max(verdict.peak_excursion_m)
             * 1e6;
-        excursion.push(line(
+        excursion.push(Series::new(
             format!("soft start released at {:.2} s", release.time_s),
             vec![(release.time_s, 0.0), (release.time_s, top_um)],
             Mark::DashedLine,
@@ -520,10 +505,10 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
         ));
     }
     if let Some(stop_m) = report.plant_end_stop_m {
-        excursion.push(level(
+        excursion.push(Series::level(
             format!("end stop {:.1} mm", stop_m * 1e3),
             stop_m * 1e6,
-            0.0,
+            0.0..run_end_s,
             5,
         ));
     }
@@ -563,23 +548,15 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
             y: "largest |x| (µm)",
             series: excursion,
         },
-        Panel {
-            y: "cycle mean position (µm)",
-            series: vec![
-                line(
-                    mean,
-                    over_time(|c| c.mean_position_m * 1e6),
-                    Mark::ThinLine,
-                    0,
-                ),
-                level(format!("±{limit_um:.0} µm"), limit_um, start_s, 1),
-                level(format!("±{limit_um:.0} µm"), -limit_um, start_s, 1),
-            ],
-        },
+        plot::mean_position_panel(
+            mean,
+            over_time(|c| c.mean_position_m * 1e6),
+            Some(start_s..run_end_s),
+        ),
         Panel {
             y: "bias (m/s²)",
-            series: vec![line(
-                "bias added to every level".into(),
+            series: vec![Series::new(
+                "bias added to every level",
                 over_time(|c| c.bias_mps2),
                 Mark::Dots,
                 2,
@@ -588,14 +565,14 @@ fn plot_run(path: &Path, report: &ClosedLoopReport, run: &ClosedLoopRun) -> Resu
         Panel {
             y: "level trim",
             series: vec![
-                line(
-                    "factor on +a".into(),
+                Series::new(
+                    "factor on +a",
                     over_time(|c| c.positive_trim),
                     Mark::Dots,
                     3,
                 ),
-                line(
-                    "factor on −a".into(),
+                Series::new(
+                    "factor on −a",
                     over_time(|c| c.negative_trim),
                     Mark::Dots,
                     4,
