@@ -8,7 +8,7 @@ use std::thread;
 use std::time::{Duration, Instant};
 
 use crate::command::{command, Serial};
-use crate::plant::{LinkCounts, Plant, PlantThread};
+use crate::plant_link::{LinkCounts, Plant, PlantThread};
 use crate::{LaunchError, DECODER, QEMU};
 
 /// Pause between looks at whether a run has ended.
@@ -36,7 +36,7 @@ impl Board {
 
     /// Starts the `cosim` image `elf` as [`Board::start`] does, in lockstep with `plant`: QEMU
     /// runs in the directory of the link's FIFOs, which the returned thread serves `plant` on
-    /// (see [`crate::plant`]). Join the thread once the board has ended.
+    /// (see [`crate::plant_link`]). Join the thread once the board has ended.
     pub fn start_with_plant<S: AsRef<str>, P: Plant + Send + 'static>(
         elf: &Path,
         scenario: &[S],

@@ -5,8 +5,8 @@
 //!
 //! [`relay`] passes a decoded log on as it streams and reads the run's [`Progress`] from it.
 //!
-//! The `cosim` image runs in lockstep with a plant on the host over two FIFOs ([`plant`]):
-//! [`run_with_plant`] serves a [`plant::Plant`] on a thread while the firmware runs.
+//! The `cosim` image runs in lockstep with a plant on the host over two FIFOs ([`plant_link`]):
+//! [`run_with_plant`] serves a [`plant_link::Plant`] on a thread while the firmware runs.
 //!
 //! `qemu-system-arm` and `defmt-print` are found on `PATH`: `cargo xtask` installs them and puts
 //! `target/tools/bin` first on the `PATH` of everything it starts, the tests included.
@@ -14,7 +14,7 @@
 mod board;
 mod command;
 mod error;
-pub mod plant;
+pub mod plant_link;
 mod progress;
 
 pub use board::{run_to_end, run_with_plant, Board, PlantRun, Run};

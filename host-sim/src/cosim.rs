@@ -3,7 +3,7 @@
 //! request is answered with the plate encoder's count at its tick. QEMU runs no instruction
 //! while the plate computes, so the co-simulation is deterministic.
 
-use feeder_emulator::plant::Plant;
+use feeder_emulator::plant_link::Plant;
 use feeder_shared::DacCalibration;
 
 use crate::closed_loop::{JudgedCycle, RunFacts, Verdict, FEED_RATE_CYCLES};

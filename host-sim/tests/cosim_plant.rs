@@ -1,7 +1,7 @@
 //! The real plate behind the firmware's lockstep link, fed by hand: DAC codes read back as
 //! accelerations, held from their ticks, and encoder counts at the sample ticks.
 
-use feeder_emulator::plant::Plant;
+use feeder_emulator::plant_link::Plant;
 use feeder_shared::DacCalibration;
 use host_sim::contact::Contact;
 use host_sim::cosim::PlatePlant;

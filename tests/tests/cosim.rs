@@ -24,7 +24,7 @@ use std::path::PathBuf;
 use std::thread;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
-use feeder_emulator::plant::{EchoPlant, LinkCounts, Plant};
+use feeder_emulator::plant_link::{EchoPlant, LinkCounts, Plant};
 use feeder_emulator::PlantRun;
 
 /// A scenario may take this long before it is killed and failed.
@@ -235,7 +235,7 @@ fn plate_of(file: &host_sim::plate::PlantFile) -> host_sim::cosim::PlatePlant {
         file,
         &contact(),
         feeder_shared::DacCalibration::DEFAULT,
-        feeder_emulator::plant::TICK_HZ,
+        feeder_emulator::plant_link::TICK_HZ,
     )
     .expect("the plant file has an encoder")
 }

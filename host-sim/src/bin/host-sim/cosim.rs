@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use clap::Args;
-use feeder_emulator::plant::{Plant, TICK_HZ};
+use feeder_emulator::plant_link::{Plant, TICK_HZ};
 use feeder_shared::DacCalibration;
 use host_sim::closed_loop::{Verdict, MEAN_POSITION_LIMIT_M};
 use host_sim::cosim::{cycles, judge, CosimCycle, LoopLog, PlatePlant, PlateSample, PlateState};
