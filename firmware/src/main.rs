@@ -16,6 +16,9 @@ mod fault;
 mod mailbox;
 mod output;
 mod ports;
+/// The scripted QEMU image's scenarios and the G474's fault drill overflow the stack.
+#[cfg(any(feature = "board-g474", not(feature = "console")))]
+mod stack_overflow;
 mod status;
 mod trace;
 

@@ -10,6 +10,7 @@ use embassy_stm32::pac::gpio::vals::Odr;
 use super::pins::{CORE_HZ, DRIVER_ENABLE_PIN};
 use super::watchdog::OutputWatchdog;
 use crate::ports::Watchdog;
+use crate::stack_overflow;
 
 /// What to provoke.
 #[derive(Clone, Copy)]
@@ -86,7 +87,7 @@ pub fn provoke_when_due() {
     match drill {
         Drill::Panic => panic!("fault drill"),
         Drill::StackOverflow => {
-            recurse(0);
+            stack_overflow::recurse(0);
         }
         Drill::CriticalSection => {
             cortex_m::interrupt::free(|_| cortex_m::asm::delay(CORE_HZ as u32 / 100))
@@ -99,13 +100,4 @@ pub fn provoke_when_due() {
             unsafe { core::arch::asm!("cpsid f", "udf #0", options(noreturn)) }
         }
     }
-}
-
-/// Uses 256 bytes of stack per call, without end.
-fn recurse(depth: u32) -> u32 {
-    let frame = core::hint::black_box([depth; 64]);
-    if core::hint::black_box(depth) == u32::MAX {
-        return frame[0];
-    }
-    recurse(depth + 1).wrapping_add(frame[63])
 }

@@ -55,7 +55,7 @@ use super::exit::{self, after_fault, sleep_forever};
 use super::time_driver::{self, CYCLES_PER_TICK};
 use crate::mailbox::{ReadyPlan, NEXT_PLAN, REQUESTS};
 use crate::status;
-use crate::{config, ports, trace};
+use crate::{config, ports, stack_overflow, trace};
 use changes::RandomChanges;
 
 /// How often the operator looks at the cycle count.
@@ -82,24 +82,13 @@ pub fn idle() -> ! {
         }
         if begun >= OVERFLOW_AT.load(Ordering::Relaxed) {
             info!("scenario: thread mode recurses without bound");
-            recurse(0);
+            stack_overflow::recurse(0);
         }
         if begun >= MASK_AT.load(Ordering::Relaxed) {
             MASK_AT.store(u32::MAX, Ordering::Relaxed);
             mask_interrupts(MASK_CYCLES.load(Ordering::Relaxed).into());
         }
     }
-}
-
-/// Calls itself until the stack runs out. Each call keeps an array that `black_box` makes the
-/// compiler put on the stack and reads it after the inner call, so the recursion stays a
-/// recursion.
-#[allow(unconditional_recursion)]
-#[inline(never)]
-fn recurse(depth: u32) -> u32 {
-    let mut frame = [depth; 64];
-    core::hint::black_box(&mut frame);
-    recurse(depth.wrapping_add(1)).wrapping_add(frame[depth as usize % frame.len()])
 }
 
 /// Masks interrupts for `cycles` timer cycles, busy-waiting on the clock timer: a critical
