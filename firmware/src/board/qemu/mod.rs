@@ -29,8 +29,8 @@
 //!   instruction while the call waits, so under `-icount` the firmware's time stands still while
 //!   the host computes and a run is byte-identical however long the plant takes
 //!   (`tests/tests/cosim.rs`). A host that goes away ends the run like a fault: the output at
-//!   zero, the driver disabled, the error logged, a failure exit code. `feeder_emulator::plant`
-//!   is the host's end.
+//!   zero, the driver disabled, the error logged, a failure exit code.
+//!   `feeder_emulator::plant_link` is the host's end.
 
 mod edge_work;
 #[cfg(feature = "encoder")]

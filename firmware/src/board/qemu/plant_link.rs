@@ -12,12 +12,12 @@
 //! * `plant-levels`, written by the firmware: its [`Message`]s;
 //! * `plant-samples`, read by the firmware: the plant's [`Sample`]s.
 //!
-//! `feeder_emulator::plant` creates them in a temporary directory and starts QEMU there.
+//! `feeder_emulator::plant_link` creates them in a temporary directory and starts QEMU there.
 //!
 //! # Wire format
 //!
 //! Fixed-size little-endian records, nothing else on either file. The one definition is here;
-//! `feeder_emulator::plant` mirrors it.
+//! `feeder_emulator::plant_link` mirrors it.
 //!
 //! | record | bytes | fields |
 //! |---|---|---|
