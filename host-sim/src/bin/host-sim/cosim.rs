@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use feeder_emulator::plant_link::{Plant, TICK_HZ};
 use feeder_shared::DacCalibration;
-use host_sim::closed_loop::{Verdict, MEAN_POSITION_LIMIT_M};
+use host_sim::closed_loop::Verdict;
 use host_sim::cosim::{cycles, judge, CosimCycle, LoopLog, PlatePlant, PlateSample, PlateState};
 use host_sim::plate::{EndStop, PlantFile};
 use host_sim::SimError;
@@ -201,38 +201,16 @@ fn plot_run(path: &Path, report: &CosimReport, cycles: &[CosimCycle]) -> Result<
         cycles.iter().map(|c| (c.time_s, value(c))).collect()
     };
     let end_s = cycles.last().map_or(0.0, |c| c.time_s);
-    let limit_um = MEAN_POSITION_LIMIT_M * 1e6;
-    let line = |name: String, points: Vec<(f64, f64)>, mark: Mark, color: usize| Series {
-        name,
-        points,
-        mark,
-        color,
-    };
-    let mut position = vec![line(
-        "plate's mean position over each cycle".into(),
-        over_time(|c| c.mean_position_m * 1e6),
-        Mark::ThinLine,
-        0,
-    )];
-    if report.closed_loop.is_some() {
-        for sign in [1.0, -1.0] {
-            position.push(line(
-                format!("±{limit_um:.0} µm"),
-                vec![(0.0, sign * limit_um), (end_s, sign * limit_um)],
-                Mark::DashedLine,
-                1,
-            ));
-        }
-    }
     let panels = [
-        Panel {
-            y: "cycle mean position (µm)",
-            series: position,
-        },
+        plot::mean_position_panel(
+            "plate's mean position over each cycle",
+            over_time(|c| c.mean_position_m * 1e6),
+            report.closed_loop.as_ref().map(|_| 0.0..end_s),
+        ),
         Panel {
             y: "zero level (m/s²)",
-            series: vec![line(
-                "the zero level as applied: the loop's bias".into(),
+            series: vec![Series::new(
+                "the zero level as applied: the loop's bias",
                 over_time(|c| c.zero_mps2),
                 Mark::ThinLine,
                 2,
@@ -241,14 +219,14 @@ fn plot_run(path: &Path, report: &CosimReport, cycles: &[CosimCycle]) -> Result<
         Panel {
             y: "±a levels (m/s²)",
             series: vec![
-                line(
-                    "+a as applied".into(),
+                Series::new(
+                    "+a as applied",
                     over_time(|c| c.positive_mps2),
                     Mark::ThinLine,
                     3,
                 ),
-                line(
-                    "−a as applied (magnitude)".into(),
+                Series::new(
+                    "−a as applied (magnitude)",
                     over_time(|c| -c.negative_mps2),
                     Mark::ThinLine,
                     4,

@@ -7,6 +7,7 @@ use clap::Args;
 use host_sim::figures::{self, PlateSweepPoint, SweepPoint};
 use host_sim::plate::PlateParams;
 use host_sim::{Contact, SimError};
+use serde::Serialize;
 
 use crate::args::{
     check_grid, count, plate_options, ContactArgs, FrequencyArgs, OutputArgs, PlantArgs,
@@ -92,7 +93,7 @@ fn run_ideal_plate(
     duties: &[f64],
     contact: &Contact,
 ) -> Result<(), SimError> {
-    let points = with_progress(args, duties, |on_point| {
+    let sweep = |on_point: &(dyn Fn() + Sync)| {
         figures::sweep(
             period_s,
             &args.accel_mps2,
@@ -101,14 +102,8 @@ fn run_ideal_plate(
             args.timing.clock_hz(),
             on_point,
         )
-    })?;
-    emit(
-        &args.output,
-        &points,
-        |path| plot_sweep(path, args, &points),
-        &points,
-        || print_table(&points),
-    )
+    };
+    emit_sweep(args, duties, sweep, plot_sweep, print_table)
 }
 
 /// Each point on the real plate `params` from rest, for `--cycles` or until an end stop.
@@ -120,7 +115,7 @@ fn run_real_plate(
     params: &PlateParams,
 ) -> Result<(), SimError> {
     let options = plate_options(args.cycles.unwrap_or(PLATE_CYCLES));
-    let points = with_progress(args, duties, |on_point| {
+    let sweep = |on_point: &(dyn Fn() + Sync)| {
         figures::plate_sweep(
             period_s,
             &args.accel_mps2,
@@ -131,26 +126,29 @@ fn run_real_plate(
             &options,
             on_point,
         )
-    })?;
-    emit(
-        &args.output,
-        &points,
-        |path| plot_plate_sweep(path, args, &points),
-        &points,
-        || print_plate_table(&points),
-    )
+    };
+    emit_sweep(args, duties, sweep, plot_plate_sweep, print_plate_table)
 }
 
-/// The points `sweep` computes over every a_max and `duties`, a progress bar counting them.
-fn with_progress<P>(
+/// The points `sweep` computes over every a_max and `duties`, a progress bar counting them,
+/// written out as every command writes: `plot` draws their chart, `print` their table.
+fn emit_sweep<P: Serialize>(
     args: &SweepArgs,
     duties: &[f64],
     sweep: impl FnOnce(&(dyn Fn() + Sync)) -> Result<Vec<P>, SimError>,
-) -> Result<Vec<P>, SimError> {
+    plot: fn(&Path, &SweepArgs, &[P]) -> Result<(), SimError>,
+    print: fn(&[P]),
+) -> Result<(), SimError> {
     let progress = progress(args.accel_mps2.len() * duties.len(), args.output.json);
     let points = sweep(&|| progress.inc(1))?;
     progress.finish_and_clear();
-    Ok(points)
+    emit(
+        &args.output,
+        &points,
+        |path| plot(path, args, &points),
+        &points,
+        || print(&points),
+    )
 }
 
 fn print_plate_table(points: &[PlateSweepPoint]) {
