@@ -283,21 +283,16 @@ pub fn ensure_emulation() -> Result {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
+    use std::ffi::OsStr;
 
-    fn arguments(command: &Command) -> Vec<String> {
-        command
-            .get_args()
-            .map(|argument| argument.to_string_lossy().into_owned())
-            .collect()
-    }
+    use super::*;
 
     #[test]
     fn apt_get_installs_only_the_packages_asked_for_and_removes_nothing() {
         let install = apt_install(&["qemu-system-arm"], false);
         assert_eq!(install.get_program(), "apt-get");
         assert_eq!(
-            arguments(&install),
+            install.get_args().collect::<Vec<_>>(),
             [
                 "install",
                 "--yes",
@@ -306,9 +301,10 @@ mod tests {
                 "qemu-system-arm"
             ]
         );
-        let simulate = arguments(&apt_install(&["qemu-system-arm"], true));
-        assert!(simulate.contains(&"--no-remove".to_string()));
-        assert!(simulate.contains(&"--simulate".to_string()));
+        let simulate = apt_install(&["qemu-system-arm"], true);
+        let simulate: Vec<_> = simulate.get_args().collect();
+        assert!(simulate.contains(&OsStr::new("--no-remove")));
+        assert!(simulate.contains(&OsStr::new("--simulate")));
         assert!(install
             .get_envs()
             .any(|(key, value)| key == "DEBIAN_FRONTEND"
