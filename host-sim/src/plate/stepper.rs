@@ -142,11 +142,6 @@ impl Stepper {
         Trajectory::new(self.pieces.clone().unwrap_or_default())
     }
 
-    /// The motion recorded so far; recording stops.
-    pub fn stop_trajectory(&mut self) -> Trajectory {
-        Trajectory::new(self.pieces.take().unwrap_or_default())
-    }
-
     /// Runs one commanded segment, or up to the end stop it hits. Refuses a duration that is
     /// negative or not finite and an acceleration that is not finite, changing nothing.
     pub fn segment(&mut self, segment: &PlateSegment) -> Result<(), SimError> {

@@ -16,7 +16,7 @@ use super::slide::FreeSlide;
 /// chunks run on over it, and the course goes on across the boundary.
 #[derive(Debug, Clone)]
 pub struct FreeSolver {
-    slide: FreeSlide,
+    free: FreeSlide,
     target_n: f64,
     duration_s: f64,
     /// How long the target holds from the segment's start: its duration or more.
@@ -34,8 +34,8 @@ impl FreeSolver {
     /// The solver of `model`'s free slide; `None` if the slide has Coulomb friction, or if the
     /// current loop's rate is one of the slide's own (the mode cannot be split off).
     pub fn new(model: &Model) -> Option<FreeSolver> {
-        FreeSlide::new(model).map(|slide| FreeSolver {
-            slide,
+        FreeSlide::new(model).map(|free| FreeSolver {
+            free,
             target_n: 0.0,
             duration_s: 0.0,
             holds_s: 0.0,
@@ -105,7 +105,7 @@ impl Solver for FreeSolver {
         offset_s: f64,
         peak_m: &mut f64,
     ) -> Outcome {
-        let free = &self.slide;
+        let free = &self.free;
         let duration_s = (self.duration_s - offset_s).max(0.0);
         let holds_s = (self.holds_s - offset_s).max(0.0);
         let mut z = *z;
