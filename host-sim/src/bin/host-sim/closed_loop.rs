@@ -443,10 +443,8 @@ fn print_report(report: &ClosedLoopReport, output: &OutputArgs) {
         say!("gave up           {reason}");
     }
     say!("wall time         {:.2} s", report.wall_time_s);
-    for (what, path) in [("csv", &output.csv), ("plot", &output.plot)] {
-        if let Some(path) = path {
-            say!("{what:<18}{}", path.display());
-        }
+    for (what, path) in output.files() {
+        say!("{what:<18}{}", path.display());
     }
     say!("{}", report.verdict_line);
 }

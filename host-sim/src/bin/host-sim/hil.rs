@@ -374,10 +374,8 @@ fn print_report(report: &HilReport, check: &CheckReport, output: &OutputArgs, sh
     for error in &report.firmware_errors {
         say!("  firmware: {error}");
     }
-    for (what, path) in [("csv", &output.csv), ("plot", &output.plot)] {
-        if let Some(path) = path {
-            say!("  {what:<16}{} ({shown})", path.display());
-        }
+    for (what, path) in output.files() {
+        say!("  {what:<16}{} ({shown})", path.display());
     }
 }
 

@@ -26,6 +26,13 @@ impl OutputArgs {
         }
         Ok(())
     }
+
+    /// The files asked for besides the report, each named by what it holds (`csv`, `plot`).
+    pub fn files(&self) -> impl Iterator<Item = (&'static str, &Path)> {
+        [("csv", &self.csv), ("plot", &self.plot)]
+            .into_iter()
+            .filter_map(|(what, path)| Some((what, path.as_deref()?)))
+    }
 }
 
 /// Prints a line to stdout; a closed pipe (`host-sim … | head`) ends the output quietly.

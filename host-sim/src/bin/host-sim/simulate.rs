@@ -390,9 +390,7 @@ fn print_simulation(report: &SimulateReport, point: &OperatingPoint, output: &Ou
         "speed             {:.3e} simulated cycles/s",
         report.cycles_per_s
     );
-    for (what, path) in [("csv", &output.csv), ("plot", &output.plot)] {
-        if let Some(path) = path {
-            say!("{what:<18}{}", path.display());
-        }
+    for (what, path) in output.files() {
+        say!("{what:<18}{}", path.display());
     }
 }
