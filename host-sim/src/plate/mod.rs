@@ -3,10 +3,10 @@
 //! same part under the same Coulomb contact ([`crate::contact`]).
 //!
 //! [`params`] are the plate's keys of a TOML plant file ([`PlantFile`]: with its sensors);
-//! [`model`] is the plate and part as a linear system per contact state ([`linear`]: its state
-//! and matrix exponential). Two [`solver`]s find the next event of a stretch exactly: [`motion`]
-//! whatever the slide ([`dynamics`]: what it keeps of each regime), and [`free`] in scalar
-//! closed form where the slide has no Coulomb friction; both find roots with [`roots`].
+//! `model` is the plate and part as a linear system per contact state (`linear`: its state
+//! and matrix exponential). Two `solver`s find the next event of a stretch exactly: `motion`
+//! whatever the slide (`dynamics`: what it keeps of each regime), and `free` in scalar
+//! closed form where the slide has no Coulomb friction; both find roots with `roots`.
 //! [`Stepper`] advances the plate one commanded segment at a time and [`run()`] over a stream
 //! of segments; [`Trajectory`] is the recorded motion at any instant, for sensors;
 //! [`mod@reference`] is a fixed-step integrator for validation only. When
