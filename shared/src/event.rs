@@ -211,41 +211,13 @@ macro_rules! event_text {
     ($($emit:ident)::+ ($($sink:expr)?), Request { request: $request:expr, tick: $tick:expr $(,)? }) => {
         $($emit)::+!($($sink,)? "EVT {=str} tick={=u64}", $request.name(), $tick)
     };
-    ($($emit:ident)::+ ($($sink:expr)?), Segment {
+    ($($emit:ident)::+ ($($sink:expr)?), $variant:ident {
         cycle: $cycle:expr, kind: $kind:expr, planned_tick: $planned:expr, actual_tick: $actual:expr,
         ticks: $ticks:expr, level: $level:expr, step: $step:expr, steps: $steps:expr,
         slack_ticks: $slack:expr $(,)?
     }) => {
-        match $slack {
-            Some(slack_ticks) => $($emit)::+!(
-                $($sink,)?
-                "EVT seg cycle={=u64} kind={=str} planned={=u64} actual={=u64} ticks={=u32} level={=i8} step={=u16} steps={=u16} slack={=u32}",
-                $cycle, $kind.name(), $planned, $actual, $ticks, $level, $step, $steps, slack_ticks
-            ),
-            None => $($emit)::+!(
-                $($sink,)?
-                "EVT seg cycle={=u64} kind={=str} planned={=u64} actual={=u64} ticks={=u32} level={=i8} step={=u16} steps={=u16}",
-                $cycle, $kind.name(), $planned, $actual, $ticks, $level, $step, $steps
-            ),
-        }
-    };
-    ($($emit:ident)::+ ($($sink:expr)?), Replay {
-        cycle: $cycle:expr, kind: $kind:expr, planned_tick: $planned:expr, actual_tick: $actual:expr,
-        ticks: $ticks:expr, level: $level:expr, step: $step:expr, steps: $steps:expr,
-        slack_ticks: $slack:expr $(,)?
-    }) => {
-        match $slack {
-            Some(slack_ticks) => $($emit)::+!(
-                $($sink,)?
-                "EVT replay cycle={=u64} kind={=str} planned={=u64} actual={=u64} ticks={=u32} level={=i8} step={=u16} steps={=u16} slack={=i64}",
-                $cycle, $kind.name(), $planned, $actual, $ticks, $level, $step, $steps, slack_ticks
-            ),
-            None => $($emit)::+!(
-                $($sink,)?
-                "EVT replay cycle={=u64} kind={=str} planned={=u64} actual={=u64} ticks={=u32} level={=i8} step={=u16} steps={=u16}",
-                $cycle, $kind.name(), $planned, $actual, $ticks, $level, $step, $steps
-            ),
-        }
+        $crate::event_text!(@played $variant, $($emit)::+ ($($sink)?), $slack,
+            $cycle, $kind.name(), $planned, $actual, $ticks, $level, $step, $steps)
     };
     ($($emit:ident)::+ ($($sink:expr)?), Zero { actual_tick: $actual:expr $(,)? }) => {
         $($emit)::+!($($sink,)? "EVT zero actual={=u64}", $actual)
@@ -269,6 +241,27 @@ macro_rules! event_text {
     };
     ($($emit:ident)::+ ($($sink:expr)?), End { tick: $tick:expr $(,)? }) => {
         $($emit)::+!($($sink,)? "EVT end tick={=u64}", $tick)
+    };
+    // A segment as the output played it (`Segment` or `Replay`): its two lines, with and without
+    // the slack, spelt out whole because defmt takes only a literal as its format string.
+    (@played Segment, $($rest:tt)+) => {
+        $crate::event_text!(@played_lines
+            "EVT seg cycle={=u64} kind={=str} planned={=u64} actual={=u64} ticks={=u32} level={=i8} step={=u16} steps={=u16} slack={=u32}",
+            "EVT seg cycle={=u64} kind={=str} planned={=u64} actual={=u64} ticks={=u32} level={=i8} step={=u16} steps={=u16}",
+            $($rest)+)
+    };
+    (@played Replay, $($rest:tt)+) => {
+        $crate::event_text!(@played_lines
+            "EVT replay cycle={=u64} kind={=str} planned={=u64} actual={=u64} ticks={=u32} level={=i8} step={=u16} steps={=u16} slack={=i64}",
+            "EVT replay cycle={=u64} kind={=str} planned={=u64} actual={=u64} ticks={=u32} level={=i8} step={=u16} steps={=u16}",
+            $($rest)+)
+    };
+    (@played_lines $with_slack:tt, $without_slack:tt, $($emit:ident)::+ ($($sink:expr)?), $slack:expr,
+        $($field:expr),+) => {
+        match $slack {
+            Some(slack_ticks) => $($emit)::+!($($sink,)? $with_slack, $($field,)+ slack_ticks),
+            None => $($emit)::+!($($sink,)? $without_slack, $($field),+),
+        }
     };
 }
 
