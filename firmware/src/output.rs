@@ -78,6 +78,9 @@ pub struct DacCodes {
 
 #[cfg(any(feature = "board-qemu", not(feature = "output-pwm")))]
 impl DacCodes {
+    /// One DAC count, in m/s² (see [`SegmentOutput::level_step_mps2`]).
+    pub const LEVEL_STEP_MPS2: f64 = 1.0 / config::DAC.counts_per_mps2;
+
     /// No levels yet: zero until [`DacCodes::set_peak_accel`].
     pub const fn new() -> Self {
         Self {

@@ -110,7 +110,7 @@ impl SegmentOutput for ReportingOutput {
     }
 
     fn level_step_mps2(&self) -> f64 {
-        1.0 / config::DAC.counts_per_mps2
+        DacCodes::LEVEL_STEP_MPS2
     }
 
     fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
