@@ -11,7 +11,7 @@
 //! `h_J = h_0/2^J ≤ min(1/(8ρ), 1/‖A‖)`.
 
 use super::linear::{self, Matrix, State, F, ONE, V};
-use super::model::{Event, Model, Part, Slide};
+use super::model::{ContactEvent, Part, PlateModel, Slide};
 
 /// Rows `c·A^k` kept per functional: the value to 23 Taylor terms and its slope.
 pub const TAYLOR_ROWS: usize = 24;
@@ -27,7 +27,7 @@ const MAX_LEVELS: u32 = 8;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Watch {
     /// A zero ends the regime.
-    Event(Event),
+    Event(ContactEvent),
     /// The plate's velocity, whose zeros are its turning points (sign set where it is used).
     Turn,
 }
@@ -74,7 +74,7 @@ pub struct Dynamics {
 }
 
 impl Dynamics {
-    fn new(model: &Model, slide: Slide, part: Part, target_n: f64) -> Self {
+    fn new(model: &PlateModel, slide: Slide, part: Part, target_n: f64) -> Self {
         let a = model.matrix(slide, part, target_n);
         let eigenvector = model
             .lag_per_s
@@ -236,7 +236,13 @@ impl DynamicsCache {
     const CAPACITY: usize = 64;
 
     /// The dynamics of `slide`, `part` and `target_n`, built on first use.
-    pub fn get(&mut self, model: &Model, slide: Slide, part: Part, target_n: f64) -> &Dynamics {
+    pub fn get(
+        &mut self,
+        model: &PlateModel,
+        slide: Slide,
+        part: Part,
+        target_n: f64,
+    ) -> &Dynamics {
         let wanted = key(slide, part, target_n);
         let index = match self.entries.iter().position(|r| r.key == wanted) {
             Some(index) => index,

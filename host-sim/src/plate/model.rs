@@ -9,7 +9,7 @@
 //! * `q' = x`, for the plate's mean position.
 //!
 //! Events are zeros of linear functionals `g(t) = c·z(t)`, each positive while its regime holds;
-//! [`Model`] applies them and settles the contacts at a regime's start.
+//! [`PlateModel`] applies them and settles the contacts at a regime's start.
 
 use crate::contact::Contact;
 
@@ -36,7 +36,7 @@ pub enum Part {
 
 /// What ends a stretch of a regime.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Event {
+pub enum ContactEvent {
     SlideStops,
     SlideBreaksAway,
     PartMeetsPlate,
@@ -46,7 +46,7 @@ pub enum Event {
 
 /// The plate and part model with the parameters folded in.
 #[derive(Debug, Clone, Copy)]
-pub struct Model {
+pub struct PlateModel {
     pub params: PlateParams,
     pub contact: Contact,
     /// `2π·f_c`, if the current loop lags.
@@ -57,7 +57,7 @@ pub struct Model {
     pub slow_per_s: f64,
 }
 
-impl Model {
+impl PlateModel {
     pub fn new(params: PlateParams, contact: Contact) -> Self {
         let lag_per_s = params
             .current_bandwidth_hz
@@ -67,7 +67,7 @@ impl Model {
         let natural_per_s = (params.spring_npm / params.mass_kg).sqrt();
         let slow_per_s = damping_per_s.max(natural_per_s);
         let fastest_per_s = lag_per_s.unwrap_or(0.0).max(slow_per_s);
-        Model {
+        PlateModel {
             params,
             contact,
             lag_per_s,
@@ -129,14 +129,14 @@ impl Model {
         slide: Slide,
         part: Part,
         a: &Matrix,
-    ) -> Vec<(Event, [f64; linear::N])> {
+    ) -> Vec<(ContactEvent, [f64; linear::N])> {
         let mut out = Vec::with_capacity(6);
         let mut c = [0.0; linear::N];
         match slide {
             Slide::Free => {}
             Slide::Moving(s) => {
                 c[V] = s;
-                out.push((Event::SlideStops, c));
+                out.push((ContactEvent::SlideStops, c));
             }
             Slide::Stuck => {
                 // F_c ∓ (F − k·x) ≥ 0.
@@ -145,7 +145,7 @@ impl Model {
                     c[ONE] = self.params.coulomb_friction_n;
                     c[F] = -sign;
                     c[X] = sign * self.params.spring_npm;
-                    out.push((Event::SlideBreaksAway, c));
+                    out.push((ContactEvent::SlideBreaksAway, c));
                 }
             }
         }
@@ -154,7 +154,7 @@ impl Model {
                 let mut c = [0.0; linear::N];
                 c[U] = sigma;
                 c[V] = -sigma;
-                out.push((Event::PartMeetsPlate, c));
+                out.push((ContactEvent::PartMeetsPlate, c));
             }
             Part::Stuck => {
                 // μ_s·g ∓ (a_plate − φ) ≥ 0, with a_plate = A[V]·z.
@@ -163,7 +163,7 @@ impl Model {
                 for sign in [1.0, -1.0] {
                     let mut c = a[V].map(|x| -sign * x);
                     c[ONE] += hold + sign * phi;
-                    out.push((Event::PartBreaksAway, c));
+                    out.push((ContactEvent::PartBreaksAway, c));
                 }
             }
         }
@@ -172,7 +172,7 @@ impl Model {
                 let mut c = [0.0; linear::N];
                 c[ONE] = x_lim;
                 c[X] = -sign;
-                out.push((Event::EndStop, c));
+                out.push((ContactEvent::EndStop, c));
             }
         }
         out
@@ -205,9 +205,9 @@ impl Model {
     }
 
     /// Applies `event` at the state `z` reached exactly at it.
-    pub fn apply(&self, event: Event, z: &mut State, slide: &mut Slide, part: &mut Part) {
+    pub fn apply(&self, event: ContactEvent, z: &mut State, slide: &mut Slide, part: &mut Part) {
         match event {
-            Event::SlideStops => {
+            ContactEvent::SlideStops => {
                 z[V] = 0.0;
                 let net = z[F] - self.params.spring_npm * z[X];
                 *slide = if net.abs() <= self.params.coulomb_friction_n {
@@ -219,19 +219,19 @@ impl Model {
                     z[U] = 0.0;
                 }
             }
-            Event::SlideBreaksAway => {
+            ContactEvent::SlideBreaksAway => {
                 let net = z[F] - self.params.spring_npm * z[X];
                 *slide = Slide::Moving(net.signum());
             }
-            Event::PartMeetsPlate => {
+            ContactEvent::PartMeetsPlate => {
                 z[U] = z[V];
                 *part = self.release(z, *slide);
             }
-            Event::PartBreaksAway => {
+            ContactEvent::PartBreaksAway => {
                 let need = self.plate_accel_mps2(*slide, z) - self.contact.force_accel_mps2();
                 *part = Part::Sliding(-need.signum());
             }
-            Event::EndStop => {}
+            ContactEvent::EndStop => {}
         }
     }
 

@@ -16,21 +16,21 @@
 
 use super::dynamics::{Dynamics, DynamicsCache, Functional, Watch, MAX_FUNCTIONALS, TAYLOR_ROWS};
 use super::linear::{self, State};
-use super::model::{Event, Model, Part, Slide};
+use super::model::{ContactEvent, Part, PlateModel, Slide};
 use super::roots;
-use super::solver::{Outcome, Solver};
+use super::solver::{Solver, StretchEnd};
 
 /// The general solver: the dynamics of the regimes it meets, and the segment under way.
 #[derive(Debug)]
 pub struct GeneralSolver {
-    model: Model,
+    model: PlateModel,
     cache: DynamicsCache,
     target_n: f64,
     duration_s: f64,
 }
 
 impl GeneralSolver {
-    pub fn new(model: &Model) -> Self {
+    pub fn new(model: &PlateModel) -> Self {
         GeneralSolver {
             model: *model,
             cache: DynamicsCache::default(),
@@ -53,7 +53,7 @@ impl Solver for GeneralSolver {
         z: &State,
         offset_s: f64,
         peak_m: &mut f64,
-    ) -> Outcome {
+    ) -> StretchEnd {
         let dynamics = self.cache.get(&self.model, slide, part, self.target_n);
         let rest_s = (self.duration_s - offset_s).max(0.0);
         let turn = |x: f64| *peak_m = peak_m.max(x.abs());
@@ -74,7 +74,7 @@ fn first_event(
     z0: &State,
     duration_s: f64,
     mut turn: impl FnMut(f64),
-) -> Outcome {
+) -> StretchEnd {
     let count = dynamics.functionals.len();
     let finest = dynamics.levels();
     let mut level = 0;
@@ -122,13 +122,13 @@ fn first_event(
             level += 1;
             continue;
         }
-        let mut first: Option<(Event, f64)> = None;
+        let mut first: Option<(ContactEvent, f64)> = None;
         let mut turned: Option<f64> = None;
         for (i, functional) in dynamics.functionals.iter().enumerate() {
             if !unsure[i] {
                 continue;
             }
-            let series = Series::new(functional, lo_jets[i].sign, &lo_z);
+            let series = TaylorSeries::new(functional, lo_jets[i].sign, &lo_z);
             let (at_lo, at_hi) = (&lo_jets[i].value, &hi_jets[i].value);
             let Some(t) = roots::crossing(
                 &|t| series.value(t - lo),
@@ -237,12 +237,12 @@ const INVERSE_FACTORIAL: [f64; TAYLOR_ROWS] = {
 };
 
 /// A functional's Taylor series about a state: `g(τ) = Σ c_k·τ^k` with `c_k = g^(k)/k!`.
-struct Series {
+struct TaylorSeries {
     coefficients: [f64; TAYLOR_ROWS],
 }
 
-impl Series {
-    fn new(functional: &Functional, sign: f64, z: &State) -> Series {
+impl TaylorSeries {
+    fn new(functional: &Functional, sign: f64, z: &State) -> TaylorSeries {
         let mut coefficients = [0.0; TAYLOR_ROWS];
         for ((c, row), scale) in coefficients
             .iter_mut()
@@ -251,7 +251,7 @@ impl Series {
         {
             *c = sign * scale * linear::dot(row, z);
         }
-        Series { coefficients }
+        TaylorSeries { coefficients }
     }
 
     /// `g(τ)`, to `τ^(TAYLOR_ROWS − 2)`.

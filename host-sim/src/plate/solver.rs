@@ -4,11 +4,11 @@
 //! friction.
 
 use super::linear::State;
-use super::model::{Event, Part, Slide};
+use super::model::{ContactEvent, Part, Slide};
 
 /// The first event of a stretch with its time from the stretch's start, and the state then (at
 /// the segment's end if no event comes first).
-pub type Outcome = (Option<(Event, f64)>, State);
+pub type StretchEnd = (Option<(ContactEvent, f64)>, State);
 
 /// A solver of the plate and its part between events, one commanded segment at a time.
 pub trait Solver: std::fmt::Debug + Send + Sync {
@@ -26,5 +26,5 @@ pub trait Solver: std::fmt::Debug + Send + Sync {
         z: &State,
         offset_s: f64,
         peak_m: &mut f64,
-    ) -> Outcome;
+    ) -> StretchEnd;
 }

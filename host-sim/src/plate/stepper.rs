@@ -7,7 +7,7 @@ use crate::segments::PlateSegment;
 
 use super::free::FreeSolver;
 use super::linear::{self, Matrix, State, F, P, Q, U, V, X};
-use super::model::{Event, Model, Part, Slide};
+use super::model::{ContactEvent, Part, PlateModel, Slide};
 use super::motion::GeneralSolver;
 use super::params::PlateParams;
 use super::solver::Solver;
@@ -44,7 +44,7 @@ pub struct PlatePoint {
 /// its target from the first instant of each segment.
 #[derive(Debug)]
 pub struct Stepper {
-    model: Model,
+    model: PlateModel,
     /// The free slide's scalar solution where the slide has no Coulomb friction, else the
     /// general solver.
     solver: Box<dyn Solver>,
@@ -67,7 +67,7 @@ impl Stepper {
         } else {
             Slide::Free
         };
-        let model = Model::new(*params, *contact);
+        let model = PlateModel::new(*params, *contact);
         let solver: Box<dyn Solver> = match FreeSolver::new(&model) {
             Some(free) => Box::new(free),
             None => Box::new(GeneralSolver::new(&model)),
@@ -210,7 +210,7 @@ impl Stepper {
                     self.time_s += segment.duration_s;
                     return Ok(());
                 }
-                Some((Event::EndStop, t)) => {
+                Some((ContactEvent::EndStop, t)) => {
                     let x_lim = model.params.end_stop_m.unwrap_or(f64::INFINITY);
                     let time_s = self.time_s + offset_s + t;
                     self.end_stop = Some(EndStop {

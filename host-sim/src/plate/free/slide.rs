@@ -2,7 +2,7 @@
 //! series from three basis series, with the tables its sums use.
 
 use crate::plate::linear::{F, V, X};
-use crate::plate::model::{Model, Slide};
+use crate::plate::model::{PlateModel, Slide};
 
 /// Taylor coefficients summed for the slow part over a chunk of at most `1/ω`.
 pub const TERMS: usize = 22;
@@ -41,10 +41,10 @@ pub const INVERSE: [f64; TERMS + 1] = {
     out
 };
 
-/// The plate on a free slide and its part: a [`Model`] with what the scalar solution adds.
+/// The plate on a free slide and its part: a [`PlateModel`] with what the scalar solution adds.
 #[derive(Debug, Clone, Copy)]
 pub struct FreeSlide {
-    pub model: Model,
+    pub model: PlateModel,
     /// `ρ`, 0 without a current loop.
     pub lag_per_s: f64,
     /// `r_x`: the plate's position per newton of `φ` in the current loop's mode.
@@ -61,7 +61,7 @@ pub struct FreeSlide {
 impl FreeSlide {
     /// The free slide of `model`; `None` if the slide has Coulomb friction, or if the current
     /// loop's rate is one of the slide's own (the mode cannot be split off).
-    pub fn new(model: &Model) -> Option<FreeSlide> {
+    pub fn new(model: &PlateModel) -> Option<FreeSlide> {
         if model.params.coulomb_friction_n != 0.0 {
             return None;
         }

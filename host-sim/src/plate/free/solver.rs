@@ -2,8 +2,8 @@
 //! the part's events and across segments that hold the target.
 
 use crate::plate::linear::{State, F, Q, V, X};
-use crate::plate::model::{Event, Model, Part, Slide};
-use crate::plate::solver::{Outcome, Solver};
+use crate::plate::model::{ContactEvent, Part, PlateModel, Slide};
+use crate::plate::solver::{Solver, StretchEnd};
 
 use super::chunk::Chunk;
 use super::end_maps::Ends;
@@ -33,7 +33,7 @@ pub struct FreeSolver {
 impl FreeSolver {
     /// The solver of `model`'s free slide; `None` if the slide has Coulomb friction, or if the
     /// current loop's rate is one of the slide's own (the mode cannot be split off).
-    pub fn new(model: &Model) -> Option<FreeSolver> {
+    pub fn new(model: &PlateModel) -> Option<FreeSolver> {
         FreeSlide::new(model).map(|free| FreeSolver {
             free,
             target_n: 0.0,
@@ -66,7 +66,7 @@ struct Resume {
 #[derive(Debug, Clone, Copy)]
 struct Ahead {
     part: Part,
-    first: Option<(Event, f64)>,
+    first: Option<(ContactEvent, f64)>,
 }
 
 fn plate_of(z: &State) -> [f64; 4] {
@@ -104,7 +104,7 @@ impl Solver for FreeSolver {
         z: &State,
         offset_s: f64,
         peak_m: &mut f64,
-    ) -> Outcome {
+    ) -> StretchEnd {
         let free = &self.free;
         let duration_s = (self.duration_s - offset_s).max(0.0);
         let holds_s = (self.holds_s - offset_s).max(0.0);

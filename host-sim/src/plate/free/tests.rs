@@ -5,7 +5,7 @@ use proptest::prelude::*;
 
 use crate::contact::Contact;
 use crate::plate::linear::{State, F, P, Q, U, V, X};
-use crate::plate::model::{Event, Model, Part, Slide};
+use crate::plate::model::{ContactEvent, Part, PlateModel, Slide};
 use crate::plate::motion::GeneralSolver;
 use crate::plate::params::PlateParams;
 use crate::plate::solver::Solver;
@@ -36,16 +36,16 @@ fn free_plate() -> impl Strategy<Value = PlateParams> {
 
 /// A solver's outcome over a stretch: its first event with its time, the state then, and
 /// the plate's peak distance from the centre so far (at its ends and turning points).
-type Outcome = (Option<(Event, f64)>, State, f64);
+type Finding = (Option<(ContactEvent, f64)>, State, f64);
 
 /// Both solvers from the same state over a fresh segment of `duration_s`.
 fn both(
-    model: &Model,
+    model: &PlateModel,
     part: Part,
     target_n: f64,
     z: &State,
     duration_s: f64,
-) -> (Outcome, Outcome) {
+) -> (Finding, Finding) {
     let free = FreeSolver::new(model).expect("a free slide");
     let general = GeneralSolver::new(model);
     let outcome = |mut solver: Box<dyn Solver>| {
@@ -103,9 +103,9 @@ fn case(
 }
 
 /// The case's model, drive target and settled state with the part's contact.
-fn setup(params: PlateParams, case: &Case) -> (Model, f64, State, Part) {
+fn setup(params: PlateParams, case: &Case) -> (PlateModel, f64, State, Part) {
     let contact = Contact::new(case.mu, case.mu + case.extra_static, 9.81, 1e-4, 0.0).unwrap();
-    let model = Model::new(params, contact);
+    let model = PlateModel::new(params, contact);
     let target_n = params.target_force_n(case.command_mps2);
     let x_lim = params.end_stop_m.unwrap_or(1e-2);
     let start = case.start;
@@ -137,11 +137,11 @@ fn setup(params: PlateParams, case: &Case) -> (Model, f64, State, Part) {
 fn close(
     params: &PlateParams,
     duration_s: f64,
-    free: &Outcome,
-    general: &Outcome,
+    free: &Finding,
+    general: &Finding,
 ) -> Result<(), TestCaseError> {
     let x_lim = params.end_stop_m.unwrap_or(1e-2);
-    let kind = |e: Option<(Event, f64)>| e.map(|(event, _)| event);
+    let kind = |e: Option<(ContactEvent, f64)>| e.map(|(event, _)| event);
     prop_assert_eq!(kind(free.0), kind(general.0));
     if let (Some((_, t_free)), Some((_, t))) = (free.0, general.0) {
         prop_assert!(
@@ -181,7 +181,7 @@ fn agree(params: PlateParams, case: Case) -> Result<(), TestCaseError> {
     close(&params, case.duration_s, &free, &general)
 }
 
-/// Event by event through the case's stretch, as the stepper runs it, split into segments
+/// ContactEvent by event through the case's stretch, as the stepper runs it, split into segments
 /// at the fractions `splits` of it (the target holding through all): after each of the
 /// part's events the course goes on in its chunk, and across each segment's end; every step
 /// agrees with the general solver from the same state over the rest of its segment
@@ -226,7 +226,7 @@ fn agree_through(params: PlateParams, case: Case, splits: &[f64]) -> Result<usiz
             }
             match event {
                 None => break,
-                Some((Event::EndStop, _)) => return Ok(events),
+                Some((ContactEvent::EndStop, _)) => return Ok(events),
                 Some((event, t)) => {
                     events += 1;
                     if events == 100 {
@@ -301,11 +301,11 @@ fn a_meeting_inside_a_chunk_whose_ends_are_apart_is_found() {
         ..PlateParams::default()
     };
     let contact = Contact::kinetic(0.6278634258754741, 1e-4).unwrap();
-    let model = Model::new(params, contact);
+    let model = PlateModel::new(params, contact);
     let target_n = params.target_force_n(81.8732739340645);
     let z: State = [2.852e-4, 0.0, 0.0, 0.2657, 0.0, 0.0, 1.0];
     let (free, general) = both(&model, Part::Sliding(1.0), target_n, &z, 0.0135);
-    let (Some((Event::PartMeetsPlate, t_free)), Some((Event::PartMeetsPlate, t))) =
+    let (Some((ContactEvent::PartMeetsPlate, t_free)), Some((ContactEvent::PartMeetsPlate, t))) =
         (free.0, general.0)
     else {
         panic!("the part meets the plate: {free:?} {general:?}");
@@ -330,7 +330,7 @@ fn lag_spring_plate() -> PlateParams {
 #[test]
 fn a_regime_entered_on_its_boundary_does_not_end_at_once() {
     let params = lag_spring_plate();
-    let model = Model::new(params, Contact::kinetic(0.3, 1e-4).unwrap());
+    let model = PlateModel::new(params, Contact::kinetic(0.3, 1e-4).unwrap());
     // Accelerating at 67 m/s², the drive turning to −146 m/s²: the part slides behind, then
     // meets the plate when it has slowed.
     let target_n = params.target_force_n(-146.0);
@@ -390,7 +390,7 @@ fn only_a_free_slide_with_a_separable_current_loop_is_solved_in_closed_form() {
         coulomb_friction_n: 1.0,
         ..PlateParams::default()
     };
-    assert!(FreeSolver::new(&Model::new(friction, contact)).is_none());
+    assert!(FreeSolver::new(&PlateModel::new(friction, contact)).is_none());
     // M·ρ² − c·ρ + k = 0 at ρ = 2π·100 Hz with M = 1 kg and c = 2·M·ρ: k = M·ρ².
     let rho = 2.0 * std::f64::consts::PI * 100.0;
     let resonant = PlateParams {
@@ -399,6 +399,6 @@ fn only_a_free_slide_with_a_separable_current_loop_is_solved_in_closed_form() {
         spring_damping_nspm: 2.0 * rho,
         ..PlateParams::default()
     };
-    assert!(FreeSolver::new(&Model::new(resonant, contact)).is_none());
-    assert!(FreeSolver::new(&Model::new(PlateParams::default(), contact)).is_some());
+    assert!(FreeSolver::new(&PlateModel::new(resonant, contact)).is_none());
+    assert!(FreeSolver::new(&PlateModel::new(PlateParams::default(), contact)).is_some());
 }

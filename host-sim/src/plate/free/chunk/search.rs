@@ -3,7 +3,7 @@
 //! every sign change over them.
 
 use crate::plate::linear::{State, U, V};
-use crate::plate::model::{Event, Part, Slide};
+use crate::plate::model::{ContactEvent, Part, Slide};
 use crate::plate::roots::{horner, jet, refine, zeros, Times, EXACT, TURN};
 
 use super::super::slide::{FreeSlide, Poly, FALLING, TERMS};
@@ -53,8 +53,8 @@ impl Chunk {
         part: Part,
         z: &State,
         from: f64,
-    ) -> Option<(Event, f64)> {
-        let mut first: Option<(Event, f64)> = None;
+    ) -> Option<(ContactEvent, f64)> {
+        let mut first: Option<(ContactEvent, f64)> = None;
         match part {
             Part::Sliding(sigma) => {
                 let accel = free.model.sliding_part_accel_mps2(sigma);
@@ -64,7 +64,7 @@ impl Chunk {
                 let pieces = self.pieces(&meet);
                 first = self
                     .first_zero(&meet, &pieces)
-                    .map(|t| (Event::PartMeetsPlate, t));
+                    .map(|t| (ContactEvent::PartMeetsPlate, t));
             }
             Part::Stuck => {
                 let contact = &free.model.contact;
@@ -76,7 +76,7 @@ impl Chunk {
                     let pieces = self.pieces(&away);
                     if let Some(t) = self.first_zero(&away, &pieces) {
                         if first.is_none_or(|(_, at)| t < at) {
-                            first = Some((Event::PartBreaksAway, t));
+                            first = Some((ContactEvent::PartBreaksAway, t));
                         }
                     }
                 }
@@ -84,7 +84,7 @@ impl Chunk {
         }
         if let Some(t) = self.end_stop {
             if t >= from && first.is_none_or(|(_, at)| t < at) {
-                first = Some((Event::EndStop, t));
+                first = Some((ContactEvent::EndStop, t));
             }
         }
         first
