@@ -1,13 +1,13 @@
-//! `cargo xtask size`: flash and static RAM use of the board images, as `size` reports them
-//! (text + data, data + bss), against their budgets.
+//! `cargo xtask size`: the board images built, then their flash and static RAM use, as `size`
+//! reports them (text + data, data + bss), against their budgets.
 
 use object::{Object, ObjectSection, SectionKind};
 use std::fmt;
 use std::io;
 use std::path::Path;
 
-use crate::command::{firmware_dir, THUMB_TARGET};
-use crate::failure;
+use crate::command::{exec, firmware_cargo, firmware_dir, THUMB_TARGET};
+use crate::{failure, tools};
 
 /// Flash and static RAM an image may use.
 pub struct Budget {
@@ -105,13 +105,31 @@ impl fmt::Display for Against<'_> {
     }
 }
 
-/// Writes the flash and static RAM of both board images against their budgets to `out`; fails
-/// if one is over.
+/// The board images the budgets hold: name, the cargo features beyond the default, the target
+/// directory (relative to `firmware/`) and the budget.
+const IMAGES: [(&str, &[&str], &str, Budget); 2] = [
+    ("default", &[], "target", DEFAULT_BUDGET),
+    (
+        "console",
+        &["--features", "console"],
+        "target/console",
+        CONSOLE_BUDGET,
+    ),
+];
+
+/// Builds both board images (release, as flashed), then writes their flash and static RAM
+/// against their budgets to `out`; fails if one is over.
 pub fn firmware_size(out: &mut dyn io::Write) -> failure::Result {
-    for (image, directory, budget) in [
-        ("default", "target", DEFAULT_BUDGET),
-        ("console", "target/console", CONSOLE_BUDGET),
-    ] {
+    tools::ensure_linker()?;
+    for (_, features, directory, _) in IMAGES {
+        exec(
+            firmware_cargo()
+                .args(["build", "--release", "--locked"])
+                .args(features)
+                .args(["--target-dir", directory]),
+        )?;
+    }
+    for (image, _, directory, budget) in IMAGES {
         let elf = firmware_dir()
             .join(directory)
             .join(THUMB_TARGET)

@@ -5,7 +5,7 @@
 use std::io;
 use std::process::Command;
 
-use crate::command::{cargo, cargo_test, exec, firmware_cargo, ignored_tests, root, THUMB_TARGET};
+use crate::command::{cargo, cargo_test, exec, ignored_tests, root, THUMB_TARGET};
 use crate::failure::Result;
 use crate::soak::{soak, SoakArgs};
 use crate::{qemu, size, tools};
@@ -32,12 +32,6 @@ pub fn test() -> Result {
             features,
         ]))?;
     }
-    exec(firmware_cargo().args(["build", "--release", "--locked"]))?;
-    exec(
-        firmware_cargo()
-            .args(["build", "--release", "--locked", "--features", "console"])
-            .args(["--target-dir", "target/console"]),
-    )?;
     size::firmware_size(&mut io::stderr())?;
     tools::ensure_emulation()?;
     let scripted = qemu::build_firmware(qemu::Image::Scripted)?;
