@@ -1,35 +1,17 @@
 //! The real plate's exact solver: the ideal limit against the piecewise-linear simulator,
 //! hand-derived motions, and the plant files.
 
-use feeder_shared::{Drive, Limits, Waveform, WaveformSpec};
+mod plate_support;
+
 use host_sim::contact::Contact;
 use host_sim::ideal::simulator::{run_segments, Criteria, RunOptions};
 use host_sim::plate::{self, PlateParams, PlateRunOptions, Stepper};
-use host_sim::segments::{exact_cycle, PlateSegment};
-
-fn waveform(duty: f64) -> Waveform {
-    let spec = WaveformSpec::from_frequency(50.0, duty, Drive::Accel { accel_mps2: 146.0 });
-    Waveform::new(spec, &Limits::NONE).unwrap()
-}
-
-fn cycles(duty: f64) -> impl Iterator<Item = PlateSegment> {
-    exact_cycle(&waveform(duty)).into_iter().cycle()
-}
+use host_sim::segments::PlateSegment;
+use plate_support::{cycles, millisecond, options};
 
 /// A constant command of `accel_mps2` in segments of 1 ms, each starting a cycle.
 fn constant(accel_mps2: f64) -> impl Iterator<Item = PlateSegment> {
-    std::iter::repeat(PlateSegment {
-        duration_s: 1e-3,
-        accel_mps2,
-        starts_cycle: true,
-    })
-}
-
-fn options(cycles: u64) -> PlateRunOptions {
-    PlateRunOptions {
-        cycles,
-        average_cycles: 1,
-    }
+    std::iter::repeat(millisecond(accel_mps2))
 }
 
 #[test]

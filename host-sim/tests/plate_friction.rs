@@ -1,35 +1,15 @@
 //! Slide friction, the shipped realistic plant, and random plates: hand-derived motions of a
 //! stick–slip slide, and runs that always end in a result.
 
+mod plate_support;
+
 use std::path::Path;
 
-use feeder_shared::{Drive, Limits, Waveform, WaveformSpec};
 use host_sim::contact::Contact;
 use host_sim::ideal::simulator::{run_segments, Criteria, RunOptions};
-use host_sim::plate::{self, PlateParams, PlateRunOptions};
-use host_sim::segments::{exact_cycle, PlateSegment};
+use host_sim::plate::{self, PlateParams};
+use plate_support::{cycles, millisecond, options};
 use proptest::prelude::*;
-
-fn cycles(duty: f64) -> impl Iterator<Item = PlateSegment> {
-    let spec = WaveformSpec::from_frequency(50.0, duty, Drive::Accel { accel_mps2: 146.0 });
-    let waveform = Waveform::new(spec, &Limits::NONE).unwrap();
-    exact_cycle(&waveform).into_iter().cycle()
-}
-
-fn millisecond(accel_mps2: f64) -> PlateSegment {
-    PlateSegment {
-        duration_s: 1e-3,
-        accel_mps2,
-        starts_cycle: true,
-    }
-}
-
-fn options(cycles: u64) -> PlateRunOptions {
-    PlateRunOptions {
-        cycles,
-        average_cycles: 1,
-    }
-}
 
 fn coulomb(friction_n: f64) -> PlateParams {
     PlateParams {

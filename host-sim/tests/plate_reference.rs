@@ -1,20 +1,15 @@
 //! The exact real-plate solver against the fixed-step RK4 reference, refined until it stops
 //! changing.
 
+mod plate_support;
+
 use std::path::Path;
 
-use feeder_shared::{Drive, Limits, Waveform, WaveformSpec};
 use host_sim::contact::Contact;
 use host_sim::plate::reference::run_fixed_step;
 use host_sim::plate::{self, PlateParams, PlateRun, PlateRunOptions};
-use host_sim::segments::{exact_cycle, PlateSegment};
+use plate_support::cycles;
 use proptest::prelude::*;
-
-fn cycles(duty: f64) -> impl Iterator<Item = PlateSegment> + Clone {
-    let spec = WaveformSpec::from_frequency(50.0, duty, Drive::Accel { accel_mps2: 146.0 });
-    let waveform = Waveform::new(spec, &Limits::NONE).unwrap();
-    exact_cycle(&waveform).into_iter().cycle()
-}
 
 /// Lag, spring and every other non-ideality the reference models.
 fn lagging_sprung_plate() -> PlateParams {

@@ -1,5 +1,7 @@
 //! Plant files with sensors, and sensors reading the real plate's exact motion.
 
+mod plate_support;
+
 use std::path::Path;
 
 use host_sim::contact::Contact;
@@ -8,18 +10,11 @@ use host_sim::segments::PlateSegment;
 use host_sim::sensors::{Accelerometer, AccelerometerConfig, AdcConfig, Encoder, EncoderConfig};
 use host_sim::sensors::{LightBarrier, LightBarrierConfig, PartMotion, PlateMotion};
 use host_sim::SimError;
+use plate_support::millisecond;
 
 fn realistic() -> PlantFile {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("plants/realistic.toml");
     PlantFile::from_path(&path).unwrap()
-}
-
-fn millisecond(accel_mps2: f64) -> PlateSegment {
-    PlateSegment {
-        duration_s: 1e-3,
-        accel_mps2,
-        starts_cycle: true,
-    }
 }
 
 #[test]
