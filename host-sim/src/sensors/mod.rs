@@ -89,23 +89,16 @@ pub(crate) fn check_value(
     value: f64,
     positive: bool,
 ) -> Result<(), SimError> {
-    let (ok, allowed) = if positive {
-        (
-            value.is_finite() && value > 0.0,
-            "finite and greater than zero",
-        )
-    } else {
-        (value.is_finite(), "finite")
-    };
-    if ok {
-        Ok(())
-    } else {
-        Err(SimError::SensorValue {
+    if positive {
+        check_allowed(
             sensor,
             key,
             value,
-            allowed,
-        })
+            value > 0.0,
+            "finite and greater than zero",
+        )
+    } else {
+        check_allowed(sensor, key, value, true, "finite")
     }
 }
 
@@ -115,14 +108,25 @@ pub(crate) fn check_sigma(
     key: &'static str,
     value: f64,
 ) -> Result<(), SimError> {
-    if value.is_finite() && value >= 0.0 {
+    check_allowed(sensor, key, value, value >= 0.0, "finite and not negative")
+}
+
+/// Refuses a value that is not finite or not `within` what the key allows, `allowed` in words.
+fn check_allowed(
+    sensor: &'static str,
+    key: &'static str,
+    value: f64,
+    within: bool,
+    allowed: &'static str,
+) -> Result<(), SimError> {
+    if value.is_finite() && within {
         Ok(())
     } else {
         Err(SimError::SensorValue {
             sensor,
             key,
             value,
-            allowed: "finite and not negative",
+            allowed,
         })
     }
 }

@@ -168,9 +168,7 @@ fn print_plate_table(points: &[PlateSweepPoint]) {
             point.accel_mps2,
             point.duty,
             point.feed_rate_mps * 1e3,
-            point
-                .model_feed_rate_mps
-                .map_or("-".into(), |v| format!("{:.5}", v * 1e3)),
+            model_mm_per_s(point.model_feed_rate_mps),
             point.mean_position_m * 1e3,
             point
                 .end_stop_after_s
@@ -230,6 +228,11 @@ fn plot_plate_sweep(
     feed_rate_chart(path, "on a real plate in open loop ", args, &series, &kinds)
 }
 
+/// A table's model feed rate in mm/s, `-` where the model has none.
+fn model_mm_per_s(feed_rate_mps: Option<f64>) -> String {
+    feed_rate_mps.map_or("-".into(), |v| format!("{:.5}", v * 1e3))
+}
+
 fn print_table(points: &[SweepPoint]) {
     say!(
         "{:>10} {:>7} {:>12} {:>12} {:>12} {:>8} {:>7}",
@@ -247,9 +250,7 @@ fn print_table(points: &[SweepPoint]) {
             point.accel_mps2,
             point.duty,
             point.feed_rate_mps * 1e3,
-            point
-                .model_feed_rate_mps
-                .map_or("-".into(), |v| format!("{:.5}", v * 1e3)),
+            model_mm_per_s(point.model_feed_rate_mps),
             point.quasi_static_feed_rate_mps * 1e3,
             point.stick_fraction,
             point.cycles,
