@@ -16,6 +16,11 @@ fn plan(frequency_hz: f64, duty: f64, stroke_m: f64, clock_hz: u32) -> TickPlan 
     .unwrap()
 }
 
+/// A scheduler of the paper's 2.5 mm stroke at 50 Hz and `duty` on a 1 MHz clock.
+fn paper_scheduler(duty: f64, ramp_cycles: u16) -> Scheduler {
+    Scheduler::new(plan(50.0, duty, 0.0025, 1_000_000), ramp_cycles)
+}
+
 /// Exact plate state from the emitted segments: velocity in `(a/steps)·tick`, twice the position
 /// in `(a/steps)·tick²`. The plan must not change while it is used.
 #[derive(Default)]
@@ -31,11 +36,17 @@ impl Plate {
         self.twice_position += 2 * self.velocity * ticks + accel * ticks * ticks;
         self.velocity += accel * ticks;
     }
+
+    /// The position in metres, in the units of `scheduler`'s plan and soft start.
+    fn position_m(&self, scheduler: &Scheduler) -> f64 {
+        let unit_m = scheduler.plan().residual_unit_m() / f64::from(scheduler.ramp_cycles());
+        self.twice_position as f64 / 2.0 * unit_m
+    }
 }
 
 #[test]
 fn soft_start_and_soft_stop_ramp_the_amplitude_cycle_by_cycle() {
-    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 4);
+    let mut scheduler = paper_scheduler(0.586, 4);
     // Stopped: idle periods of level 0.
     let idle = scheduler.next_segment();
     assert_eq!(
@@ -82,7 +93,7 @@ fn soft_start_and_soft_stop_ramp_the_amplitude_cycle_by_cycle() {
 
 #[test]
 fn requests_wait_for_the_cycle_boundary() {
-    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 1);
+    let mut scheduler = paper_scheduler(0.586, 1);
     scheduler.start();
     let first = scheduler.next_segment();
     assert_eq!(
@@ -115,7 +126,7 @@ fn requests_wait_for_the_cycle_boundary() {
 
 #[test]
 fn halt_drops_to_idle_at_once() {
-    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 1);
+    let mut scheduler = paper_scheduler(0.586, 1);
     scheduler.start();
     let first = scheduler.next_segment();
     scheduler.halt();
@@ -130,7 +141,7 @@ fn halt_drops_to_idle_at_once() {
 
 #[test]
 fn a_plan_for_another_clock_is_refused() {
-    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 1);
+    let mut scheduler = paper_scheduler(0.586, 1);
     let other = plan(50.0, 0.586, 0.0025, 2_000_000);
     assert_eq!(
         scheduler.set_plan(other),
@@ -146,7 +157,6 @@ fn a_plan_for_another_clock_is_refused() {
 /// position stays within the plan's drift bound. Returns the largest |position| seen in metres.
 fn run_cycles(scheduler: &mut Scheduler, cycles: u64) -> f64 {
     let plan = *scheduler.plan();
-    let unit_m = plan.residual_unit_m() / f64::from(scheduler.ramp_cycles());
     let mut plate = Plate::default();
     let mut worst_m: f64 = 0.0;
     let mut segments_in_cycle = 0;
@@ -160,7 +170,7 @@ fn run_cycles(scheduler: &mut Scheduler, cycles: u64) -> f64 {
                 "plate not at rest after {segments_in_cycle} segments"
             );
             segments_in_cycle = 0;
-            let position_m = plate.twice_position as f64 / 2.0 * unit_m;
+            let position_m = plate.position_m(scheduler);
             worst_m = worst_m.max(position_m.abs());
             assert!(
                 position_m.abs() <= plan.drift_bound_m * (1.0 + 1e-12),
@@ -233,7 +243,7 @@ proptest! {
     fn any_request_sequence_changes_the_output_only_at_cycle_boundaries(
         requests in proptest::collection::vec(request(), 1..60),
     ) {
-        let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 3);
+        let mut scheduler = paper_scheduler(0.586, 3);
         let mut previous: Option<Segment> = None;
         let mut halted = false;
         for request in requests {
@@ -290,8 +300,7 @@ proptest! {
         segments_into_cycle in 0usize..4,
         duty in 0.52f64..0.9,
     ) {
-        let plan = plan(50.0, duty, 0.0025, 1_000_000);
-        let mut scheduler = Scheduler::new(plan, ramp_cycles);
+        let mut scheduler = paper_scheduler(duty, ramp_cycles);
         scheduler.next_segment();
         scheduler.start();
         let mut plate = Plate::default();
@@ -316,11 +325,11 @@ proptest! {
         }
         prop_assert_eq!((after_stop + segments_into_cycle) % 4, 0);
         prop_assert_eq!(plate.velocity, 0);
-        let unit_m = plan.residual_unit_m() / f64::from(ramp_cycles);
-        let position_m = plate.twice_position as f64 / 2.0 * unit_m;
+        let position_m = plate.position_m(&scheduler);
+        let bound_m = scheduler.plan().drift_bound_m;
         prop_assert!(
-            position_m.abs() <= plan.drift_bound_m * (1.0 + 1e-9),
-            "left at {position_m} m, bound {} m", plan.drift_bound_m
+            position_m.abs() <= bound_m * (1.0 + 1e-9),
+            "left at {position_m} m, bound {bound_m} m"
         );
         for _ in 0..3 {
             prop_assert_eq!(scheduler.next_segment().kind, SegmentKind::Idle);
@@ -330,7 +339,7 @@ proptest! {
 
 #[test]
 fn a_start_after_a_controlled_stop_ramps_up_from_rest() {
-    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 3);
+    let mut scheduler = paper_scheduler(0.586, 3);
     scheduler.start();
     for _ in 0..9 {
         scheduler.next_segment();
@@ -347,7 +356,7 @@ fn a_start_after_a_controlled_stop_ramps_up_from_rest() {
 
 #[test]
 fn the_longest_ramp_set_at_full_amplitude_keeps_full_amplitude() {
-    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 2);
+    let mut scheduler = paper_scheduler(0.586, 2);
     scheduler.start();
     for _ in 0..12 {
         scheduler.next_segment();
@@ -377,12 +386,11 @@ proptest! {
         held_cycles in 1u64..20,
         duty in 0.52f64..0.9,
     ) {
-        let plan = plan(50.0, duty, 0.0025, 1_000_000);
-        let mut scheduler = Scheduler::new(plan, ramp_cycles);
+        let mut scheduler = paper_scheduler(duty, ramp_cycles);
         scheduler.hold_step(held);
         scheduler.start();
         let expected = held.min(ramp_cycles);
-        let unit_m = plan.residual_unit_m() / f64::from(ramp_cycles);
+        let bound_m = scheduler.plan().drift_bound_m;
         let mut plate = Plate::default();
         for _ in 0..held_cycles {
             for _ in 0..4 {
@@ -391,8 +399,7 @@ proptest! {
                 plate.apply(&segment);
             }
             prop_assert_eq!(plate.velocity, 0);
-            let position_m = plate.twice_position as f64 / 2.0 * unit_m;
-            prop_assert!(position_m.abs() <= plan.drift_bound_m * (1.0 + 1e-9));
+            prop_assert!(plate.position_m(&scheduler).abs() <= bound_m * (1.0 + 1e-9));
         }
         scheduler.release_hold();
         let mut step = expected;
@@ -413,7 +420,7 @@ proptest! {
 
 #[test]
 fn a_hold_set_while_running_drops_to_its_step_at_the_next_boundary() {
-    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 10);
+    let mut scheduler = paper_scheduler(0.586, 10);
     scheduler.start();
     for _ in 0..(12 * 4 + 1) {
         scheduler.next_segment();
@@ -428,7 +435,7 @@ fn a_hold_set_while_running_drops_to_its_step_at_the_next_boundary() {
 
 #[test]
 fn a_hold_at_zero_idles_while_motion_is_requested_and_a_new_hold_resumes_at_once() {
-    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 10);
+    let mut scheduler = paper_scheduler(0.586, 10);
     scheduler.hold_step(4);
     scheduler.start();
     for _ in 0..(2 * 4) {
@@ -452,7 +459,7 @@ fn a_hold_at_zero_idles_while_motion_is_requested_and_a_new_hold_resumes_at_once
 /// (0.32 rounds to 0.375), not 8 of 8.
 #[test]
 fn a_new_ramp_length_scales_the_held_step() {
-    let mut scheduler = Scheduler::new(plan(50.0, 0.586, 0.0025, 1_000_000), 25);
+    let mut scheduler = paper_scheduler(0.586, 25);
     scheduler.hold_step(8);
     scheduler.start();
     assert_eq!(scheduler.next_segment().amplitude.step, 8);
