@@ -54,37 +54,40 @@ fn faithful_stream(latency_ticks: u64) -> Vec<String> {
         }
     };
     emit(&mut scheduler, &mut lines, 2);
-    scheduler.start();
-    lines.push(
-        Event::Start {
-            tick: scheduler.next_tick(),
-        }
-        .to_string(),
-    );
+    start(&mut scheduler, &mut lines);
     emit(&mut scheduler, &mut lines, 161);
     scheduler.set_plan(plan(0.6)).unwrap();
     scheduler.set_ramp_cycles(ramp);
     lines.push(plan_line(scheduler.next_tick(), 0.6, ramp));
     emit(&mut scheduler, &mut lines, 160);
-    scheduler.stop();
-    lines.push(
-        Event::Stop {
-            tick: scheduler.next_tick(),
-        }
-        .to_string(),
-    );
+    stop(&mut scheduler, &mut lines);
     emit(&mut scheduler, &mut lines, 20);
     lines.push(Event::End { tick: 0 }.to_string());
     lines
 }
 
 fn check(lines: &[String]) -> hil::CheckReport {
+    check_with(lines, true).0
+}
+
+/// What the checker finds in `lines`: its report, the edges and their clock.
+fn check_with(lines: &[String], end_required: bool) -> (hil::CheckReport, Vec<hil::Edge>, u32) {
     let stream = hil::read_stream(lines.join("\n").as_bytes()).unwrap();
-    let mut checker = Checker::new();
-    for event in &stream.events {
-        checker.feed(event);
-    }
-    checker.finish(true).0
+    Checker::check_events(&stream.events, end_required)
+}
+
+/// Starts `scheduler` and prints the `start` line a firmware prints.
+fn start(scheduler: &mut Scheduler, lines: &mut Vec<String>) {
+    scheduler.start();
+    let tick = scheduler.next_tick();
+    lines.push(Event::Start { tick }.to_string());
+}
+
+/// Stops `scheduler` and prints the `stop` line a firmware prints.
+fn stop(scheduler: &mut Scheduler, lines: &mut Vec<String>) {
+    scheduler.stop();
+    let tick = scheduler.next_tick();
+    lines.push(Event::Stop { tick }.to_string());
 }
 
 fn is_seg(line: &str) -> bool {
@@ -258,23 +261,13 @@ fn a_stream_without_its_end_fails_unless_open_ended() {
     let report = check(&lines);
     assert!(!report.ended);
     assert!(!report.passed());
-    let stream = hil::read_stream(lines.join("\n").as_bytes()).unwrap();
-    let mut checker = Checker::new();
-    for event in &stream.events {
-        checker.feed(event);
-    }
-    assert!(checker.finish(false).0.passed());
+    assert!(check_with(&lines, false).0.passed());
 }
 
 #[test]
 fn the_part_feeds_on_recorded_edges_and_the_plate_returns() {
     let lines = faithful_stream(7);
-    let stream = hil::read_stream(lines.join("\n").as_bytes()).unwrap();
-    let mut checker = Checker::new();
-    for event in &stream.events {
-        checker.feed(event);
-    }
-    let (_, edges, clock_hz) = checker.finish(true);
+    let (_, edges, clock_hz) = check_with(&lines, true);
     let contact = Contact::kinetic(1.0, 1e-3).unwrap();
     let part = hil::simulate(&edges, clock_hz, &contact, hil::EdgeTimes::Actual);
     // Eq. 15 for the final plan, d = 0.6: a·T·(2d − 1)/4 with a = 4·x/(T(1 − d))².
@@ -326,20 +319,9 @@ fn slack_is_summarised_by_its_minimum_and_power_of_two_buckets() {
         }
     };
     emit(&mut scheduler, &mut lines, 2);
-    scheduler.start();
-    lines.push(
-        Event::Start {
-            tick: scheduler.next_tick(),
-        }
-        .to_string(),
-    );
+    start(&mut scheduler, &mut lines);
     emit(&mut scheduler, &mut lines, 40);
-    let stream = hil::read_stream(lines.join("\n").as_bytes()).unwrap();
-    let mut checker = Checker::new();
-    for event in &stream.events {
-        checker.feed(event);
-    }
-    let report = checker.finish(false).0;
+    let report = check_with(&lines, false).0;
     assert!(report.passed(), "{:?}", report.problems);
     // The shortest segment before a preload is an accelerate one (1712 or 1713 ticks).
     let (least, _) = report.min_slack.unwrap();
@@ -382,13 +364,7 @@ fn stream_with_a_missed_edge() -> (Vec<String>, u64) {
         }
     };
     emit(&mut scheduler, &mut lines, shift, 2);
-    scheduler.start();
-    lines.push(
-        Event::Start {
-            tick: scheduler.next_tick(),
-        }
-        .to_string(),
-    );
+    start(&mut scheduler, &mut lines);
     let mut playing = scheduler.next_segment();
     let missed = loop {
         lines.push(seg_line(&playing, playing.start_tick, Some(1_000)));
@@ -421,21 +397,9 @@ fn stream_with_a_missed_edge() -> (Vec<String>, u64) {
     shift = (deadline + RESTART_AFTER_TICKS) as i64 - restart.start_tick as i64;
     lines.push(seg_line(&restart, deadline + RESTART_AFTER_TICKS, None));
     emit(&mut scheduler, &mut lines, shift, 1);
-    scheduler.start();
-    lines.push(
-        Event::Start {
-            tick: scheduler.next_tick(),
-        }
-        .to_string(),
-    );
+    start(&mut scheduler, &mut lines);
     emit(&mut scheduler, &mut lines, shift, 80);
-    scheduler.stop();
-    lines.push(
-        Event::Stop {
-            tick: scheduler.next_tick(),
-        }
-        .to_string(),
-    );
+    stop(&mut scheduler, &mut lines);
     emit(&mut scheduler, &mut lines, shift, 20);
     lines.push(Event::End { tick: 0 }.to_string());
     (lines, deadline)
@@ -446,11 +410,7 @@ fn a_missed_edge_is_reported_with_where_the_halt_left_the_plate() {
     let (lines, deadline) = stream_with_a_missed_edge();
     let stream = hil::read_stream(lines.join("\n").as_bytes()).unwrap();
     assert_eq!(stream.errors.len(), 1);
-    let mut checker = Checker::new();
-    for event in &stream.events {
-        checker.feed(event);
-    }
-    let (report, edges, clock_hz) = checker.finish(true);
+    let (report, edges, clock_hz) = Checker::check_events(&stream.events, true);
     // Every segment that began is as planned; the one never begun is not missing but missed.
     assert_eq!(report.missed.len(), 1);
     assert_eq!(report.missed[0].actual_tick, deadline);

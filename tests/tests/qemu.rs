@@ -14,7 +14,9 @@ use feeder_emulator::{Run, NS_PER_INSTRUCTION};
 use feeder_shared::{Limits, SegmentKind, TickClock, TickPlan, Waveform, WaveformSpec};
 use feeder_tests::EDGE_WORK_BUDGET_INSTRUCTIONS;
 use host_sim::contact::Contact;
-use host_sim::hil::{self, CheckReport, Checker, Edge, EdgeTimes, Event, SegmentEvent, Stream};
+use host_sim::hil::{
+    self, CheckReport, Checker, Edge, EdgeTimes, Event, PartReport, SegmentEvent, Stream,
+};
 use host_sim::operating_point::OperatingPoint;
 
 /// A scenario may take this long before it is killed and failed.
@@ -72,11 +74,7 @@ fn checked_run(arguments: &[&str]) -> (String, Stream, CheckReport, Vec<Edge>, u
     let (status, log) = run_scenario(arguments);
     assert!(status.success(), "the firmware failed:\n{}", tail(&log));
     let stream = hil::read_stream(log.as_bytes()).expect("the event stream is readable");
-    let mut checker = Checker::new();
-    for event in &stream.events {
-        checker.feed(event);
-    }
-    let (report, edges, clock_hz) = checker.finish(true);
+    let (report, edges, clock_hz) = Checker::check_events(&stream.events, true);
     (log, stream, report, edges, clock_hz)
 }
 
@@ -89,16 +87,7 @@ fn thousand_cycles(frequency_hz: &str, stroke_m: &str) {
         &format!("stroke_m={stroke_m}"),
         "ramp=25",
     ]);
-    assert!(
-        stream.errors.is_empty(),
-        "firmware errors: {:?}",
-        stream.errors
-    );
-    assert!(report.passed(), "edge check failed: {:?}", report.problems);
-    assert_eq!(
-        report.matched, report.edges,
-        "every edge equals the shared plan"
-    );
+    assert_follows_the_plan(&stream, &report);
     assert!(
         report.motion_cycles >= 1000,
         "{} motion cycles",
@@ -132,7 +121,7 @@ fn thousand_cycles(frequency_hz: &str, stroke_m: &str) {
     // On the planned ticks the plate returns to within the plans' drift bounds, and the part
     // feeds as host-sim predicts for the same plan.
     let contact = Contact::kinetic(1.0, 1e-3).unwrap();
-    let planned = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Planned);
+    let planned = planned_within_drift_bounds(&edges, clock_hz, &contact, &specs);
     let predicted = OperatingPoint::new(final_spec, contact, Some(clock_hz))
         .unwrap()
         .steady();
@@ -144,13 +133,6 @@ fn thousand_cycles(frequency_hz: &str, stroke_m: &str) {
         "{} vs {} m/s",
         planned.feed_rate_mps,
         predicted.feed_rate_mps
-    );
-    let bound_m = drift_bound_m(&specs, clock_hz);
-    assert!(
-        planned.plate_drift_m.abs() <= bound_m,
-        "plate drift {} m > {} m",
-        planned.plate_drift_m,
-        bound_m
     );
     // The actual edges are the planned ones: software latency does not move the plate.
     let actual = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Actual);
@@ -166,16 +148,7 @@ fn thousand_cycles(frequency_hz: &str, stroke_m: &str) {
 fn random_changes_on_the_scripted_image_follow_the_shared_plan() {
     let (log, stream, report, edges, clock_hz) =
         checked_run(&["cycles=3000", "changes=150", "seed=7", "ramp=8"]);
-    assert!(
-        stream.errors.is_empty(),
-        "firmware errors: {:?}",
-        stream.errors
-    );
-    assert!(report.passed(), "edge check failed: {:?}", report.problems);
-    assert_eq!(
-        report.matched, report.edges,
-        "every edge equals the shared plan"
-    );
+    assert_follows_the_plan(&stream, &report);
     assert!(report.missed.is_empty());
     let count = |wanted: fn(&Event) -> bool| stream.events.iter().filter(|e| wanted(e)).count();
     let plans = count(|event| matches!(event, Event::Plan { .. }));
@@ -188,16 +161,41 @@ fn random_changes_on_the_scripted_image_follow_the_shared_plan() {
         "{refused} changes refused: some must fall past the range"
     );
 
-    let specs = plan_specs(&stream);
-    let bound_m = drift_bound_m(&specs, clock_hz);
     let contact = Contact::kinetic(1.0, 1e-3).unwrap();
-    let planned = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Planned);
+    planned_within_drift_bounds(&edges, clock_hz, &contact, &plan_specs(&stream));
+}
+
+/// Asserts a run without firmware errors whose every edge equals the shared plan's.
+fn assert_follows_the_plan(stream: &Stream, report: &CheckReport) {
+    assert!(
+        stream.errors.is_empty(),
+        "firmware errors: {:?}",
+        stream.errors
+    );
+    assert!(report.passed(), "edge check failed: {:?}", report.problems);
+    assert_eq!(
+        report.matched, report.edges,
+        "every edge equals the shared plan"
+    );
+}
+
+/// The part on the planned edges, the plate asserted to end within the drift bounds of the
+/// plans `specs` of its start.
+fn planned_within_drift_bounds(
+    edges: &[Edge],
+    clock_hz: u32,
+    contact: &Contact,
+    specs: &[WaveformSpec],
+) -> PartReport {
+    let planned = hil::simulate(edges, clock_hz, contact, EdgeTimes::Planned);
+    let bound_m = drift_bound_m(specs, clock_hz);
     assert!(
         planned.plate_drift_m.abs() <= bound_m,
         "plate drift {} m > {} m",
         planned.plate_drift_m,
         bound_m
     );
+    planned
 }
 
 /// The waveforms of the plans the firmware took, in order.
@@ -452,11 +450,7 @@ fn a_critical_section_longer_than_two_segments_is_a_missed_edge_that_halts_the_o
         "the missed edge is a category-0 fault:\n{}",
         tail(&log)
     );
-    let mut checker = Checker::new();
-    for event in &stream.events {
-        checker.feed(event);
-    }
-    let (report, _, _) = checker.finish(false);
+    let (report, _, _) = Checker::check_events(&stream.events, false);
     // Every segment that began is the shared plan's; the missed edge is the one problem.
     assert_eq!(report.missed.len(), 1, "{:?}", report.problems);
     assert_eq!(report.problems.len(), 1, "{:?}", report.problems);

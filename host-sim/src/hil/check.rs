@@ -41,6 +41,15 @@ impl Checker {
         Self::default()
     }
 
+    /// Replays every event of a whole stream and finishes, as [`Checker::finish`] does.
+    pub fn check_events(events: &[Event], end_required: bool) -> (CheckReport, Vec<Edge>, u32) {
+        let mut checker = Self::new();
+        for event in events {
+            checker.feed(event);
+        }
+        checker.finish(end_required)
+    }
+
     fn problem(&mut self, text: String) {
         if self.report.problems.len() < MAX_PROBLEMS {
             self.report.problems.push(text);

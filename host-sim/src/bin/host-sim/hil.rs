@@ -163,11 +163,7 @@ pub fn run(args: &HilArgs) -> Result<bool, SimError> {
             firmware_error: stream.errors.first().map(|line| hil::excerpt(line)),
         });
     }
-    let mut checker = Checker::new();
-    for event in &stream.events {
-        checker.feed(event);
-    }
-    let (check, edges, clock_hz) = checker.finish(!args.open_ended);
+    let (check, edges, clock_hz) = Checker::check_events(&stream.events, !args.open_ended);
     let actual = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Actual);
     let planned = hil::simulate(&edges, clock_hz, &contact, EdgeTimes::Planned);
     // The real plate on the actual edges, traced when the CSV or the chart shows it.
