@@ -58,45 +58,38 @@ fn negative_exponent_forms_after_a_space_are_numbers() {
     assert_eq!(fit["points"][0]["force_n"], -1e-4);
 }
 
+/// The numeric flags of the waveform of one operating point.
+const WAVE_FLAGS: &[&str] = &["--freq-hz", "--duty", "--stroke-m", "--accel-mps2"];
+
+/// The numeric flags of the contact with one part.
+const CONTACT_FLAGS: &[&str] = &[
+    "--mu",
+    "--mu-static",
+    "--gravity-mps2",
+    "--mass-kg",
+    "--force-n",
+];
+
+/// The numeric flags of `simulate` and `trace`, which run one operating point.
+const POINT_FLAGS: &[&[&str]] = &[WAVE_FLAGS, CONTACT_FLAGS, &["--clock-hz", "--cycles"]];
+
 /// Every numeric flag of every subcommand, after the subcommand and a size that keeps its run
 /// short.
-const NUMERIC_FLAGS: &[(&str, &[&str], &[&str])] = &[
-    (
-        "simulate",
-        &[],
-        &[
-            "--freq-hz",
-            "--duty",
-            "--stroke-m",
-            "--accel-mps2",
-            "--mu",
-            "--mu-static",
-            "--gravity-mps2",
-            "--mass-kg",
-            "--force-n",
-            "--clock-hz",
-            "--cycles",
-        ],
-    ),
+const NUMERIC_FLAGS: &[(&str, &[&str], &[&[&str]])] = &[
+    ("simulate", &[], POINT_FLAGS),
     (
         "sweep",
         &["--duties", "2"],
         &[
-            "--freq-hz",
-            "--accel-mps2",
-            "--duties",
-            "--mu",
-            "--mu-static",
-            "--gravity-mps2",
-            "--mass-kg",
-            "--force-n",
-            "--clock-hz",
+            &["--freq-hz", "--accel-mps2", "--duties"],
+            CONTACT_FLAGS,
+            &["--clock-hz"],
         ],
     ),
     (
         "viscosity",
         &["--points", "3"],
-        &[
+        &[&[
             "--freq-hz",
             "--duty",
             "--accel-mps2",
@@ -108,54 +101,28 @@ const NUMERIC_FLAGS: &[(&str, &[&str], &[&str])] = &[
             "--force-max-n",
             "--points",
             "--clock-hz",
-        ],
+        ]],
     ),
     (
         "saturation",
         &["--points", "2"],
-        &[
+        &[&[
             "--freq-hz",
             "--mu",
             "--accel-min-mps2",
             "--accel-max-mps2",
             "--points",
             "--gravity-mps2",
-        ],
+        ]],
     ),
-    (
-        "trace",
-        &[],
-        &[
-            "--freq-hz",
-            "--duty",
-            "--stroke-m",
-            "--accel-mps2",
-            "--mu",
-            "--mu-static",
-            "--gravity-mps2",
-            "--mass-kg",
-            "--force-n",
-            "--clock-hz",
-            "--cycles",
-        ],
-    ),
-    (
-        "hil",
-        &[],
-        &[
-            "--mu",
-            "--mu-static",
-            "--gravity-mps2",
-            "--mass-kg",
-            "--force-n",
-        ],
-    ),
+    ("trace", &[], POINT_FLAGS),
+    ("hil", &[], &[CONTACT_FLAGS]),
 ];
 
 #[test]
 fn every_numeric_flag_reads_a_negative_number_after_a_space() {
     for (command, size, flags) in NUMERIC_FLAGS {
-        for flag in *flags {
+        for flag in flags.iter().flat_map(|group| group.iter()) {
             for value in ["-0.0001", "-1e-5", "-inf"] {
                 let mut args = vec![*command, flag, value];
                 if !size.contains(flag) {
