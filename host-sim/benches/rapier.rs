@@ -6,19 +6,17 @@
 //! then lets criterion time one simulated cycle. Rapier's default step (1/60 s) is longer than the
 //! 20 ms period, so only steps of 1e-4 s and 1e-5 s are run.
 
+mod paper;
+
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use feeder_shared::model::STANDARD_GRAVITY_MPS2;
-use feeder_shared::{Drive, WaveformSpec};
 use host_sim::segments::exact_cycle;
-use host_sim::{Contact, OperatingPoint, PlateSegment};
+use host_sim::{OperatingPoint, PlateSegment};
+use paper::{point, CASES, FREQ_HZ, MASS_KG, MU};
 use rapier2d::prelude::*;
 
-const FREQ_HZ: f64 = 50.0;
-const ACCEL_MPS2: f64 = 145.86;
-const MU: f64 = 1.0;
-const MASS_KG: f64 = 1e-4;
 const PART_HALF_LENGTH_M: f32 = 0.005;
 const PART_HALF_HEIGHT_M: f32 = 0.0005;
 const PLATE_HALF_LENGTH_M: f32 = 1.0;
@@ -27,18 +25,6 @@ const PLATE_HALF_HEIGHT_M: f32 = 0.005;
 const SETTLE_CYCLES: u32 = 150;
 const MEASURE_CYCLES: u32 = 50;
 const STEPS_S: [f64; 2] = [1e-4, 1e-5];
-const CASES: [(&str, f64); 2] = [("sliding_d0.586", 0.586), ("sticking_d0.7", 0.7)];
-
-fn point(duty: f64) -> OperatingPoint {
-    let spec = WaveformSpec::from_frequency(
-        FREQ_HZ,
-        duty,
-        Drive::Accel {
-            accel_mps2: ACCEL_MPS2,
-        },
-    );
-    OperatingPoint::new(spec, Contact::kinetic(MU, MASS_KG).unwrap(), None).unwrap()
-}
 
 /// Plate position, integrated exactly from one cycle's segments.
 struct PlatePath {
@@ -169,7 +155,7 @@ fn relative(actual: f64, expected: f64) -> f64 {
 
 fn print_feed_rates() {
     for (name, duty) in CASES {
-        let point = point(duty);
+        let point = point(duty, None);
         let exact = point.steady().feed_rate_mps;
         let closed_form = point.model().feed_rate_mps.unwrap();
         for dt_s in STEPS_S {
@@ -203,7 +189,7 @@ fn rapier(c: &mut Criterion) {
     group.sample_size(10);
     for (name, duty) in CASES {
         for dt_s in STEPS_S {
-            let mut bench = Bench::new(&point(duty), dt_s);
+            let mut bench = Bench::new(&point(duty, None), dt_s);
             group.bench_function(BenchmarkId::new(format!("dt_{dt_s:e}"), name), |b| {
                 b.iter(|| black_box(&mut bench).cycle())
             });

@@ -4,24 +4,20 @@
 //! Before measuring, the steady feed rates of the exact and the fixed-step runs are printed with
 //! their relative errors against the closed forms (Eq. 15 sliding, Eq. 18 sticking).
 
+mod paper;
+
 use std::hint::black_box;
 use std::time::Instant;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use feeder_shared::model::STANDARD_GRAVITY_MPS2;
-use feeder_shared::{Drive, WaveformSpec};
 use host_sim::figures;
 use host_sim::ideal::fixed_step::run_fixed_step;
 use host_sim::ideal::simulator::CycleTable;
 use host_sim::segments::{exact_cycle, scheduler_segments};
 use host_sim::{run_segments, run_table, Contact, OperatingPoint, RunOptions, Timing};
+use paper::{point, CASES, FREQ_HZ, MASS_KG, MU};
 
-/// The paper's operating point: 50 Hz, μ = 1, a 0.1 g part, a_max giving a 2.5 mm stroke at
-/// d = 0.586.
-const FREQ_HZ: f64 = 50.0;
-const ACCEL_MPS2: f64 = 145.86;
-const MU: f64 = 1.0;
-const MASS_KG: f64 = 1e-4;
 /// Timer clock of the tick-plan stream (the CLI's default).
 const CLOCK_HZ: u32 = 1_000_000;
 /// Cycles per iteration of the exact paths.
@@ -33,21 +29,6 @@ const FIXED_CYCLES: u64 = 10;
 /// Cycles the fixed-step reference runs from rest for its accuracy (the exact run converges in
 /// under 100).
 const FIXED_ACCURACY_CYCLES: u64 = 150;
-
-/// Sliding all cycle (paper point) and sticking part of it (saturated, above `d_sat,nqs` ≈ 0.609).
-const CASES: [(&str, f64); 2] = [("sliding_d0.586", 0.586), ("sticking_d0.7", 0.7)];
-
-fn point(duty: f64, clock_hz: Option<u32>) -> OperatingPoint {
-    let spec = WaveformSpec::from_frequency(
-        FREQ_HZ,
-        duty,
-        Drive::Accel {
-            accel_mps2: ACCEL_MPS2,
-        },
-    );
-    let contact = Contact::kinetic(MU, MASS_KG).unwrap();
-    OperatingPoint::new(spec, contact, clock_hz).unwrap()
-}
 
 fn fixed(point: &OperatingPoint, cycles: u64) -> RunOptions {
     RunOptions {
