@@ -101,47 +101,43 @@ fn parses_each_event_kind() {
         hil::parse_line("EVT start tick=40000").unwrap(),
         Some(Event::Start { tick: 40_000 })
     );
+    let reverse = SegmentEvent {
+        cycle: 2,
+        kind: SegmentKind::Reverse,
+        planned_tick: 50_007,
+        actual_tick: 50_014,
+        ticks: 5_853,
+        level: -1,
+        step: 1,
+        steps: 4,
+        slack_ticks: None,
+    };
     assert_eq!(
         hil::parse_line("0.1 EVT seg cycle=2 kind=reverse planned=50007 actual=50014 ticks=5853 level=-1 step=1 steps=4").unwrap(),
-        Some(Event::Segment(SegmentEvent {
-            cycle: 2,
-            kind: SegmentKind::Reverse,
-            planned_tick: 50_007,
-            actual_tick: 50_014,
-            ticks: 5_853,
-            level: -1,
-            step: 1,
-            steps: 4,
-            slack_ticks: None,
-        }))
+        Some(Event::Segment(reverse))
     );
+    let plateau = SegmentEvent {
+        kind: SegmentKind::Plateau,
+        planned_tick: 41_713,
+        actual_tick: 41_713,
+        ticks: 8_294,
+        level: 0,
+        slack_ticks: Some(1_635),
+        ..reverse
+    };
     assert_eq!(
         hil::parse_line("EVT seg cycle=2 kind=plateau planned=41713 actual=41713 ticks=8294 level=0 step=1 steps=4 slack=1635").unwrap(),
-        Some(Event::Segment(SegmentEvent {
-            cycle: 2,
-            kind: SegmentKind::Plateau,
-            planned_tick: 41_713,
-            actual_tick: 41_713,
-            ticks: 8_294,
-            level: 0,
-            step: 1,
-            steps: 4,
-            slack_ticks: Some(1_635),
-        }))
+        Some(Event::Segment(plateau))
     );
+    // The reverse segment played again, its preload 51 ticks late.
+    let replayed = SegmentEvent {
+        actual_tick: 55_860,
+        slack_ticks: Some(-51),
+        ..reverse
+    };
     assert_eq!(
-        hil::parse_line("EVT replay cycle=9 kind=return planned=195860 actual=200000 ticks=4140 level=1 step=4 steps=4 slack=-51").unwrap(),
-        Some(Event::Replay(SegmentEvent {
-            cycle: 9,
-            kind: SegmentKind::Return,
-            planned_tick: 195_860,
-            actual_tick: 200_000,
-            ticks: 4_140,
-            level: 1,
-            step: 4,
-            steps: 4,
-            slack_ticks: Some(-51),
-        }))
+        hil::parse_line("EVT replay cycle=2 kind=reverse planned=50007 actual=55860 ticks=5853 level=-1 step=1 steps=4 slack=-51").unwrap(),
+        Some(Event::Replay(replayed))
     );
     assert_eq!(
         hil::parse_line("EVT zero actual=200057").unwrap(),
