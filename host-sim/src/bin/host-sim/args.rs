@@ -287,11 +287,28 @@ pub struct OutputArgs {
     pub plot: Option<PathBuf>,
 }
 
+/// A whole-number flag as one clap attribute, `#[arg(long, count_in = (1, MAX))]`.
+pub trait CountArg {
+    /// Takes a whole number from `min` to `max`, named `N` in the help (a `value_name` after it
+    /// renames it); a negative number reaches the bound's refusal instead of reading as a flag.
+    fn count_in<T>(self, bounds: (T, T)) -> Self
+    where
+        T: FromStr + PartialOrd + Display + Copy + Send + Sync + 'static;
+}
+
+impl CountArg for clap::Arg {
+    fn count_in<T>(self, (min, max): (T, T)) -> Self
+    where
+        T: FromStr + PartialOrd + Display + Copy + Send + Sync + 'static,
+    {
+        self.value_name("N")
+            .value_parser(count(min, max))
+            .allow_hyphen_values(true)
+    }
+}
+
 /// A clap parser for a count from `min` to `max`; a refusal names the range.
-pub fn count<T>(
-    min: T,
-    max: T,
-) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static
+fn count<T>(min: T, max: T) -> impl Fn(&str) -> Result<T, String> + Clone + Send + Sync + 'static
 where
     T: FromStr + PartialOrd + Display + Copy + Send + Sync + 'static,
 {

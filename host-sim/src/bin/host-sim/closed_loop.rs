@@ -15,7 +15,7 @@ use host_sim::plate::{PlantFile, PlateParams};
 use host_sim::{OperatingPoint, SimError, Timing};
 use serde::Serialize;
 
-use crate::args::{check_drive_limits, count, OutputArgs, PointArgs};
+use crate::args::{check_drive_limits, CountArg, OutputArgs, PointArgs};
 use crate::output::{emit, file_name, say};
 use crate::plot::{self, Mark, Moment, Panel, Series};
 
@@ -46,32 +46,15 @@ pub struct ClosedLoopArgs {
     point: PointArgs,
     /// Cycles the feeder runs after the probe and the centring, soft start included (at most
     /// 100 000).
-    #[arg(
-        long,
-        value_name = "N",
-        default_value_t = DEFAULT_CYCLES,
-        value_parser = count(1, MAX_CYCLES),
-        allow_hyphen_values = true
-    )]
+    #[arg(long, default_value_t = DEFAULT_CYCLES, count_in = (1, MAX_CYCLES))]
     cycles: u64,
     /// Cycles of the soft start (at most 1 000).
-    #[arg(
-        long,
-        value_name = "N",
-        default_value_t = DEFAULT_RAMP_CYCLES,
-        value_parser = count(1, MAX_RAMP_CYCLES),
-        allow_hyphen_values = true
-    )]
+    #[arg(long, default_value_t = DEFAULT_RAMP_CYCLES, count_in = (1, MAX_RAMP_CYCLES))]
     ramp_cycles: u16,
     /// Ask for a new plan at the start of this cycle (counted from 0, the soft start's first;
     /// below --cycles): duty --to-duty, the same frequency and stroke (or a_max). The feed rate
     /// is that of the last 50 cycles, compared with the ideal plate's at the new duty.
-    #[arg(
-        long,
-        value_name = "CYCLE",
-        value_parser = count(0, MAX_CYCLES),
-        allow_hyphen_values = true
-    )]
+    #[arg(long, count_in = (0, MAX_CYCLES), value_name = "CYCLE")]
     change_duty_at: Option<u64>,
     /// The duty of the plan --change-duty-at asks for.
     #[arg(long, value_name = "D", allow_hyphen_values = true)]

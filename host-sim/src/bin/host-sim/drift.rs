@@ -8,7 +8,7 @@ use host_sim::figures::{self, DriftCase, CASE_PLATE_MASS_KG};
 use host_sim::{SimError, Timing};
 use serde::Serialize;
 
-use crate::args::{count, plate_options, DriveLimitArgs, OutputArgs, PointArgs, PLATE_CYCLES};
+use crate::args::{plate_options, CountArg, DriveLimitArgs, OutputArgs, PointArgs, PLATE_CYCLES};
 use crate::output::{emit, say};
 use crate::plot::{self, Labels, Mark, Options, Series, YAxis};
 
@@ -23,13 +23,7 @@ pub struct DriftArgs {
     #[command(flatten)]
     point: PointArgs<DriveLimitArgs>,
     /// Cycles each plate runs from rest (at most 1 000), unless it hits an end stop.
-    #[arg(
-        long,
-        value_name = "N",
-        default_value_t = PLATE_CYCLES,
-        value_parser = count(1, MAX_CYCLES),
-        allow_hyphen_values = true
-    )]
+    #[arg(long, default_value_t = PLATE_CYCLES, count_in = (1, MAX_CYCLES))]
     cycles: u64,
     #[command(flatten)]
     output: OutputArgs,

@@ -15,7 +15,7 @@ use host_sim::SimError;
 use rayon::prelude::*;
 use serde::Serialize;
 
-use crate::args::{count, OutputArgs};
+use crate::args::{CountArg, OutputArgs};
 use crate::output::{emit, progress, say};
 use crate::plot::{self, Mark, Panel, Series};
 
@@ -30,22 +30,10 @@ pub struct FamilyArgs {
     #[arg(long, default_value_t = 1, allow_hyphen_values = true)]
     seed: u64,
     /// Plants drawn inside the envelope.
-    #[arg(
-        long,
-        value_name = "N",
-        default_value_t = 500,
-        value_parser = count(0_usize, 100_000),
-        allow_hyphen_values = true
-    )]
+    #[arg(long, default_value_t = 500, count_in = (0_usize, 100_000))]
     inside: usize,
     /// Plants drawn just outside it, one property past its limit, the causes in turn.
-    #[arg(
-        long,
-        value_name = "N",
-        default_value_t = 50,
-        value_parser = count(0_usize, 100_000),
-        allow_hyphen_values = true
-    )]
+    #[arg(long, default_value_t = 50, count_in = (0_usize, 100_000))]
     outside: usize,
     #[command(flatten)]
     output: OutputArgs,

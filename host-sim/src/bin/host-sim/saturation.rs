@@ -9,7 +9,7 @@ use feeder_shared::number::Significant;
 use host_sim::figures::{self, SaturationPoint};
 use host_sim::{Contact, SimError};
 
-use crate::args::{check_grid, count, evenly_spaced, FrequencyArgs, OutputArgs, MAX_POINTS};
+use crate::args::{check_grid, evenly_spaced, CountArg, FrequencyArgs, OutputArgs, MAX_POINTS};
 use crate::output::{emit, progress, say};
 use crate::plot::{self, Labels, Mark, Series};
 
@@ -32,13 +32,7 @@ pub struct SaturationArgs {
     accel_max_mps2: f64,
     /// Number of a_max values (2 or more), evenly spaced including both ends; at most 10 000
     /// points in all.
-    #[arg(
-        long,
-        value_name = "N",
-        default_value_t = 20,
-        value_parser = count(2, MAX_POINTS),
-        allow_hyphen_values = true
-    )]
+    #[arg(long, default_value_t = 20, count_in = (2, MAX_POINTS))]
     points: usize,
     #[arg(long, default_value_t = STANDARD_GRAVITY_MPS2, allow_hyphen_values = true)]
     gravity_mps2: f64,

@@ -11,7 +11,7 @@ use host_sim::{OperatingPoint, RunOptions, SimError, Timing};
 use serde::Serialize;
 
 use crate::args::{
-    count, plate_options, DriveLimitArgs, OutputArgs, PlantArgs, PointArgs, PLATE_CYCLES,
+    plate_options, CountArg, DriveLimitArgs, OutputArgs, PlantArgs, PointArgs, PLATE_CYCLES,
 };
 use crate::output::{emit, say};
 use crate::trace::plot_trace;
@@ -27,12 +27,7 @@ pub struct SimulateArgs {
     #[command(flatten)]
     point: PointArgs<DriveLimitArgs>,
     /// Run exactly N cycles (at most 10 000 000) instead of detecting steady state.
-    #[arg(
-        long,
-        value_name = "N",
-        value_parser = count(1, MAX_CYCLES),
-        allow_hyphen_values = true
-    )]
+    #[arg(long, count_in = (1, MAX_CYCLES))]
     cycles: Option<u64>,
     #[command(flatten)]
     plant: PlantArgs,

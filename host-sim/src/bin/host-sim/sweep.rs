@@ -10,7 +10,7 @@ use host_sim::{Contact, SimError};
 use serde::Serialize;
 
 use crate::args::{
-    check_grid, count, plate_options, ContactArgs, FrequencyArgs, OutputArgs, PlantArgs,
+    check_grid, plate_options, ContactArgs, CountArg, FrequencyArgs, OutputArgs, PlantArgs,
     TimingArgs, MAX_POINTS, PLATE_CYCLES,
 };
 use crate::output::{emit, progress, say};
@@ -36,13 +36,7 @@ pub struct SweepArgs {
     )]
     accel_mps2: Vec<f64>,
     /// Number of duties, evenly spaced strictly inside (0.5, 0.98); at most 10 000 points in all.
-    #[arg(
-        long,
-        value_name = "N",
-        default_value_t = 50,
-        value_parser = count(1, MAX_POINTS),
-        allow_hyphen_values = true
-    )]
+    #[arg(long, default_value_t = 50, count_in = (1, MAX_POINTS))]
     duties: usize,
     #[command(flatten)]
     contact: ContactArgs,
@@ -50,12 +44,7 @@ pub struct SweepArgs {
     timing: TimingArgs,
     /// Cycles each point runs from rest on a plate that is not ideal (default 100, at most
     /// 100 000); the ideal plate runs each point to steady state.
-    #[arg(
-        long,
-        value_name = "N",
-        value_parser = count(1, MAX_PLATE_CYCLES),
-        allow_hyphen_values = true
-    )]
+    #[arg(long, count_in = (1, MAX_PLATE_CYCLES))]
     cycles: Option<u64>,
     #[command(flatten)]
     plant: PlantArgs,

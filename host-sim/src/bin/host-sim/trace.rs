@@ -8,7 +8,7 @@ use host_sim::ideal::simulator::TracePoint;
 use host_sim::plate::{self, EndStop, PlateParams, PlatePoint, PlateRunOptions};
 use host_sim::{OperatingPoint, RunOptions, SimError};
 
-use crate::args::{count, OutputArgs, PlantArgs, PointArgs};
+use crate::args::{CountArg, OutputArgs, PlantArgs, PointArgs};
 use crate::output::{emit, say};
 use crate::plot::{self, Labels, Mark, Moment, Panel, Series};
 
@@ -21,13 +21,7 @@ pub struct TraceArgs {
     #[command(flatten)]
     point: PointArgs,
     /// Cycles to trace from rest (at most 10 000).
-    #[arg(
-        long,
-        value_name = "N",
-        default_value_t = 5,
-        value_parser = count(1, MAX_CYCLES),
-        allow_hyphen_values = true
-    )]
+    #[arg(long, default_value_t = 5, count_in = (1, MAX_CYCLES))]
     cycles: u64,
     #[command(flatten)]
     plant: PlantArgs,

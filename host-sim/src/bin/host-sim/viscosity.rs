@@ -10,7 +10,7 @@ use host_sim::figures::{self, Viscosity, ViscosityPoint};
 use host_sim::SimError;
 
 use crate::args::{
-    count, evenly_spaced, FrequencyArgs, FrictionArgs, OutputArgs, TimingArgs, MAX_POINTS,
+    evenly_spaced, CountArg, FrequencyArgs, FrictionArgs, OutputArgs, TimingArgs, MAX_POINTS,
 };
 use crate::output::{emit, say};
 use crate::plot::{self, Labels, Mark, Series};
@@ -40,13 +40,7 @@ pub struct ViscosityArgs {
     #[arg(long, default_value_t = 1.5e-4, allow_hyphen_values = true)]
     force_max_n: f64,
     /// Number of forces (2 to 10 000), evenly spaced including both ends.
-    #[arg(
-        long,
-        value_name = "N",
-        default_value_t = 31,
-        value_parser = count(2, MAX_POINTS),
-        allow_hyphen_values = true
-    )]
+    #[arg(long, default_value_t = 31, count_in = (2, MAX_POINTS))]
     points: usize,
     #[command(flatten)]
     timing: TimingArgs,
