@@ -8,7 +8,7 @@ use std::str::FromStr;
 use clap::Args;
 use feeder_shared::drive::MACHINE_LIMITS;
 use feeder_shared::model::STANDARD_GRAVITY_MPS2;
-use feeder_shared::number::{parse_length, LengthUnit};
+use feeder_shared::number::{parse_length, LengthUnit, Significant};
 use feeder_shared::{DacCalibration, Drive, Waveform, WaveformSpec};
 use host_sim::contact::PAPER_PART_MASS_KG;
 use host_sim::plate::{PlateParams, PlateRunOptions};
@@ -333,16 +333,25 @@ pub fn check_grid(rows: usize, columns: usize, what: [&str; 2]) -> Result<(), Si
     )))
 }
 
-/// `points` values from `low` to `high`, both included; `None` unless `points ≥ 2` and
-/// `high > low` (NaN bounds included).
-pub fn evenly_spaced(low: f64, high: f64, points: usize) -> Option<Vec<f64>> {
+/// `points` values from `low` to `high`, both included; refused unless `points ≥ 2` and
+/// `high > low` (NaN bounds included), naming the two `flags` (low's, high's).
+pub fn evenly_spaced(
+    low: f64,
+    high: f64,
+    points: usize,
+    flags: [&str; 2],
+) -> Result<Vec<f64>, SimError> {
     if points < 2 || high.partial_cmp(&low) != Some(std::cmp::Ordering::Greater) {
-        return None;
+        return Err(SimError::Request(format!(
+            "{} {} must be above {} {}",
+            flags[1],
+            Significant(high),
+            flags[0],
+            Significant(low)
+        )));
     }
     let span = high - low;
-    Some(
-        (0..points)
-            .map(|i| low + span * (i as f64 / (points - 1) as f64))
-            .collect(),
-    )
+    Ok((0..points)
+        .map(|i| low + span * (i as f64 / (points - 1) as f64))
+        .collect())
 }

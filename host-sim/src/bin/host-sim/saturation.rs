@@ -5,7 +5,6 @@ use std::path::Path;
 
 use clap::Args;
 use feeder_shared::model::STANDARD_GRAVITY_MPS2;
-use feeder_shared::number::Significant;
 use host_sim::figures::{self, SaturationPoint};
 use host_sim::{Contact, SimError};
 
@@ -45,14 +44,12 @@ pub fn run(args: &SaturationArgs) -> Result<(), SimError> {
     args.output.check()?;
     let period_s = args.frequency.period_s()?;
     check_grid(args.mu.len(), args.points, ["--mu", "--points"])?;
-    let accels =
-        evenly_spaced(args.accel_min_mps2, args.accel_max_mps2, args.points).ok_or_else(|| {
-            SimError::Request(format!(
-                "--accel-max-mps2 {} must be above --accel-min-mps2 {}",
-                Significant(args.accel_max_mps2),
-                Significant(args.accel_min_mps2)
-            ))
-        })?;
+    let accels = evenly_spaced(
+        args.accel_min_mps2,
+        args.accel_max_mps2,
+        args.points,
+        ["--accel-min-mps2", "--accel-max-mps2"],
+    )?;
     // Each curve takes its own μ.
     let contact = Contact::paper_part(1.0, args.gravity_mps2)?;
     let progress = progress(accels.len() * args.mu.len(), args.output.json);

@@ -4,7 +4,6 @@
 use std::path::Path;
 
 use clap::Args;
-use feeder_shared::number::Significant;
 use feeder_shared::{Drive, WaveformSpec};
 use host_sim::figures::{self, Viscosity, ViscosityPoint};
 use host_sim::SimError;
@@ -59,14 +58,12 @@ pub fn run(args: &ViscosityArgs) -> Result<(), SimError> {
         },
     };
     let contact = args.friction.contact(0.0)?;
-    let forces =
-        evenly_spaced(args.force_min_n, args.force_max_n, args.points).ok_or_else(|| {
-            SimError::Request(format!(
-                "--force-max-n {} must be above --force-min-n {}",
-                Significant(args.force_max_n),
-                Significant(args.force_min_n)
-            ))
-        })?;
+    let forces = evenly_spaced(
+        args.force_min_n,
+        args.force_max_n,
+        args.points,
+        ["--force-min-n", "--force-max-n"],
+    )?;
     let fit = figures::viscosity(spec, &contact, &forces, args.timing.clock_hz())?;
     emit(
         &args.output,
