@@ -54,13 +54,13 @@ fn faithful_stream(latency_ticks: u64) -> Vec<String> {
         }
     };
     emit(&mut scheduler, &mut lines, 2);
-    start(&mut scheduler, &mut lines);
+    log_start(&mut scheduler, &mut lines);
     emit(&mut scheduler, &mut lines, 161);
     scheduler.set_plan(plan(0.6)).unwrap();
     scheduler.set_ramp_cycles(ramp);
     lines.push(plan_line(scheduler.next_tick(), 0.6, ramp));
     emit(&mut scheduler, &mut lines, 160);
-    stop(&mut scheduler, &mut lines);
+    log_stop(&mut scheduler, &mut lines);
     emit(&mut scheduler, &mut lines, 20);
     lines.push(Event::End { tick: 0 }.to_string());
     lines
@@ -77,14 +77,14 @@ fn check_with(lines: &[String], end_required: bool) -> (hil::CheckReport, Vec<hi
 }
 
 /// Starts `scheduler` and prints the `start` line a firmware prints.
-fn start(scheduler: &mut Scheduler, lines: &mut Vec<String>) {
+fn log_start(scheduler: &mut Scheduler, lines: &mut Vec<String>) {
     scheduler.start();
     let tick = scheduler.next_tick();
     lines.push(Event::Start { tick }.to_string());
 }
 
 /// Stops `scheduler` and prints the `stop` line a firmware prints.
-fn stop(scheduler: &mut Scheduler, lines: &mut Vec<String>) {
+fn log_stop(scheduler: &mut Scheduler, lines: &mut Vec<String>) {
     scheduler.stop();
     let tick = scheduler.next_tick();
     lines.push(Event::Stop { tick }.to_string());
@@ -315,7 +315,7 @@ fn slack_is_summarised_by_its_minimum_and_power_of_two_buckets() {
         }
     };
     emit(&mut scheduler, &mut lines, 2);
-    start(&mut scheduler, &mut lines);
+    log_start(&mut scheduler, &mut lines);
     emit(&mut scheduler, &mut lines, 40);
     let report = check_with(&lines, false).0;
     assert!(report.passed(), "{:?}", report.problems);
@@ -360,7 +360,7 @@ fn stream_with_a_missed_edge() -> (Vec<String>, u64) {
         }
     };
     emit(&mut scheduler, &mut lines, shift, 2);
-    start(&mut scheduler, &mut lines);
+    log_start(&mut scheduler, &mut lines);
     let mut playing = scheduler.next_segment();
     let missed = loop {
         lines.push(seg_line(&playing, playing.start_tick, Some(1_000)));
@@ -393,9 +393,9 @@ fn stream_with_a_missed_edge() -> (Vec<String>, u64) {
     shift = (deadline + RESTART_AFTER_TICKS) as i64 - restart.start_tick as i64;
     lines.push(seg_line(&restart, deadline + RESTART_AFTER_TICKS, None));
     emit(&mut scheduler, &mut lines, shift, 1);
-    start(&mut scheduler, &mut lines);
+    log_start(&mut scheduler, &mut lines);
     emit(&mut scheduler, &mut lines, shift, 80);
-    stop(&mut scheduler, &mut lines);
+    log_stop(&mut scheduler, &mut lines);
     emit(&mut scheduler, &mut lines, shift, 20);
     lines.push(Event::End { tick: 0 }.to_string());
     (lines, deadline)
