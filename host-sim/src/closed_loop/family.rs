@@ -220,12 +220,11 @@ impl FamilyRun {
     /// the start-up's bound.
     pub fn missed(&self) -> Vec<&'static str> {
         let verdict = &self.verdict;
-        let mut missed: Vec<&'static str> = verdict.failures.iter().map(|f| criterion(f)).collect();
+        let mut missed = verdict.criteria_missed();
         if verdict.startup_peak_m > verdict.startup_limit_m {
             missed.push("start-up peak");
         }
         missed.sort_unstable();
-        missed.dedup();
         missed
     }
 
@@ -266,23 +265,6 @@ impl FamilyRun {
             },
         )
     }
-}
-
-/// The criterion a failure names, for a tally.
-fn criterion(failure: &str) -> &'static str {
-    [
-        ("the loop gave up", "gave up"),
-        ("end stop", "end stop"),
-        ("worst mean position", "mean position"),
-        ("feed rate", "feed rate"),
-        ("fewer than", "feed rate"),
-        ("not identified", "not identified"),
-        ("gain", "identified gain"),
-        ("never released", "not released"),
-    ]
-    .into_iter()
-    .find(|(start, _)| failure.contains(start))
-    .map_or("other", |(_, name)| name)
 }
 
 /// A cause by its name.

@@ -210,6 +210,14 @@ impl Verdict {
         }
     }
 
+    /// The criteria the run missed, by name, each once, in order of name.
+    pub fn criteria_missed(&self) -> Vec<&'static str> {
+        let mut missed: Vec<&'static str> = self.failures.iter().map(|f| criterion(f)).collect();
+        missed.sort_unstable();
+        missed.dedup();
+        missed
+    }
+
     /// The verdict line: `closed loop: PASSED` or `closed loop: FAILED (…)`.
     pub fn line(&self) -> String {
         if self.passed {
@@ -218,6 +226,23 @@ impl Verdict {
             format!("closed loop: FAILED ({})", self.failures.join("; "))
         }
     }
+}
+
+/// The criterion a failure names, for a tally.
+fn criterion(failure: &str) -> &'static str {
+    [
+        ("the loop gave up", "gave up"),
+        ("end stop", "end stop"),
+        ("worst mean position", "mean position"),
+        ("feed rate", "feed rate"),
+        ("fewer than", "feed rate"),
+        ("not identified", "not identified"),
+        ("gain", "identified gain"),
+        ("never released", "not released"),
+    ]
+    .into_iter()
+    .find(|(start, _)| failure.contains(start))
+    .map_or("other", |(_, name)| name)
 }
 
 /// The part's displacement over the last `cycles` of `fed` over their duration; `None` with
