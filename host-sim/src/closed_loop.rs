@@ -7,7 +7,7 @@
 
 use feeder_shared::closed_loop::{
     Course, CourseConfig, CourseError, CycleTrims, Decision, Identified, LoopLimits,
-    PositionSample, Stage, Trims, ENVELOPE,
+    PositionSample, Probe, Stage, Trims, ENVELOPE,
 };
 use feeder_shared::{DacCalibration, Scheduler, Segment, SegmentKind, TickPlan};
 
@@ -28,7 +28,9 @@ pub use verdict::{
 /// How the closed loop runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ClosedLoopOptions {
-    /// Cycles of motion after the course's centring, soft start included.
+    /// Cycles after the one at whose start the course released the soft start (soft start
+    /// included): the run ends with the last, as the firmware's scenario (`cycles=N`) requests
+    /// the stop at its start. The verdict judges the release's cycle too.
     pub cycles: u64,
     /// Soft start over this many cycles.
     pub ramp_cycles: u16,
@@ -102,8 +104,9 @@ pub struct ClosedLoopRun {
     /// The drive identified by the course (none if it never was).
     pub identified: Option<Identified>,
     pub cycles: Vec<CycleRecord>,
-    /// The course released the soft start.
-    pub released: bool,
+    /// The scheduler's cycle at whose start the course decided to release the soft start (the
+    /// firmware logs it as `closed loop: Feeding at cycle N`); none if it never did.
+    pub release_cycle: Option<u64>,
     /// Largest `|x|` from power-up to the release (to the end if there was none), and over the
     /// whole run.
     pub startup_peak_m: f64,
@@ -144,7 +147,7 @@ impl ClosedLoopRun {
         let gave_up = self.gave_up.as_ref().map(ToString::to_string);
         Verdict::judge(&RunFacts {
             fed: &fed,
-            released: self.released,
+            released: self.release_cycle.is_some(),
             ramp_cycles: u64::from(options.ramp_cycles),
             feed_cycles: options.feed_cycles,
             startup_peak_m: self.startup_peak_m,
@@ -206,6 +209,7 @@ pub fn run_closed_loop(
         records: Vec::new(),
         open: None,
         startup_peak_m: None,
+        release_cycle: None,
     };
     let gave_up = match runner.run(options) {
         Ok(()) => None,
@@ -220,7 +224,7 @@ pub fn run_closed_loop(
     let stepper = &runner.plate.stepper;
     Ok(ClosedLoopRun {
         identified: runner.course.identified().copied(),
-        released: runner.startup_peak_m.is_some(),
+        release_cycle: runner.release_cycle,
         startup_peak_m: runner
             .startup_peak_m
             .unwrap_or_else(|| stepper.peak_excursion_m()),
@@ -242,6 +246,8 @@ struct Runner {
     open: Option<OpenCycle>,
     /// The peak `|x|` at the release, once released.
     startup_peak_m: Option<f64>,
+    /// The cycle whose boundary decided the release.
+    release_cycle: Option<u64>,
 }
 
 impl Runner {
@@ -250,10 +256,14 @@ impl Runner {
         // The decision made at the last boundary, applied at the next segment begun.
         let mut pending: Option<Decision> = None;
         let mut cycle_trims = CycleTrims::NONE;
-        // The feeder comes up idle, the drive enabled at zero command, and is started at once:
-        // the probe begins one idle period later.
+        // The feeder comes up idle, the drive enabled at zero command, its output playing an
+        // idle period with the next one made. The start, requested at once, is taken at the
+        // first edge, as the firmware's control loop takes a request: the probe begins two idle
+        // periods after power-up.
         let mut queued = self.scheduler.next_segment();
-        self.scheduler.start();
+        let mut start_requested = true;
+        // The identification of the probe, once made, until the course takes it.
+        let mut identified = None;
         let mut queued_trims = Trims::NONE;
         let mut trims = Trims::NONE;
         let mut feeding_cycles = 0;
@@ -275,7 +285,7 @@ impl Runner {
                     self.records.push(open.close(&self.plate, peak_m));
                 }
                 if self.plate.stepper.end_stop().is_some()
-                    || (self.course.stage() == Stage::Feeding && feeding_cycles >= options.cycles)
+                    || (self.course.stage() == Stage::Feeding && feeding_cycles > options.cycles)
                 {
                     return Ok(());
                 }
@@ -284,15 +294,22 @@ impl Runner {
                     CourseError::Identify(error) => SimError::Identification(error),
                     error => SimError::Loop { time_s, error },
                 };
+                // The drive identified from the probe is handed over at the next boundary, as
+                // the firmware's closed loop takes an identification done below it.
+                if let Some(found) = identified.take() {
+                    self.course.set_identified(found).map_err(fail)?;
+                }
                 let decision = self
                     .course
                     .boundary(&playing, &self.scheduler, start, &samples)
                     .map_err(fail)?;
-                if let Some(probe) = self.course.probe() {
-                    let found = probe.identify();
-                    self.course.set_identified(found).map_err(fail)?;
+                if decision.identify {
+                    identified = self.course.probe().map(Probe::identify);
                 }
                 let feeding = self.course.stage() == Stage::Feeding;
+                if decision.release {
+                    self.release_cycle = Some(playing.cycle);
+                }
                 let idle = playing.kind == SegmentKind::Idle;
                 if feeding && !idle {
                     if let Some((at, new_plan)) = options.plan_change {
@@ -321,6 +338,9 @@ impl Runner {
                     integral_ms: self.plate.stepper.position_integral_ms(),
                 });
                 pending = Some(decision);
+            }
+            if playing.start_tick > 0 && std::mem::take(&mut start_requested) {
+                self.scheduler.start();
             }
             queued = self.scheduler.next_segment();
             if queued.starts_cycle() {

@@ -44,8 +44,8 @@ pub struct ClosedLoopArgs {
     plant: PathBuf,
     #[command(flatten)]
     point: PointArgs,
-    /// Cycles the feeder runs after the probe and the centring, soft start included (at most
-    /// 100 000).
+    /// Cycles the feeder runs after the one that releases the soft start, soft start included,
+    /// as the firmware's scenario counts `cycles=N` (at most 100 000).
     #[arg(long, default_value_t = DEFAULT_CYCLES, count_in = (1, MAX_CYCLES))]
     cycles: u64,
     /// Cycles of the soft start (at most 1 000).
@@ -321,11 +321,11 @@ fn print_report(report: &ClosedLoopReport, output: &OutputArgs) {
     }
     say!("plant             {}", report.plant.display());
     say!(
-        "run               {} of {} cycles fed after {} of probe, identification and centring, \
-         soft start over {}; {:.2} s simulated",
+        "run               {} cycles of probe, identification and centring, then {} fed from \
+         the release to {} cycles after it, soft start over {}; {:.2} s simulated",
+        report.centring_cycles,
         report.verdict.fed_cycles,
         report.cycles,
-        report.centring_cycles,
         report.ramp_cycles,
         report.simulated_s
     );
