@@ -22,338 +22,35 @@
 //! was made before its trims were decided: it runs the feedforward alone
 //! ([`Course::feedforward`]), and the loop starts its history afresh from its start.
 
-use super::cycle_loop::{CycleLoop, LoopError, LoopLimits, Stroke, Trims};
-use super::envelope::Cause;
-use super::identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};
+mod config;
+mod decision;
+mod error;
+mod lookahead;
+mod measure;
+mod probe;
+mod stage;
+
+pub use config::CourseConfig;
+pub use decision::{CycleTrims, Decision, LateTrims};
+pub use error::CourseError;
+pub use measure::PositionSample;
+pub use probe::{Probe, PROBE_CYCLES_MAX, PROBE_POSITIONS_MAX};
+pub use stage::{LoopReport, Stage};
+
+use super::cycle_loop::{CycleLoop, Stroke, Trims};
+use super::identify::{Identified, IdentifyError};
 use super::shape::{CommandSegment, CycleShape};
 use crate::scheduler::{Scheduler, Segment};
 use crate::segment::SegmentKind;
+use lookahead::{next_shape, rest_of_cycle};
+use measure::{mean_position_m, turn_position_m, Begun};
 
-/// The most positions a probe keeps (the identification takes at most 512).
-pub const PROBE_POSITIONS_MAX: usize = 512;
-/// The most probe cycles.
-pub const PROBE_CYCLES_MAX: u32 = 8;
-/// The most segments in the probe's cycles.
-const PROBE_SEGMENTS_MAX: usize = 4 * PROBE_CYCLES_MAX as usize;
-
-/// A plate position sampled at a tick of the output's timeline.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct PositionSample {
-    pub tick: u64,
-    pub position_m: f64,
-}
-
-/// How the course runs.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct CourseConfig {
-    /// Held cycles the probe keeps (1 to [`PROBE_CYCLES_MAX`]).
-    pub probe_cycles: u32,
-    /// The held step as a fraction of the soft start's steps (at least one step).
-    pub probe_fraction: f64,
-    /// The position sensor's resolution: the probe must move the plate 20 of them.
-    pub resolution_m: f64,
-    /// The plate counts as centred within this of where a cycle should start …
-    pub centred_m: f64,
-    /// … for this many held cycles in a row.
-    pub centred_cycles: u32,
-    /// Centring that takes more held cycles than this fails.
-    pub centring_cycles_max: u32,
-    pub loop_limits: LoopLimits,
-    /// The output's smallest step of a level (a DAC count), 0 for a continuous one
-    /// ([`CycleLoop::with_level_step`]).
-    pub level_step_mps2: f64,
-}
-
-impl CourseConfig {
-    /// 4 probe cycles at 30 % of the levels; centred within 25 µm for 3 cycles, in at most 250
-    /// cycles; the loop may add up to 50 m/s² (a quarter of the envelope's full scale: a spring
-    /// or slide friction at its limit needs that much), trim the stroke by ±20 % and gives up
-    /// 4 mm from centre; levels in steps of `level_step_mps2`.
-    pub fn new(resolution_m: f64, level_step_mps2: f64) -> Self {
-        CourseConfig {
-            probe_cycles: 4,
-            probe_fraction: 0.3,
-            resolution_m,
-            centred_m: 25e-6,
-            centred_cycles: 3,
-            centring_cycles_max: 250,
-            loop_limits: LoopLimits {
-                correction_max_mps2: 50.0,
-                amplitude_max: 0.2,
-                position_error_max_m: 4e-3,
-            },
-            level_step_mps2,
-        }
-    }
-
-    /// The held step of a soft start of `ramp_steps` steps.
-    pub fn probe_step(&self, ramp_steps: u16) -> u16 {
-        let step = libm::round(self.probe_fraction * f64::from(ramp_steps));
-        (step as u16).clamp(1, ramp_steps.max(1))
-    }
-}
-
-/// Where the course is.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum Stage {
-    /// Waiting for the first held cycle.
-    Waiting,
-    /// Keeping the positions of the probe's cycles.
-    Probing,
-    /// The probe complete, waiting for [`Course::set_identified`].
-    Identifying,
-    /// Held cycles, trimmed on the identified drive, until the plate is centred.
-    Centring,
-    /// The soft start released; every cycle trimmed.
-    Feeding,
-    /// The course stopped with an error; only a new course helps.
-    Failed,
-}
-
-impl Stage {
-    /// The stage's name in replies and logs.
-    pub const fn name(self) -> &'static str {
-        match self {
-            Stage::Waiting => "waiting",
-            Stage::Probing => "probing",
-            Stage::Identifying => "identifying",
-            Stage::Centring => "centring",
-            Stage::Feeding => "feeding",
-            Stage::Failed => "failed",
-        }
-    }
-}
-
-/// What the closed loop reports (the console's `status`): where the course is and, once
-/// identified, the drive.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct LoopReport {
-    pub stage: Stage,
-    pub drive: Option<Identified>,
-}
-
-/// The course's decision at a boundary.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Decision {
-    /// The cycle these trims are for: the one after the cycle begun.
-    pub cycle: u64,
-    pub trims: Trims,
-    /// The plate is centred: release the scheduler's hold ([`Scheduler::release_hold`]).
-    pub release: bool,
-    /// The probe is complete: identify the drive from [`Course::probe`].
-    pub identify: bool,
-}
-
-impl Decision {
-    /// `trims` for the cycle after the one `begun` starts, nothing else.
-    fn trims(begun: &Segment, trims: Trims) -> Self {
-        Decision {
-            cycle: begun.cycle + 1,
-            trims,
-            release: false,
-            identify: false,
-        }
-    }
-}
-
-/// The trims each cycle runs, as the output takes them (the firmware's control loop and the
-/// simulator both): a decision is taken at the segment after the boundary that made it, and a
-/// cycle's trims are fixed when its first segment is made. That is the cycle's decided trims;
-/// after an idle period, whose first segment was made before the decision, the feedforward. An
-/// idle period runs the plan's zero level.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CycleTrims {
-    decided: Option<(u64, Trims)>,
-    feedforward: Trims,
-}
-
-/// A running cycle that follows a running cycle has no trims decided for it: the closed loop
-/// did not keep up.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct LateTrims {
-    pub cycle: u64,
-}
-
-impl CycleTrims {
-    /// Before any decision: the plan's levels.
-    pub const NONE: CycleTrims = CycleTrims {
-        decided: None,
-        feedforward: Trims::NONE,
-    };
-
-    /// Takes the course's `decision` and its feedforward of the moment.
-    pub fn take(&mut self, decision: &Decision, feedforward: Trims) {
-        self.decided = Some((decision.cycle, decision.trims));
-        self.feedforward = feedforward;
-    }
-
-    /// The trims of the cycle `first` begins, made while a cycle or idle period (`after_idle`)
-    /// plays: `None` for an idle period.
-    pub fn for_cycle(&self, first: &Segment, after_idle: bool) -> Result<Option<Trims>, LateTrims> {
-        if first.kind == SegmentKind::Idle {
-            return Ok(None);
-        }
-        match self.decided {
-            Some((cycle, trims)) if cycle == first.cycle => Ok(Some(trims)),
-            _ if after_idle => Ok(Some(self.feedforward)),
-            _ => Err(LateTrims { cycle: first.cycle }),
-        }
-    }
-
-    /// The feedforward last taken: what a cycle without its own trims runs.
-    pub fn feedforward(&self) -> Trims {
-        self.feedforward
-    }
-}
-
-/// Why the course stopped.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum CourseError {
-    Identify(IdentifyError),
-    Loop(LoopError),
-    /// The plate did not settle at the centre within the allowed held cycles.
-    Centring {
-        error_m: f64,
-    },
-    /// A cycle of the plan never turns back.
-    Plan,
-    /// The boundary of this cycle reached the course too late or not at all.
-    MissedBoundary {
-        cycle: u64,
-    },
-    /// The position sensor had no capture at this cycle start tick.
-    NoCapture {
-        tick: u64,
-    },
-}
-
-impl CourseError {
-    /// The envelope's property it names, if any.
-    pub fn cause(&self) -> Option<Cause> {
-        match self {
-            CourseError::Identify(error) => error.cause(),
-            _ => None,
-        }
-    }
-}
-
-impl core::fmt::Display for CourseError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match self {
-            CourseError::Identify(error) => write!(f, "identification: {error}"),
-            CourseError::Loop(error) => write!(f, "closed loop: {error}"),
-            CourseError::Centring { error_m } => write!(
-                f,
-                "the plate is still {error_m} m from its centre after the centring's last cycle"
-            ),
-            CourseError::Plan => f.write_str("a planned cycle does not turn back"),
-            CourseError::MissedBoundary { cycle } => write!(
-                f,
-                "the closed loop missed the start of cycle {cycle}: it cannot keep up with the output"
-            ),
-            CourseError::NoCapture { tick } => write!(
-                f,
-                "the position sensor has no capture at the cycle start tick {tick}"
-            ),
-        }
-    }
-}
-
-/// The probe's record: the levels its cycles were commanded and the positions sampled through
-/// them, timed from its first start.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Probe {
-    start_tick: u64,
-    clock_hz: u32,
-    /// The plan's period.
-    period_s: f64,
-    resolution_m: f64,
-    positions: [Latch; PROBE_POSITIONS_MAX],
-    position_count: usize,
-    segments: [CommandSegment; PROBE_SEGMENTS_MAX],
-    segment_count: usize,
-}
-
-impl Probe {
-    fn new(start_tick: u64, clock_hz: u32, period_s: f64, resolution_m: f64) -> Self {
-        let latch = Latch {
-            t_s: 0.0,
-            position_m: 0.0,
-        };
-        let segment = CommandSegment {
-            duration_s: 0.0,
-            accel_mps2: 0.0,
-        };
-        Probe {
-            start_tick,
-            clock_hz,
-            period_s,
-            resolution_m,
-            positions: [latch; PROBE_POSITIONS_MAX],
-            position_count: 0,
-            segments: [segment; PROBE_SEGMENTS_MAX],
-            segment_count: 0,
-        }
-    }
-
-    /// Keeps `sample` if it is later than the last one kept (and there is room).
-    fn keep_position(&mut self, sample: PositionSample) {
-        let Some(ticks) = sample.tick.checked_sub(self.start_tick) else {
-            return;
-        };
-        let t_s = ticks as f64 / f64::from(self.clock_hz);
-        let later = self.positions[..self.position_count]
-            .last()
-            .is_none_or(|kept| t_s > kept.t_s);
-        if later && self.position_count < PROBE_POSITIONS_MAX {
-            self.positions[self.position_count] = Latch {
-                t_s,
-                position_m: sample.position_m,
-            };
-            self.position_count += 1;
-        }
-    }
-
-    fn keep_segment(&mut self, segment: CommandSegment) {
-        if self.segment_count < PROBE_SEGMENTS_MAX {
-            self.segments[self.segment_count] = segment;
-            self.segment_count += 1;
-        }
-    }
-
-    /// The positions kept.
-    pub fn positions(&self) -> &[Latch] {
-        &self.positions[..self.position_count]
-    }
-
-    /// The levels commanded, trims included.
-    pub fn segments(&self) -> &[CommandSegment] {
-        &self.segments[..self.segment_count]
-    }
-
-    /// The drive identified from the probe, within [`IdentifyLimits::for_probe`].
-    pub fn identify(&self) -> Result<Identified, IdentifyError> {
-        let limits = IdentifyLimits::for_probe(self.resolution_m, self.period_s);
-        identify(self.segments(), self.positions(), &limits)
-    }
-}
-
-/// A cycle begun, as the course keeps it until the next boundary.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Begun {
+/// The start of a cycle or idle period as [`Course::boundary`] takes it.
+struct At<'a> {
+    begun: &'a Segment,
+    ahead: &'a Scheduler,
     start: PositionSample,
-    shape: CycleShape,
-    /// Runs at the plan's full amplitude: only those cycles' strokes and means are held.
-    full: bool,
-    idle: bool,
-    clock_hz: u32,
+    samples: &'a [PositionSample],
 }
 
 /// The course's state.
@@ -464,20 +161,26 @@ impl Course {
         if self.stage == Stage::Failed {
             return Ok(Decision::trims(begun, Trims::NONE));
         }
-        let result = self.step(begun, ahead, start, samples);
+        let result = self.step(At {
+            begun,
+            ahead,
+            start,
+            samples,
+        });
         if result.is_err() {
             self.stage = Stage::Failed;
         }
         result
     }
 
-    fn step(
-        &mut self,
-        begun: &Segment,
-        ahead: &Scheduler,
-        start: PositionSample,
-        samples: &[PositionSample],
-    ) -> Result<Decision, CourseError> {
+    /// [`Course::boundary`] on a course that has not failed.
+    fn step(&mut self, at: At<'_>) -> Result<Decision, CourseError> {
+        let At {
+            begun,
+            ahead,
+            start,
+            samples,
+        } = at;
         let mut lookahead = ahead.clone();
         let (segments, count) = rest_of_cycle(begun, &mut lookahead);
         let segments = &segments[..count];
@@ -615,62 +318,5 @@ impl Course {
             return Ok(CycleShape::idle(period_s));
         }
         self.cycle_loop.plan(segments).ok_or(CourseError::Plan)
-    }
-}
-
-/// The segments of the cycle `begun` starts, in seconds, with `scheduler` right after it
-/// (advanced to the next boundary); an idle period is its one segment.
-fn rest_of_cycle(begun: &Segment, scheduler: &mut Scheduler) -> ([CommandSegment; 4], usize) {
-    let plan = *scheduler.plan();
-    let mut segments = [CommandSegment::of(begun, &plan); 4];
-    let mut count = 1;
-    if begun.kind != SegmentKind::Idle {
-        while !scheduler.at_boundary() && count < 4 {
-            segments[count] = CommandSegment::of(&scheduler.next_segment(), &plan);
-            count += 1;
-        }
-    }
-    (segments, count)
-}
-
-/// The plan of the scheduler's next cycle as the loop aims at it.
-fn next_shape(
-    cycle_loop: &CycleLoop,
-    scheduler: &mut Scheduler,
-) -> Result<CycleShape, CourseError> {
-    let first = scheduler.next_segment();
-    let (segments, count) = rest_of_cycle(&first, scheduler);
-    if first.kind == SegmentKind::Idle {
-        return Ok(CycleShape::idle(segments[0].duration_s));
-    }
-    cycle_loop.plan(&segments[..count]).ok_or(CourseError::Plan)
-}
-
-/// The position sampled nearest the turning tick of cycle `last` (the velocity is zero there,
-/// so the nearest sample is off by at most `a·Δt²/8`).
-fn turn_position_m(last: &Begun, samples: &[PositionSample]) -> f64 {
-    let turn_tick = last.start.tick as f64 + last.shape.turn_s * f64::from(last.clock_hz);
-    samples
-        .iter()
-        .min_by(|a, b| {
-            libm::fabs(a.tick as f64 - turn_tick).total_cmp(&libm::fabs(b.tick as f64 - turn_tick))
-        })
-        .map_or(last.start.position_m, |sample| sample.position_m)
-}
-
-/// The mean position from `start` to `end` through `samples` (trapezoids).
-fn mean_position_m(start: PositionSample, samples: &[PositionSample], end: PositionSample) -> f64 {
-    let mut area = 0.0;
-    let mut previous = start;
-    for sample in samples.iter().chain(core::iter::once(&end)) {
-        let ticks = sample.tick.saturating_sub(previous.tick) as f64;
-        area += ticks * (sample.position_m + previous.position_m) / 2.0;
-        previous = *sample;
-    }
-    let ticks = end.tick.saturating_sub(start.tick) as f64;
-    if ticks > 0.0 {
-        area / ticks
-    } else {
-        start.position_m
     }
 }

@@ -1,0 +1,55 @@
+//! How the course runs: the probe's length and level, when the plate counts as centred, the
+//! loop's limits.
+
+use crate::closed_loop::cycle_loop::LoopLimits;
+
+/// How the course runs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct CourseConfig {
+    /// Held cycles the probe keeps (1 to [`PROBE_CYCLES_MAX`](super::PROBE_CYCLES_MAX)).
+    pub probe_cycles: u32,
+    /// The held step as a fraction of the soft start's steps (at least one step).
+    pub probe_fraction: f64,
+    /// The position sensor's resolution: the probe must move the plate 20 of them.
+    pub resolution_m: f64,
+    /// The plate counts as centred within this of where a cycle should start …
+    pub centred_m: f64,
+    /// … for this many held cycles in a row.
+    pub centred_cycles: u32,
+    /// Centring that takes more held cycles than this fails.
+    pub centring_cycles_max: u32,
+    pub loop_limits: LoopLimits,
+    /// The output's smallest step of a level (a DAC count), 0 for a continuous one
+    /// ([`CycleLoop::with_level_step`](crate::closed_loop::CycleLoop::with_level_step)).
+    pub level_step_mps2: f64,
+}
+
+impl CourseConfig {
+    /// 4 probe cycles at 30 % of the levels; centred within 25 µm for 3 cycles, in at most 250
+    /// cycles; the loop may add up to 50 m/s² (a quarter of the envelope's full scale: a spring
+    /// or slide friction at its limit needs that much), trim the stroke by ±20 % and gives up
+    /// 4 mm from centre; levels in steps of `level_step_mps2`.
+    pub fn new(resolution_m: f64, level_step_mps2: f64) -> Self {
+        CourseConfig {
+            probe_cycles: 4,
+            probe_fraction: 0.3,
+            resolution_m,
+            centred_m: 25e-6,
+            centred_cycles: 3,
+            centring_cycles_max: 250,
+            loop_limits: LoopLimits {
+                correction_max_mps2: 50.0,
+                amplitude_max: 0.2,
+                position_error_max_m: 4e-3,
+            },
+            level_step_mps2,
+        }
+    }
+
+    /// The held step of a soft start of `ramp_steps` steps.
+    pub fn probe_step(&self, ramp_steps: u16) -> u16 {
+        let step = libm::round(self.probe_fraction * f64::from(ramp_steps));
+        (step as u16).clamp(1, ramp_steps.max(1))
+    }
+}

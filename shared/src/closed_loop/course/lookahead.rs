@@ -1,0 +1,40 @@
+//! The cycles ahead as the course plans them: the rest of the cycle begun and the shape of the
+//! next one, from a copy of the scheduler.
+
+use crate::closed_loop::cycle_loop::CycleLoop;
+use crate::closed_loop::shape::{CommandSegment, CycleShape};
+use crate::scheduler::{Scheduler, Segment};
+use crate::segment::SegmentKind;
+
+use super::error::CourseError;
+
+/// The segments of the cycle `begun` starts, in seconds, with `scheduler` right after it
+/// (advanced to the next boundary); an idle period is its one segment.
+pub(super) fn rest_of_cycle(
+    begun: &Segment,
+    scheduler: &mut Scheduler,
+) -> ([CommandSegment; 4], usize) {
+    let plan = *scheduler.plan();
+    let mut segments = [CommandSegment::of(begun, &plan); 4];
+    let mut count = 1;
+    if begun.kind != SegmentKind::Idle {
+        while !scheduler.at_boundary() && count < 4 {
+            segments[count] = CommandSegment::of(&scheduler.next_segment(), &plan);
+            count += 1;
+        }
+    }
+    (segments, count)
+}
+
+/// The plan of the scheduler's next cycle as the loop aims at it.
+pub(super) fn next_shape(
+    cycle_loop: &CycleLoop,
+    scheduler: &mut Scheduler,
+) -> Result<CycleShape, CourseError> {
+    let first = scheduler.next_segment();
+    let (segments, count) = rest_of_cycle(&first, scheduler);
+    if first.kind == SegmentKind::Idle {
+        return Ok(CycleShape::idle(segments[0].duration_s));
+    }
+    cycle_loop.plan(&segments[..count]).ok_or(CourseError::Plan)
+}

@@ -1,0 +1,56 @@
+//! What the course reads of the plate: positions sampled at ticks ([`PositionSample`]) and, of
+//! a cycle begun, where it turned and its mean position.
+
+use crate::closed_loop::shape::CycleShape;
+
+/// A plate position sampled at a tick of the output's timeline.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PositionSample {
+    pub tick: u64,
+    pub position_m: f64,
+}
+
+/// A cycle begun, as the course keeps it until the next boundary.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Begun {
+    pub(super) start: PositionSample,
+    pub(super) shape: CycleShape,
+    /// Runs at the plan's full amplitude: only those cycles' strokes and means are held.
+    pub(super) full: bool,
+    pub(super) idle: bool,
+    pub(super) clock_hz: u32,
+}
+
+/// The position sampled nearest the turning tick of cycle `last` (the velocity is zero there,
+/// so the nearest sample is off by at most `a·Δt²/8`).
+pub(super) fn turn_position_m(last: &Begun, samples: &[PositionSample]) -> f64 {
+    let turn_tick = last.start.tick as f64 + last.shape.turn_s * f64::from(last.clock_hz);
+    samples
+        .iter()
+        .min_by(|a, b| {
+            libm::fabs(a.tick as f64 - turn_tick).total_cmp(&libm::fabs(b.tick as f64 - turn_tick))
+        })
+        .map_or(last.start.position_m, |sample| sample.position_m)
+}
+
+/// The mean position from `start` to `end` through `samples` (trapezoids).
+pub(super) fn mean_position_m(
+    start: PositionSample,
+    samples: &[PositionSample],
+    end: PositionSample,
+) -> f64 {
+    let mut area = 0.0;
+    let mut previous = start;
+    for sample in samples.iter().chain(core::iter::once(&end)) {
+        let ticks = sample.tick.saturating_sub(previous.tick) as f64;
+        area += ticks * (sample.position_m + previous.position_m) / 2.0;
+        previous = *sample;
+    }
+    let ticks = end.tick.saturating_sub(start.tick) as f64;
+    if ticks > 0.0 {
+        area / ticks
+    } else {
+        start.position_m
+    }
+}

@@ -1,0 +1,93 @@
+//! The probe's record ([`Probe`]): the levels its held cycles were commanded and the positions
+//! sampled through them, from which the drive is identified.
+
+use crate::closed_loop::identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};
+use crate::closed_loop::shape::CommandSegment;
+
+use super::measure::PositionSample;
+
+/// The most positions a probe keeps (the identification takes at most 512).
+pub const PROBE_POSITIONS_MAX: usize = 512;
+/// The most probe cycles.
+pub const PROBE_CYCLES_MAX: u32 = 8;
+/// The most segments in the probe's cycles.
+const PROBE_SEGMENTS_MAX: usize = 4 * PROBE_CYCLES_MAX as usize;
+
+/// The probe's record: the levels its cycles were commanded and the positions sampled through
+/// them, timed from its first start.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Probe {
+    start_tick: u64,
+    clock_hz: u32,
+    /// The plan's period.
+    period_s: f64,
+    resolution_m: f64,
+    positions: [Latch; PROBE_POSITIONS_MAX],
+    position_count: usize,
+    segments: [CommandSegment; PROBE_SEGMENTS_MAX],
+    segment_count: usize,
+}
+
+impl Probe {
+    pub(super) fn new(start_tick: u64, clock_hz: u32, period_s: f64, resolution_m: f64) -> Self {
+        let latch = Latch {
+            t_s: 0.0,
+            position_m: 0.0,
+        };
+        let segment = CommandSegment {
+            duration_s: 0.0,
+            accel_mps2: 0.0,
+        };
+        Probe {
+            start_tick,
+            clock_hz,
+            period_s,
+            resolution_m,
+            positions: [latch; PROBE_POSITIONS_MAX],
+            position_count: 0,
+            segments: [segment; PROBE_SEGMENTS_MAX],
+            segment_count: 0,
+        }
+    }
+
+    /// Keeps `sample` if it is later than the last one kept (and there is room).
+    pub(super) fn keep_position(&mut self, sample: PositionSample) {
+        let Some(ticks) = sample.tick.checked_sub(self.start_tick) else {
+            return;
+        };
+        let t_s = ticks as f64 / f64::from(self.clock_hz);
+        let later = self.positions[..self.position_count]
+            .last()
+            .is_none_or(|kept| t_s > kept.t_s);
+        if later && self.position_count < PROBE_POSITIONS_MAX {
+            self.positions[self.position_count] = Latch {
+                t_s,
+                position_m: sample.position_m,
+            };
+            self.position_count += 1;
+        }
+    }
+
+    pub(super) fn keep_segment(&mut self, segment: CommandSegment) {
+        if self.segment_count < PROBE_SEGMENTS_MAX {
+            self.segments[self.segment_count] = segment;
+            self.segment_count += 1;
+        }
+    }
+
+    /// The positions kept.
+    pub fn positions(&self) -> &[Latch] {
+        &self.positions[..self.position_count]
+    }
+
+    /// The levels commanded, trims included.
+    pub fn segments(&self) -> &[CommandSegment] {
+        &self.segments[..self.segment_count]
+    }
+
+    /// The drive identified from the probe, within [`IdentifyLimits::for_probe`].
+    pub fn identify(&self) -> Result<Identified, IdentifyError> {
+        let limits = IdentifyLimits::for_probe(self.resolution_m, self.period_s);
+        identify(self.segments(), self.positions(), &limits)
+    }
+}

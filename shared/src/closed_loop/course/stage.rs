@@ -1,0 +1,44 @@
+//! Where the course is ([`Stage`]) and what the closed loop reports of it ([`LoopReport`]).
+
+use crate::closed_loop::identify::Identified;
+
+/// Where the course is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Stage {
+    /// Waiting for the first held cycle.
+    Waiting,
+    /// Keeping the positions of the probe's cycles.
+    Probing,
+    /// The probe complete, waiting for [`Course::set_identified`](super::Course::set_identified).
+    Identifying,
+    /// Held cycles, trimmed on the identified drive, until the plate is centred.
+    Centring,
+    /// The soft start released; every cycle trimmed.
+    Feeding,
+    /// The course stopped with an error; only a new course helps.
+    Failed,
+}
+
+impl Stage {
+    /// The stage's name in replies and logs.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Stage::Waiting => "waiting",
+            Stage::Probing => "probing",
+            Stage::Identifying => "identifying",
+            Stage::Centring => "centring",
+            Stage::Feeding => "feeding",
+            Stage::Failed => "failed",
+        }
+    }
+}
+
+/// What the closed loop reports (the console's `status`): where the course is and, once
+/// identified, the drive.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LoopReport {
+    pub stage: Stage,
+    pub drive: Option<Identified>,
+}
