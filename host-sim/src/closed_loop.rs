@@ -7,7 +7,7 @@
 
 use feeder_shared::closed_loop::{
     Course, CourseConfig, CourseError, CycleTrims, Decision, Identified, LoopLimits,
-    PositionSample, Probe, Stage, Trims, ENVELOPE,
+    PositionSample, Stage, Trims, ENVELOPE,
 };
 use feeder_shared::{DacCalibration, Scheduler, Segment, SegmentKind, TickPlan};
 
@@ -262,8 +262,6 @@ impl Runner {
         // periods after power-up.
         let mut queued = self.scheduler.next_segment();
         let mut start_requested = true;
-        // The identification of the probe, once made, until the course takes it.
-        let mut identified = None;
         let mut queued_trims = Trims::NONE;
         let mut trims = Trims::NONE;
         let mut feeding_cycles = 0;
@@ -294,17 +292,14 @@ impl Runner {
                     CourseError::Identify(error) => SimError::Identification(error),
                     error => SimError::Loop { time_s, error },
                 };
-                // The drive identified from the probe is handed over at the next boundary, as
-                // the firmware's closed loop takes an identification done below it.
-                if let Some(found) = identified.take() {
-                    self.course.set_identified(found).map_err(fail)?;
-                }
                 let decision = self
                     .course
                     .boundary(&playing, &self.scheduler, start, &samples)
                     .map_err(fail)?;
-                if decision.identify {
-                    identified = self.course.probe().map(Probe::identify);
+                // Identified at once; the course takes it at the end of its hold.
+                if let Some(probe) = self.course.probe().filter(|_| decision.identify) {
+                    let found = probe.identify();
+                    self.course.set_identified(found);
                 }
                 let feeding = self.course.stage() == Stage::Feeding;
                 if decision.release {

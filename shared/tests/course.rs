@@ -184,9 +184,10 @@ impl Rig {
     }
 
     /// Identifies the drive from a complete probe and hands it over; `None` without one.
-    fn identify(&mut self) -> Option<Result<(), CourseError>> {
+    fn identify(&mut self) -> Option<()> {
         let found = self.course.probe()?.identify();
-        Some(self.course.set_identified(found))
+        self.course.set_identified(found);
+        Some(())
     }
 
     /// The planned (untrimmed) mean displacement from rest of the cycle begun.
@@ -228,8 +229,8 @@ fn run_course(rig: &mut Rig, after: usize) -> Vec<Record> {
             start_error_m: rig.start.position_m + rig.planned_mean_m(),
             max_abs_m: std::mem::take(&mut rig.plate.max_abs_m),
         };
-        if let Some(handed) = rig.identify() {
-            handed.expect("an identification the course takes");
+        if decision.identify {
+            rig.identify().expect("a probe to identify");
         }
         fed += usize::from(record.stage == Stage::Feeding && !record.decision.release);
         records.push(record);
@@ -247,7 +248,8 @@ fn largest(values: impl Iterator<Item = f64>) -> f64 {
 }
 
 /// On an ideal drive the course goes through every stage once, in order: the probe on the held
-/// cycles, one offer of the probe for identification, centring on the identified drive, and one
+/// cycles, one offer of the probe for identification, held cycles until the hold for it ends,
+/// centring on the identified drive, and one
 /// release after which the soft start goes on from the held step. The drive found is the ideal
 /// one.
 #[test]
@@ -260,8 +262,15 @@ fn an_ideal_drive_is_probed_identified_centred_and_released() {
     assert_eq!(stages, [Probing, Identifying, Centring, Feeding]);
     // The first held cycle begins the probe; its fifth start completes it.
     assert_eq!(records[0].stage, Probing);
-    assert_eq!(indices(&records, |r| r.probe), [4]);
     assert_eq!(indices(&records, |r| r.decision.identify), [4]);
+    // Handed over at once, the drive is taken at the first boundary 5 s (250 cycles) after the
+    // probe's; the probe is there until then.
+    assert_eq!(
+        indices(&records, |r| r.probe),
+        (4..4 + 250).collect::<Vec<_>>()
+    );
+    let centring = indices(&records, |r| r.stage == Centring);
+    assert_eq!(centring.first(), Some(&(4 + 250)));
     let releases = indices(&records, |r| r.decision.release);
     assert_eq!(releases.len(), 1);
     let release = releases[0];
@@ -391,22 +400,42 @@ fn a_position_that_is_not_a_number_or_far_away_fails_the_course() {
     assert_trims_nothing(&mut rig);
 }
 
+/// The boundaries of the identification's hold (5 s, 250 cycles, from the probe's end), each
+/// still identifying, up to the error at its end.
+fn hold_until_stopped(rig: &mut Rig) -> CourseError {
+    for _ in 1..250 {
+        rig.boundary().unwrap();
+        assert_eq!(rig.course.stage(), Stage::Identifying);
+    }
+    rig.boundary().unwrap_err()
+}
+
 /// An identification handed over before the probe is complete is ignored; a refused one
-/// stops the course with the refusal.
+/// stops the course with the refusal at the end of the hold.
 #[test]
 fn a_refused_identification_fails_the_course() {
     let mut rig = Rig::started(IDEAL);
-    let early = rig.course.set_identified(Err(IdentifyError::Singular));
-    assert_eq!((early, rig.course.stage()), (Ok(()), Stage::Waiting));
+    rig.course.set_identified(Err(IdentifyError::Singular));
+    assert_eq!(rig.course.stage(), Stage::Waiting);
     while !rig.boundary().unwrap().identify {
         assert_eq!(rig.course.stage(), Stage::Probing);
     }
     let refusal = IdentifyError::NoMotion { excursion_m: 0.0 };
-    assert_eq!(
-        rig.course.set_identified(Err(refusal)),
-        Err(CourseError::Identify(refusal))
-    );
+    rig.course.set_identified(Err(refusal));
+    assert_eq!(hold_until_stopped(&mut rig), CourseError::Identify(refusal));
     assert!(rig.course.identified().is_none());
+    assert_trims_nothing(&mut rig);
+}
+
+/// An identification not handed over by the end of the hold stops the course, naming the hold.
+#[test]
+fn an_identification_later_than_the_hold_fails_the_course() {
+    let mut rig = Rig::started(IDEAL);
+    while !rig.boundary().unwrap().identify {}
+    assert_eq!(
+        hold_until_stopped(&mut rig),
+        CourseError::IdentifyLate { hold_s: 5.0 }
+    );
     assert_trims_nothing(&mut rig);
 }
 
@@ -422,7 +451,7 @@ fn a_course_started_at_once_probes_its_full_cycles() {
     assert!(rig.boundary().unwrap().identify);
     let probe = rig.course.probe().unwrap();
     assert_eq!((probe.positions().len(), probe.segments().len()), (321, 16));
-    assert_eq!(rig.identify(), Some(Ok(())));
+    assert_eq!(rig.identify(), Some(()));
 }
 
 fn finite(trims: Trims) -> bool {
@@ -448,11 +477,15 @@ proptest! {
             }
             for _ in 0..segments {
                 match rig.segment() {
-                    Some(Ok(decision)) => prop_assert!(finite(decision.trims)),
+                    Some(Ok(decision)) => {
+                        prop_assert!(finite(decision.trims));
+                        if decision.identify {
+                            rig.identify();
+                        }
+                    }
                     Some(Err(_)) => prop_assert_eq!(rig.course.stage(), Stage::Failed),
                     None => {}
                 }
-                let _ = rig.identify();
                 prop_assert!(finite(rig.trims) && finite(rig.course.feedforward()));
             }
         }

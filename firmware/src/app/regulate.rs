@@ -89,12 +89,7 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
         let stage = course.stage();
         if let Some(result) = IDENTIFIED.try_take() {
             report(&result);
-            let identified = course.set_identified(result);
-            status::publish_loop(course.report());
-            if let Err(error) = identified {
-                stop(error);
-                return;
-            }
+            course.set_identified(result);
         }
         if let Some(last) = last_cycle.filter(|last| boundary.begun.cycle != last + 1) {
             stop(CourseError::MissedBoundary { cycle: last + 1 });

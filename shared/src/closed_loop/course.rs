@@ -7,7 +7,9 @@
 //!    `probe_cycles` cycles and the levels they were commanded are kept ([`Probe`]).
 //! 2. **Identify**: held cycles go on, still on the nominal drive, while the drive is identified
 //!    from the probe ([`Probe::identify`], long: the firmware runs it below the loop) and handed
-//!    back ([`Course::set_identified`]).
+//!    back ([`Course::set_identified`]). The course takes it at the first boundary
+//!    [`CourseConfig::identify_hold_s`] after the probe's end, however early it came, so that
+//!    every runner holds the plate as long.
 //! 3. **Centre**: the loop, now on the identified drive, trims held cycles until the plate has
 //!    started `centred_cycles` of them in a row within `centred_m` of where it should.
 //! 4. **Feed**: the hold is released, the soft start goes on from the held step, and the loop
@@ -62,6 +64,10 @@ pub struct Course {
     probe: Option<Probe>,
     probe_cycles: u32,
     identified: Option<Identified>,
+    /// The identification handed over, until the course takes it …
+    handed: Option<Result<Identified, IdentifyError>>,
+    /// … at the first boundary from this tick on.
+    identify_tick: u64,
     cycle_loop: CycleLoop,
     /// The trims last decided, for the cycle after the one begun at the last boundary.
     decided: Trims,
@@ -81,6 +87,8 @@ impl Course {
             probe: None,
             probe_cycles: 0,
             identified: None,
+            handed: None,
+            identify_tick: 0,
             cycle_loop: CycleLoop::new(&Identified::NOMINAL, config.loop_limits)
                 .with_level_step(config.level_step_mps2),
             decided: Trims::NONE,
@@ -125,26 +133,28 @@ impl Course {
         self.cycle_loop.feedforward()
     }
 
-    /// Hands over the identification of [`Course::probe`]: the loop goes on with the drive
-    /// found, and the centring begins. A refusal stops the course.
-    pub fn set_identified(
-        &mut self,
-        result: Result<Identified, IdentifyError>,
-    ) -> Result<(), CourseError> {
-        if self.stage != Stage::Identifying {
-            return Ok(());
+    /// Hands over the identification of [`Course::probe`], which the course takes at the end
+    /// of its hold ([`CourseConfig::identify_hold_s`]): then the loop goes on with the drive
+    /// found and the centring begins, or a refusal stops the course. Ignored at any other stage.
+    pub fn set_identified(&mut self, result: Result<Identified, IdentifyError>) {
+        if self.stage == Stage::Identifying {
+            self.handed = Some(result);
         }
-        match result {
-            Ok(identified) => {
+    }
+
+    /// At the end of the identification's hold, the drive handed over.
+    fn take_identified(&mut self) -> Result<(), CourseError> {
+        match self.handed.take() {
+            Some(Ok(identified)) => {
                 self.identified = Some(identified);
                 self.cycle_loop.set_drive(&identified);
                 self.stage = Stage::Centring;
                 Ok(())
             }
-            Err(error) => {
-                self.stage = Stage::Failed;
-                Err(CourseError::Identify(error))
-            }
+            Some(Err(error)) => Err(CourseError::Identify(error)),
+            None => Err(CourseError::IdentifyLate {
+                hold_s: self.config.identify_hold_s,
+            }),
         }
     }
 
@@ -181,6 +191,9 @@ impl Course {
             start,
             samples,
         } = at;
+        if self.stage == Stage::Identifying && start.tick >= self.identify_tick {
+            self.take_identified()?;
+        }
         let mut lookahead = ahead.clone();
         let (segments, count) = rest_of_cycle(begun, &mut lookahead);
         let segments = &segments[..count];
@@ -231,6 +244,9 @@ impl Course {
             probe.keep_position(start);
             if self.probe_cycles == self.config.probe_cycles.clamp(1, PROBE_CYCLES_MAX) {
                 self.stage = Stage::Identifying;
+                let hold_ticks =
+                    libm::round(self.config.identify_hold_s * f64::from(plan.clock_hz));
+                self.identify_tick = start.tick.saturating_add(hold_ticks as u64);
                 decision.identify = true;
             } else {
                 for segment in segments {

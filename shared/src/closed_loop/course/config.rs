@@ -19,6 +19,10 @@ pub struct CourseConfig {
     pub centred_cycles: u32,
     /// Centring that takes more held cycles than this fails.
     pub centring_cycles_max: u32,
+    /// How long the held cycles after the probe give the identification: it is taken at the
+    /// first boundary this long after the probe's end, and one not there by then stops the
+    /// course.
+    pub identify_hold_s: f64,
     pub loop_limits: LoopLimits,
     /// The output's smallest step of a level (a DAC count), 0 for a continuous one
     /// ([`CycleLoop::with_level_step`](crate::closed_loop::CycleLoop::with_level_step)).
@@ -26,10 +30,11 @@ pub struct CourseConfig {
 }
 
 impl CourseConfig {
-    /// 4 probe cycles at 30 % of the levels; centred within 25 µm for 3 cycles, in at most 250
-    /// cycles; the loop may add up to 50 m/s² (a quarter of the envelope's full scale: a spring
-    /// or slide friction at its limit needs that much), trim the stroke by ±20 % and gives up
-    /// 4 mm from centre; levels in steps of `level_step_mps2`.
+    /// 4 probe cycles at 30 % of the levels; the identification taken 5 s after the probe (the
+    /// firmware needs 3.9 s under QEMU at 50 Hz); centred within 25 µm for 3 cycles, in at most
+    /// 250 cycles; the loop may add up to 50 m/s² (a quarter of the envelope's full scale: a
+    /// spring or slide friction at its limit needs that much), trim the stroke by ±20 % and
+    /// gives up 4 mm from centre; levels in steps of `level_step_mps2`.
     pub fn new(resolution_m: f64, level_step_mps2: f64) -> Self {
         CourseConfig {
             probe_cycles: 4,
@@ -38,6 +43,7 @@ impl CourseConfig {
             centred_m: 25e-6,
             centred_cycles: 3,
             centring_cycles_max: 250,
+            identify_hold_s: 5.0,
             loop_limits: LoopLimits {
                 correction_max_mps2: 50.0,
                 amplitude_max: 0.2,

@@ -24,6 +24,10 @@ pub enum CourseError {
     NoCapture {
         tick: u64,
     },
+    /// The identification was not handed over within the hold the course gives it.
+    IdentifyLate {
+        hold_s: f64,
+    },
 }
 
 impl CourseError {
@@ -53,6 +57,11 @@ impl core::fmt::Display for CourseError {
             CourseError::NoCapture { tick } => write!(
                 f,
                 "the position sensor has no capture at the cycle start tick {tick}"
+            ),
+            CourseError::IdentifyLate { hold_s } => write!(
+                f,
+                "the drive's identification was not done within the {hold_s} s the course holds \
+                 the plate for it"
             ),
         }
     }

@@ -10,7 +10,8 @@ pub enum Stage {
     Waiting,
     /// Keeping the positions of the probe's cycles.
     Probing,
-    /// The probe complete, waiting for [`Course::set_identified`](super::Course::set_identified).
+    /// The probe complete, held until the identification handed over
+    /// ([`Course::set_identified`](super::Course::set_identified)) is taken.
     Identifying,
     /// Held cycles, trimmed on the identified drive, until the plate is centred.
     Centring,
