@@ -88,6 +88,8 @@ pub struct Scheduler {
     quick_stop: bool,
     /// While running, cycles stay at this step instead of ramping (the closed loop's probe).
     held_step: Option<u16>,
+    /// A hold asked for in steps of the pending ramp length, taken with it.
+    pending_held_step: Option<u16>,
     step: u16,
     phase: Phase,
     cycle: u64,
@@ -110,6 +112,7 @@ impl Scheduler {
             run_requested: false,
             quick_stop: false,
             held_step: None,
+            pending_held_step: None,
             step: 0,
             phase: Phase::Stopped,
             cycle: 0,
@@ -142,9 +145,15 @@ impl Scheduler {
     /// Hold the amplitude at `step / ramp_cycles` (at most all) from the next cycle boundary
     /// while motion is requested: a start goes there at once, without the soft start, and a
     /// running plan drops to it; step 0 idles while motion stays requested. The closed loop
-    /// probes the drive and centres the plate on held cycles.
+    /// probes the drive and centres the plate on held cycles. With a new ramp length pending
+    /// ([`Self::set_ramp_cycles`]), `step` counts the new ramp's steps and replaces the held step
+    /// when the new length takes effect.
     pub fn hold_step(&mut self, step: u16) {
-        self.held_step = Some(step);
+        if self.pending_ramp_steps.is_some() {
+            self.pending_held_step = Some(step);
+        } else {
+            self.held_step = Some(step);
+        }
     }
 
     /// The step held, in steps of the ramp in force (a new ramp length scales it), if any.
@@ -155,6 +164,7 @@ impl Scheduler {
     /// End a hold: from the next cycle boundary the soft start goes on from the held step.
     pub fn release_hold(&mut self) {
         self.held_step = None;
+        self.pending_held_step = None;
     }
 
     /// Replace the plan at the next cycle boundary. The clock must be the running one.
@@ -250,7 +260,8 @@ impl Scheduler {
                 } else {
                     0
                 };
-                // A hold keeps its fraction of the amplitude.
+                // A hold keeps its fraction of the amplitude, unless one was asked for in the new
+                // length's steps.
                 self.held_step = self.held_step.map(|held| {
                     let scaled = (u32::from(held) * u32::from(steps) + old_steps / 2) / old_steps;
                     if held > 0 {
@@ -259,6 +270,9 @@ impl Scheduler {
                         0
                     }
                 });
+                if let Some(held) = self.pending_held_step.take() {
+                    self.held_step = Some(held);
+                }
                 self.ramp_steps = steps;
             }
             self.residual = round(residual_m / self.residual_unit_m()) as i64;

@@ -471,3 +471,23 @@ fn a_new_ramp_length_scales_the_held_step() {
     assert_eq!((first.amplitude.step, first.amplitude.steps), (3, 8));
     assert_eq!(scheduler.held_step(), Some(3));
 }
+
+/// A hold asked for after a new ramp length, before it takes effect, counts the new length's
+/// steps: 2 of 8 stays 2 of 8 where the 8 of 25 held before would scale to 3.
+#[test]
+fn a_hold_with_a_new_ramp_length_pending_counts_its_steps() {
+    let mut scheduler = paper_scheduler(0.586, 25);
+    scheduler.hold_step(8);
+    scheduler.set_ramp_cycles(8);
+    scheduler.hold_step(2);
+    assert_eq!(scheduler.held_step(), Some(8));
+    scheduler.start();
+    let first = scheduler.next_segment();
+    assert_eq!((first.amplitude.step, first.amplitude.steps), (2, 8));
+    assert_eq!(scheduler.held_step(), Some(2));
+    scheduler.release_hold();
+    for _ in 0..3 {
+        scheduler.next_segment();
+    }
+    assert_eq!(scheduler.next_segment().amplitude.step, 3);
+}
