@@ -13,6 +13,7 @@ use feeder_shared::{
     Action, Controller, LineAssembler, Machine, RecipeStore, Snapshot, SupervisorEvent, TickClock,
 };
 
+use crate::app::regulate::probe_step;
 use crate::config;
 use crate::mailbox::{ReadyPlan, NEXT_PLAN, REQUESTS};
 use crate::status;
@@ -67,6 +68,7 @@ pub async fn serve<P: Read + Write, S: RecipeStore>(mut port: P, mut recipes: S,
                         spec,
                         plan,
                         ramp_cycles,
+                        hold_step: probe_step(ramp_cycles),
                     }))
                 }),
             }

@@ -11,6 +11,7 @@ use embassy_sync::channel::Channel;
 use feeder_shared::closed_loop::ENVELOPE;
 use feeder_shared::{Error, SupervisorEvent, TickClock, TickPlan, Waveform, WaveformSpec};
 
+use crate::app::regulate::probe_step;
 use crate::config;
 
 /// Operator requests, taken in order at the control loop's next edge: the supervisor's operator
@@ -29,6 +30,9 @@ pub struct ReadyPlan {
     pub spec: WaveformSpec,
     pub plan: TickPlan,
     pub ramp_cycles: u16,
+    /// The closed loop's probe step on this ramp length, held in place of the scaled one while
+    /// its course holds the scheduler.
+    pub hold_step: u16,
 }
 
 impl ReadyPlan {
@@ -56,6 +60,7 @@ impl ReadyPlan {
             spec: *spec,
             plan,
             ramp_cycles,
+            hold_step: probe_step(ramp_cycles),
         })
     }
 }

@@ -381,9 +381,9 @@ fn a_drive_the_identification_refuses_stops_the_firmware_by_name() {
 }
 
 /// The scenario of the host-and-lockstep comparison: the firmware's default operating point
-/// (50 Hz, d = 0.586, a 2.5 mm stroke) and soft start (25 cycles), 100 cycles after the release,
-/// no duty change.
-const COMPARED: [&str; 3] = ["cycles=100", "ramp=25", "new_duty=0.586"];
+/// (50 Hz, d = 0.586, a 2.5 mm stroke), an 8-cycle soft start (not the firmware's 25: its hold
+/// must follow), 100 cycles after the release, no duty change.
+const COMPARED: [&str; 3] = ["cycles=100", "ramp=8", "new_duty=0.586"];
 
 /// The closed-loop image's encoder resolution (`board/qemu/encoder.rs`).
 const FIRMWARE_ENCODER_RESOLUTION_M: f64 = 1e-6;

@@ -104,7 +104,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         let mut scheduler = Scheduler::new(plan, config::RAMP_CYCLES);
         if CLOSED_LOOP {
             // The course probes and centres on held cycles from the first start.
-            scheduler.hold_step(regulate::probe_step());
+            scheduler.hold_step(regulate::probe_step(config::RAMP_CYCLES));
         }
         let mut queued = self.resync(&mut scheduler);
         loop {
@@ -271,6 +271,10 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         match scheduler.set_plan(ready.plan) {
             Ok(()) => {
                 scheduler.set_ramp_cycles(ready.ramp_cycles);
+                if CLOSED_LOOP && scheduler.held_step().is_some() {
+                    // The course's hold for the new ramp length, as a course made for it holds.
+                    scheduler.hold_step(ready.hold_step);
+                }
                 trace::plan(
                     scheduler.next_tick(),
                     &ready.spec,

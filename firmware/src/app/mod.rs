@@ -4,7 +4,7 @@
 mod control;
 mod monitor;
 mod panel;
-mod regulate;
+pub(crate) mod regulate;
 mod track;
 
 use defmt::unwrap;

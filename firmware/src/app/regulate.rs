@@ -61,10 +61,10 @@ static PROBE_READY: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 static IDENTIFIED: Signal<CriticalSectionRawMutex, Result<Identified, IdentifyError>> =
     Signal::new();
 
-/// The course's probe step for the scheduler's hold: the control loop holds its scheduler there
-/// before the first start.
-pub fn probe_step() -> u16 {
-    course_config(0.0).probe_step(config::RAMP_CYCLES.max(1))
+/// The course's probe step for the scheduler's hold on a soft start of `ramp_cycles`: the
+/// control loop holds its scheduler there before the first start and with every new ramp length.
+pub fn probe_step(ramp_cycles: u16) -> u16 {
+    course_config(0.0).probe_step(ramp_cycles.max(1))
 }
 
 /// The course for an output whose levels move in steps of `level_step_mps2`.
