@@ -23,7 +23,7 @@ use crate::segment::SegmentKind;
 use crate::waveform::Waveform;
 use libm::{fabs, round, sqrt};
 
-/// The worst work between an edge and the next preload, in instructions, rounded up: 10,875
+/// The worst work between an edge and the next preload, in instructions, rounded up: 10,885
 /// measured under QEMU (`-icount shift=4`, `cargo xtask run cycles=1000`, at 50 Hz and at 100 Hz
 /// with `stroke_m=0.0006`), wake-up and the `EVT` trace included, on the edge that takes a start
 /// request and a new plan.
