@@ -8,8 +8,8 @@ use defmt::info;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::channel::Channel;
-use feeder_shared::closed_loop::ENVELOPE;
-use feeder_shared::{Error, SupervisorEvent, TickClock, TickPlan, Waveform, WaveformSpec};
+use feeder_shared::settings::plan_waveform;
+use feeder_shared::{Error, SupervisorEvent, TickClock, TickPlan, WaveformSpec};
 
 use crate::app::regulate::probe_step;
 use crate::config;
@@ -40,11 +40,8 @@ impl ReadyPlan {
     /// closed loop runs), against the room the loop keeps in the DAC's linear range; plans it
     /// on the output's `clock`.
     pub fn new(clock: TickClock, spec: &WaveformSpec, ramp_cycles: u16) -> Result<Self, Error> {
-        let waveform = Waveform::new(*spec, &config::LIMITS)?;
-        if let Some(linear_mps2) = config::LOOP_LINEAR_MPS2 {
-            ENVELOPE.check_loop_accel(waveform.accel_mps2, linear_mps2)?;
-        }
-        let plan = TickPlan::new(&waveform, clock)?;
+        let (waveform, plan) =
+            plan_waveform(*spec, &config::LIMITS, config::LOOP_LINEAR_MPS2, clock)?;
         info!(
             "plan: {=f64} Hz ({=u32} ticks of {=u32} Hz), d = {=f64}, a_max = {=f64} m/s², \
              x_max = {=f64} m, drift bound {=f64} m",

@@ -12,13 +12,12 @@
 
 use core::fmt;
 
-use crate::closed_loop::ENVELOPE;
 use crate::drive::{DacCalibration, DriveError, MACHINE_LIMITS};
 use crate::error::{positive, Error, Quantity};
 use crate::number::{parse_length, split_decimal, LengthError, LengthUnit, Significant};
-use crate::plan::{TickClock, TickPlan};
-use crate::settings::Settings;
-use crate::waveform::{Drive, Waveform, WaveformSpec};
+use crate::plan::TickClock;
+use crate::settings::{plan_waveform, Settings};
+use crate::waveform::{Drive, WaveformSpec};
 
 /// The emulated board's `-icount shift`: every instruction advances virtual time by 2^shift ns,
 /// so a run is deterministic and its timer cycles count instructions.
@@ -354,15 +353,8 @@ impl Scenario {
                 duty: spec.duty,
                 cause,
             };
-            let waveform = positive(Quantity::FrequencyHz, 1.0 / spec.period_s)
-                .and_then(|_| Waveform::new(spec, &MACHINE_LIMITS))
-                .and_then(|waveform| match loop_linear_mps2 {
-                    Some(linear_mps2) => ENVELOPE
-                        .check_loop_accel(waveform.accel_mps2, linear_mps2)
-                        .map(|()| waveform),
-                    None => Ok(waveform),
-                })
-                .and_then(|waveform| TickPlan::new(&waveform, clock).map(|_| waveform))
+            let (waveform, _) = positive(Quantity::FrequencyHz, 1.0 / spec.period_s)
+                .and_then(|_| plan_waveform(spec, &MACHINE_LIMITS, loop_linear_mps2, clock))
                 .map_err(|error| refused(RefusalCause::Waveform(error)))?;
             DacCalibration::DEFAULT
                 .levels(waveform.accel_mps2)

@@ -77,11 +77,12 @@ impl Settings {
     /// room, where it runs) and a representable tick plan.
     pub fn validate(&self, machine: &Machine) -> Result<Applied, Error> {
         positive(Quantity::FrequencyHz, self.frequency_hz)?;
-        let waveform = Waveform::new(self.spec(), &machine.limits)?;
-        if let Some(linear_mps2) = machine.loop_linear_mps2 {
-            ENVELOPE.check_loop_accel(waveform.accel_mps2, linear_mps2)?;
-        }
-        let plan = TickPlan::new(&waveform, machine.clock)?;
+        let (waveform, plan) = plan_waveform(
+            self.spec(),
+            &machine.limits,
+            machine.loop_linear_mps2,
+            machine.clock,
+        )?;
         Ok(Applied {
             settings: *self,
             plan,
@@ -132,4 +133,22 @@ pub struct Applied {
     pub plan: TickPlan,
     /// Steady-state feed rate the model predicts for the plan's waveform.
     pub feed_rate_mps: f64,
+}
+
+/// The one check a waveform passes before it plays, wherever it comes from (console, recipe,
+/// script, the host): within `limits` (Eq. 1–5), the closed loop's room where it runs
+/// (`loop_linear_mps2`, the output's linear range; `None` in open loop), and a representable tick
+/// plan on `clock`.
+pub fn plan_waveform(
+    spec: WaveformSpec,
+    limits: &Limits,
+    loop_linear_mps2: Option<f64>,
+    clock: TickClock,
+) -> Result<(Waveform, TickPlan), Error> {
+    let waveform = Waveform::new(spec, limits)?;
+    if let Some(linear_mps2) = loop_linear_mps2 {
+        ENVELOPE.check_loop_accel(waveform.accel_mps2, linear_mps2)?;
+    }
+    let plan = TickPlan::new(&waveform, clock)?;
+    Ok((waveform, plan))
 }
