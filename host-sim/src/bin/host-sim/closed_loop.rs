@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use clap::Args;
 use feeder_shared::closed_loop::Identified;
+use feeder_shared::Settings;
 use host_sim::closed_loop::{
     run_closed_loop, ClosedLoopOptions, ClosedLoopRun, CycleRecord, Verdict,
 };
@@ -23,8 +24,8 @@ use crate::plot::{self, Mark, Moment, Panel, Series};
 const DEFAULT_CYCLES: u64 = 3_000;
 /// Most cycles of `--cycles`: half an hour at 50 Hz.
 const MAX_CYCLES: u64 = 100_000;
-/// Cycles of the soft start when not told.
-const DEFAULT_RAMP_CYCLES: u16 = 25;
+/// Cycles of the soft start when not told: the firmware's power-up setting.
+const DEFAULT_RAMP_CYCLES: u16 = Settings::DEFAULT.ramp_cycles;
 /// Longest soft start of `--ramp-cycles`.
 const MAX_RAMP_CYCLES: u16 = 1_000;
 
