@@ -41,6 +41,8 @@ const KIND_SAMPLE: u32 = 2;
 const KIND_CONFIG: u32 = 3;
 /// The `kind` of a stream request.
 const KIND_STREAM: u32 = 4;
+/// The `kind` of the driver enable's change.
+const KIND_ENABLE: u32 = 5;
 
 /// How long [`PlantThread::join`] keeps releasing a thread that waits for QEMU to open the
 /// FIFOs after QEMU has ended.
@@ -61,6 +63,8 @@ pub enum Message {
     /// The firmware takes the samples up to `tick`: a header (`tick`, how many follow), then
     /// those.
     StreamRequest { tick: u64 },
+    /// From `tick` (the last level's) on, the driver is enabled (`on`) or not.
+    Enable { tick: u64, on: bool },
 }
 
 impl Message {
@@ -77,6 +81,10 @@ impl Message {
                 resolution_nm: value,
             }),
             KIND_STREAM => Some(Message::StreamRequest { tick }),
+            KIND_ENABLE => Some(Message::Enable {
+                tick,
+                on: value != 0,
+            }),
             _ => None,
         }
     }
@@ -91,6 +99,7 @@ impl Message {
                 resolution_nm,
             } => (interval_ticks, KIND_CONFIG, resolution_nm),
             Message::StreamRequest { tick } => (tick, KIND_STREAM, 0),
+            Message::Enable { tick, on } => (tick, KIND_ENABLE, i32::from(on)),
         };
         let mut bytes = [0; MESSAGE_BYTES];
         bytes[..8].copy_from_slice(&tick.to_le_bytes());
@@ -113,6 +122,9 @@ pub fn encode_sample(tick: u64, count: i32) -> [u8; SAMPLE_BYTES] {
 pub trait Plant {
     /// From `tick` on the output holds DAC code `code`.
     fn level(&mut self, tick: u64, code: i32);
+    /// From `tick` on the driver is enabled (`on`) or not: a disabled driver drives nothing,
+    /// whatever the code.
+    fn enable(&mut self, tick: u64, on: bool);
     /// The encoder count at `tick`.
     fn sample(&mut self, tick: u64) -> i32;
     /// The firmware samples the encoder at every multiple of `interval_ticks` and reads
@@ -134,6 +146,9 @@ impl Plant for EchoPlant {
     fn level(&mut self, _tick: u64, code: i32) {
         self.sum = self.sum.wrapping_add(code as u32) & (u32::MAX >> 1);
     }
+
+    /// The echo ignores the enable.
+    fn enable(&mut self, _tick: u64, _on: bool) {}
 
     fn sample(&mut self, _tick: u64) -> i32 {
         self.sum as i32
@@ -268,6 +283,7 @@ impl PlantLink {
                 } => plant
                     .configure(interval_ticks, resolution_nm)
                     .map_err(|reason| io::Error::new(ErrorKind::InvalidInput, reason))?,
+                Message::Enable { tick, on } => plant.enable(tick, on),
                 Message::StreamRequest { tick } => {
                     let samples = plant.stream(tick);
                     self.answer(tick, samples.len() as i32)?;
@@ -345,6 +361,14 @@ mod tests {
                 resolution_nm: 1000,
             },
             Message::StreamRequest { tick: 60_000 },
+            Message::Enable {
+                tick: 70_000,
+                on: true,
+            },
+            Message::Enable {
+                tick: 80_000,
+                on: false,
+            },
         ] {
             assert_eq!(Message::decode(&message.encode()), Some(message));
         }

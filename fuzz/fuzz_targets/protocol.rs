@@ -14,8 +14,9 @@ use feeder_shared::{
 use libfuzzer_sys::arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
 
-const STAGES: [Stage; 6] = [
+const STAGES: [Stage; 7] = [
     Stage::Waiting,
+    Stage::Settling,
     Stage::Probing,
     Stage::Identifying,
     Stage::Centring,

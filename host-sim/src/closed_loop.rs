@@ -253,6 +253,8 @@ struct Runner {
 impl Runner {
     fn run(&mut self, options: &ClosedLoopOptions) -> Result<(), SimError> {
         self.scheduler.hold_step(self.course.probe_step());
+        self.scheduler
+            .settle_before_start(self.course.config().settle_segments);
         // The decision made at the last boundary, applied at the next segment begun.
         let mut pending: Option<Decision> = None;
         let mut cycle_trims = CycleTrims::NONE;
@@ -296,6 +298,7 @@ impl Runner {
                     .course
                     .boundary(&playing, &self.scheduler, start, &samples)
                     .map_err(fail)?;
+
                 // Identified at once; the course takes it at the end of its hold.
                 if let Some(probe) = self.course.probe().filter(|_| decision.identify) {
                     let found = probe.identify();
@@ -347,6 +350,11 @@ impl Runner {
                     })?
                     .unwrap_or(Trims::NONE);
             }
+            // The firmware's driver enable: on while motion is requested and the output plays
+            // anything but an idle period.
+            self.plate
+                .stepper
+                .set_drive_enabled(playing.kind != SegmentKind::Idle);
             self.plate.play(&playing, &trims)?;
         }
     }

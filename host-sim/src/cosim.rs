@@ -72,8 +72,11 @@ impl PlatePlant {
             .sensors
             .encoder
             .ok_or(SimError::MissingSensor { sensor: "encoder" })?;
+        // The driver comes up disabled; the firmware's enable messages switch it.
+        let mut stepper = Stepper::new(&plant.plate, contact)?;
+        stepper.set_drive_enabled(false);
         Ok(PlatePlant {
-            stepper: Stepper::new(&plant.plate, contact)?,
+            stepper,
             dac,
             encoder,
             clock_hz,
@@ -165,6 +168,11 @@ impl Plant for PlatePlant {
         let accel_mps2 = self.dac.accel_mps2(code);
         self.held = Some((tick, accel_mps2));
         self.levels.push((tick, accel_mps2));
+    }
+
+    fn enable(&mut self, tick: u64, on: bool) {
+        self.advance(tick);
+        self.stepper.set_drive_enabled(on);
     }
 
     fn sample(&mut self, tick: u64) -> i32 {

@@ -35,6 +35,7 @@ fn a_held_level_moves_the_ideal_plate_as_the_code_says() {
         PlatePlant::new(&plant(PlateParams::default()), &contact(), dac, TICK_HZ).unwrap();
     // 800 counts above zero is 100 m/s² for 1 ms, then zero for 1 ms: 50 µm, then 100 µm more.
     plate.level(0, 2048 + 800);
+    plate.enable(0, true);
     plate.level(1000, 2048);
     assert_eq!(plate.sample(1000), 50);
     assert_eq!(plate.sample(2000), 150);
@@ -54,6 +55,7 @@ fn the_zero_code_lets_an_offset_plate_drift_by_half_e_t_squared() {
     let mut plate =
         PlatePlant::new(&plant(params), &contact(), DacCalibration::DEFAULT, TICK_HZ).unwrap();
     plate.level(0, 2048);
+    plate.enable(0, true);
     for k in 1..=20_u64 {
         let t_s = k as f64 * 1e-3;
         let expected = (0.5 * e_mps2 * t_s * t_s / 1e-6).floor() as i32;
@@ -72,6 +74,7 @@ fn the_plate_stops_at_its_end_stop_and_says_when() {
         PlatePlant::new(&plant(params), &contact(), DacCalibration::DEFAULT, TICK_HZ).unwrap();
     // 10 m/s² (80 counts) reaches 1 mm after √(2·1e-3/10) = 14.14 ms.
     plate.level(0, 2048 + 80);
+    plate.enable(0, true);
     plate.sample(20_000);
     let stop = plate.end_stop().unwrap();
     assert!(
@@ -79,6 +82,28 @@ fn the_plate_stops_at_its_end_stop_and_says_when() {
         "{stop:?}"
     );
     assert_eq!(plate.sample(30_000), 1000);
+}
+
+/// The driver comes up disabled: until the firmware enables it no code moves the plate, its
+/// offset included; from the enable's tick on the plate moves as the code says, and once
+/// disabled again it coasts on at the velocity it had.
+#[test]
+fn a_disabled_driver_drives_nothing() {
+    let params = PlateParams {
+        zero_offset_fraction: 0.005,
+        ..PlateParams::default()
+    };
+    let mut plate =
+        PlatePlant::new(&plant(params), &contact(), DacCalibration::DEFAULT, TICK_HZ).unwrap();
+    plate.level(0, 2048 + 800);
+    assert_eq!(plate.sample(5_000), 0);
+    plate.level(5_000, 2048 + 792);
+    plate.enable(5_000, true);
+    // 99 m/s² of code and 1 m/s² of offset for 1 ms: 50 µm.
+    assert_eq!(plate.sample(6_000), 50);
+    plate.enable(6_000, false);
+    // At 0.1 m/s for 1 ms more: 100 µm further.
+    assert_eq!(plate.sample(7_000), 150);
 }
 
 #[test]

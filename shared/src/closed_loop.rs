@@ -7,6 +7,7 @@ pub mod cycle_loop;
 pub mod disturbance;
 pub mod envelope;
 pub mod identify;
+pub mod settle;
 pub mod shape;
 pub mod track;
 
@@ -17,5 +18,6 @@ pub use course::{
 pub use cycle_loop::{CycleLoop, LoopError, LoopLimits, Stroke, Trims};
 pub use envelope::{Cause, Envelope, ENVELOPE};
 pub use identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};
+pub use settle::Settle;
 pub use shape::{CommandSegment, CycleShape};
 pub use track::{Track, TrackConfig, TrackReport, TrackState};

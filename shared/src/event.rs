@@ -161,9 +161,9 @@ impl SegmentEvent {
         }
     }
 
-    /// True for the first segment of a cycle or idle period.
+    /// True for the first segment of a cycle, idle period or settle segment.
     pub fn starts_cycle(&self) -> bool {
-        matches!(self.kind, SegmentKind::Accelerate | SegmentKind::Idle)
+        self.kind.starts_cycle()
     }
 
     /// The slack of a segment that began, as its `seg` line carries it (`{=u32}`): a negative

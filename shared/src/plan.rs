@@ -23,11 +23,16 @@ use crate::segment::SegmentKind;
 use crate::waveform::Waveform;
 use libm::{fabs, round, sqrt};
 
-/// The worst work between an edge and the next preload, in instructions, rounded up: 10,885
+/// The worst work between an edge and the next preload, in instructions, rounded up: 10,930
 /// measured under QEMU (`-icount shift=4`, `cargo xtask run cycles=1000`, at 50 Hz and at 100 Hz
 /// with `stroke_m=0.0006`), wake-up and the `EVT` trace included, on the edge that takes a start
 /// request and a new plan.
-pub const EDGE_WORK_INSTRUCTIONS: f64 = 10_900.0;
+pub const EDGE_WORK_INSTRUCTIONS: f64 = 11_000.0;
+
+/// The shortest settle segment ([`TickPlan::settle_ticks`]): long enough for the closed loop's
+/// decision below the edge path under QEMU, short enough that a drive's zero offset moves the
+/// plate a few µm in one.
+pub const SETTLE_MIN_S: f64 = 2.5e-3;
 
 /// How many times the worst work per edge the shortest segment must last: segments shorter than
 /// this are refused ([`Error::SegmentBelowFloor`]), so a validated waveform cannot miss an edge.
@@ -269,6 +274,15 @@ impl TickPlan {
     /// Worst edge offset in seconds.
     pub fn worst_edge_offset_s(&self) -> f64 {
         self.worst_edge_offset_ticks / f64::from(self.clock_hz)
+    }
+
+    /// A settle segment's ticks: the period divided by the largest whole number that leaves at
+    /// least [`SETTLE_MIN_S`]: 2.5 ms at 50 Hz and at 100 Hz, a whole period where the period is
+    /// shorter.
+    pub fn settle_ticks(&self) -> u32 {
+        let min_ticks = (SETTLE_MIN_S * f64::from(self.clock_hz)) as u32;
+        let parts = (self.period_ticks / min_ticks.max(1)).max(1);
+        self.period_ticks / parts
     }
 
     /// Converts a tick count of this plan's clock to seconds.

@@ -30,7 +30,7 @@ pub const QEMU_INSTRUCTION_S: f64 = (1u32 << QEMU_ICOUNT_SHIFT) as f64 * 1e-9;
 pub const QEMU_TICK_HZ: u32 = 1_000_000;
 
 /// The emulated board's output clock, its shortest segment the worst work per edge at QEMU's
-/// speed times the margin (524 ticks).
+/// speed times the margin (528 ticks).
 pub fn qemu_clock() -> TickClock {
     TickClock::new(QEMU_TICK_HZ).with_edge_work_floor(QEMU_INSTRUCTION_S)
 }

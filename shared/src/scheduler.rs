@@ -66,9 +66,9 @@ impl Segment {
         f64::from(self.level.sign()) * self.peak_accel_mps2 * self.amplitude.fraction()
     }
 
-    /// True for the first segment of a cycle or idle period.
+    /// True for the first segment of a cycle, idle period or settle segment.
     pub fn starts_cycle(&self) -> bool {
-        matches!(self.kind, SegmentKind::Accelerate | SegmentKind::Idle)
+        self.kind.starts_cycle()
     }
 
     pub fn end_tick(&self) -> u64 {
@@ -99,6 +99,12 @@ pub struct Scheduler {
     next_tick: u64,
     /// Accumulated displacement at the last boundary, in units of `(a/steps)·tick²`.
     residual: i64,
+    /// Settle segments before each start from rest ([`Self::settle_before_start`]) …
+    settle_segments: u16,
+    /// … how many of the start in progress are still to come …
+    settle_left: u16,
+    /// … and whether that start has had its count.
+    settle_counted: bool,
 }
 
 impl Scheduler {
@@ -120,7 +126,18 @@ impl Scheduler {
             variant: 0,
             next_tick: 0,
             residual: 0,
+            settle_segments: 0,
+            settle_left: 0,
+            settle_counted: false,
         }
+    }
+
+    /// Each start from rest begins with `segments` settle segments ([`SegmentKind::Settle`],
+    /// [`TickPlan::settle_ticks`] each, level zero, every one its own cycle) before its first
+    /// cycle: the closed loop holds the plate through their bias while it learns the drive's
+    /// offset. A stop requested meanwhile idles at the next of them. 0 (the default): none.
+    pub fn settle_before_start(&mut self, segments: u16) {
+        self.settle_segments = segments;
     }
 
     /// Request motion; it begins (or a soft stop reverses) at the next cycle boundary.
@@ -142,10 +159,10 @@ impl Scheduler {
         self.quick_stop = true;
     }
 
-    /// Hold the amplitude at `step / ramp_cycles` (at most all) from the next cycle boundary
-    /// while motion is requested: a start goes there at once, without the soft start, and a
-    /// running plan drops to it; step 0 idles while motion stays requested. The closed loop
-    /// probes the drive and centres the plate on held cycles. With a new ramp length pending
+    /// Hold the amplitude at `step / ramp_cycles` (at most all) while motion is requested: a
+    /// start's soft start rises to it one step a cycle and stays there, and a running plan drops
+    /// to it at the next cycle boundary; step 0 idles while motion stays requested. The closed
+    /// loop probes the drive and centres the plate on held cycles. With a new ramp length pending
     /// ([`Self::set_ramp_cycles`]), `step` counts the new ramp's steps and replaces the held step
     /// when the new length takes effect.
     pub fn hold_step(&mut self, step: u16) {
@@ -203,6 +220,9 @@ impl Scheduler {
     pub fn next_segment(&mut self) -> Segment {
         let mut plan_applied = false;
         if self.segment_index == 0 {
+            if self.settle_due() {
+                return self.settle_segment();
+            }
             plan_applied = self.begin_cycle();
         }
         let (kind, level, ticks) = if self.step == 0 {
@@ -239,6 +259,49 @@ impl Scheduler {
         } else {
             self.segment_index += 1;
         }
+        segment
+    }
+
+    /// At a boundary: whether a settle segment comes next. A start from rest takes its count
+    /// of them; anything but a start from rest ends the count.
+    fn settle_due(&mut self) -> bool {
+        let starting =
+            self.step == 0 && self.run_requested && !self.quick_stop && self.held_step != Some(0);
+        if !starting {
+            self.settle_left = 0;
+            self.settle_counted = false;
+            return false;
+        }
+        if !self.settle_counted {
+            self.settle_counted = true;
+            self.settle_left = self.settle_segments;
+        }
+        if self.settle_left == 0 {
+            return false;
+        }
+        self.settle_left -= 1;
+        true
+    }
+
+    /// The next settle segment, a cycle of its own.
+    fn settle_segment(&mut self) -> Segment {
+        let ticks = self.plan.settle_ticks();
+        let segment = Segment {
+            start_tick: self.next_tick,
+            ticks,
+            cycle: self.cycle,
+            kind: SegmentKind::Settle,
+            level: Level::Zero,
+            amplitude: Amplitude {
+                step: 0,
+                steps: self.ramp_steps,
+            },
+            peak_accel_mps2: self.plan.waveform.accel_mps2,
+            phase: Phase::Starting,
+            plan_applied: false,
+        };
+        self.next_tick = self.next_tick.saturating_add(u64::from(ticks));
+        self.cycle += 1;
         segment
     }
 
@@ -282,7 +345,7 @@ impl Scheduler {
             0
         } else if self.run_requested {
             match self.held_step {
-                Some(held) => held.min(self.ramp_steps),
+                Some(held) => self.step.saturating_add(1).min(held).min(self.ramp_steps),
                 None => self.step.saturating_add(1).min(self.ramp_steps),
             }
         } else {

@@ -1,5 +1,5 @@
-//! The kinds of segment the output is made of: the four of a waveform cycle (Fig. 2a) and the
-//! scheduler's idle period.
+//! The kinds of segment the output is made of: the four of a waveform cycle (Fig. 2a), the
+//! scheduler's idle period and the closed loop's settle segments.
 //!
 //! A module of its own, below both: [`crate::error`] names a segment in its refusals, and
 //! [`crate::waveform`], [`crate::plan`] and [`crate::scheduler`] build segments.
@@ -18,17 +18,31 @@ pub enum SegmentKind {
     Return,
     /// `0` for a whole period while the scheduler is stopped.
     Idle,
+    /// A fraction of a period at level `0` before the first cycle of a start, each its own
+    /// cycle: the closed loop holds the plate at rest through its bias
+    /// ([`Scheduler::settle_before_start`](crate::Scheduler::settle_before_start)).
+    Settle,
 }
 
 impl SegmentKind {
     /// Every kind, in the order of [`Self`]'s variants.
-    pub const ALL: [SegmentKind; 5] = [
+    pub const ALL: [SegmentKind; 6] = [
         SegmentKind::Accelerate,
         SegmentKind::Plateau,
         SegmentKind::Reverse,
         SegmentKind::Return,
         SegmentKind::Idle,
+        SegmentKind::Settle,
     ];
+
+    /// True for the first segment of a cycle, an idle period or a settle segment: where the
+    /// cycle count moves on and the closed loop decides.
+    pub const fn starts_cycle(self) -> bool {
+        matches!(
+            self,
+            SegmentKind::Accelerate | SegmentKind::Idle | SegmentKind::Settle
+        )
+    }
 
     /// The kind's name in the event stream and in refusals.
     pub const fn name(self) -> &'static str {
@@ -38,6 +52,7 @@ impl SegmentKind {
             SegmentKind::Reverse => "reverse",
             SegmentKind::Return => "return",
             SegmentKind::Idle => "idle",
+            SegmentKind::Settle => "settle",
         }
     }
 }

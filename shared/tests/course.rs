@@ -8,7 +8,7 @@ use feeder_shared::closed_loop::{
     IdentifyError, LateTrims, LoopError, PositionSample, Stage, Trims,
 };
 use feeder_shared::{
-    Drive, Limits, Scheduler, Segment, TickClock, TickPlan, Waveform, WaveformSpec,
+    Drive, Limits, Scheduler, Segment, SegmentKind, TickClock, TickPlan, Waveform, WaveformSpec,
 };
 use proptest::prelude::*;
 
@@ -46,6 +46,12 @@ struct Plate {
     samples: Vec<PositionSample>,
 }
 
+/// The driver enable as the firmware's control loop sets it once a start is requested: off
+/// through idle periods, on through everything else.
+fn driven(segment: &Segment) -> bool {
+    segment.kind != SegmentKind::Idle
+}
+
 impl Plate {
     fn reading(&self, tick: u64, position_m: f64) -> PositionSample {
         PositionSample {
@@ -54,12 +60,17 @@ impl Plate {
         }
     }
 
-    /// Plays `segment` at its trimmed level, read at every multiple of 250 ticks in it (the
-    /// start tick of a cycle is read as the cycle's start instead).
+    /// Plays `segment` at its trimmed level (nothing while the driver is off), read at every
+    /// multiple of 250 ticks in it (the start tick of a cycle is read as the cycle's start
+    /// instead).
     fn play(&mut self, segment: &Segment, trims: &Trims) {
         let command = trims.apply(segment.accel_mps2());
         let [plus, minus, offset_mps2] = self.drive;
-        let a = command * if command > 0.0 { plus } else { minus } + offset_mps2;
+        let a = if driven(segment) {
+            command * if command > 0.0 { plus } else { minus } + offset_mps2
+        } else {
+            0.0
+        };
         let (x0, v0) = (self.position_m, self.velocity_mps);
         let at = |s: f64| x0 + v0 * s + a * s * s / 2.0;
         let end = self.tick + u64::from(segment.ticks);
@@ -84,11 +95,14 @@ impl Plate {
     }
 }
 
-/// The scheduler, the course and the plate, wired as the firmware's control loop wires them.
+/// The scheduler, the course and the plate, wired as the firmware's control loop wires them:
+/// the scheduler held and settling before each start, each cycle's trims taken by
+/// [`CycleTrims`].
 struct Rig {
     scheduler: Scheduler,
     course: Course,
     plate: Plate,
+    cycle_trims: CycleTrims,
     /// The next segment, made but not begun, and the trims of its cycle if it begins one.
     queued: Segment,
     queued_trims: Trims,
@@ -96,9 +110,8 @@ struct Rig {
     begun: Option<Segment>,
     trims: Trims,
     start: PositionSample,
-    /// The decision of the last boundary (applied at the next segment), and the last applied.
+    /// The decision of the last boundary, applied at the next segment.
     pending: Option<Decision>,
-    decided: Option<Decision>,
 }
 
 impl Rig {
@@ -112,6 +125,7 @@ impl Rig {
         let mut scheduler = Scheduler::new(plan(), RAMP_CYCLES);
         let course = Course::new(CourseConfig::new(1e-6, 0.0), scheduler.ramp_cycles());
         scheduler.hold_step(course.probe_step());
+        scheduler.settle_before_start(course.config().settle_segments);
         if started {
             scheduler.start();
         }
@@ -121,26 +135,30 @@ impl Rig {
             scheduler,
             course,
             plate,
+            cycle_trims: CycleTrims::NONE,
             queued,
             queued_trims: Trims::NONE,
             begun: None,
             trims: Trims::NONE,
             start,
             pending: None,
-            decided: None,
         }
     }
 
     /// Plays the segment begun and begins the next: the course's decision if that begins a
-    /// cycle or idle period.
+    /// cycle, an idle period or a settle segment.
     fn segment(&mut self) -> Option<Result<Decision, CourseError>> {
         if let Some(playing) = self.begun.take() {
             self.queued = self.scheduler.next_segment();
             if self.queued.starts_cycle() {
-                self.queued_trims = match self.decided {
-                    Some(decision) if decision.cycle == self.queued.cycle => decision.trims,
-                    _ => self.course.feedforward(),
-                };
+                let after_idle = playing.kind == SegmentKind::Idle;
+                // A cycle without its decision (after a course error) runs the feedforward, as
+                // the firmware's does while its fault stops the feeder.
+                self.queued_trims = self
+                    .cycle_trims
+                    .for_cycle(&self.queued, after_idle)
+                    .unwrap_or(Some(self.cycle_trims.feedforward()))
+                    .unwrap_or(Trims::NONE);
             }
             self.plate.play(&playing, &self.trims);
         }
@@ -149,7 +167,7 @@ impl Rig {
             if decision.release {
                 self.scheduler.release_hold();
             }
-            self.decided = Some(decision);
+            self.cycle_trims.take(&decision, self.course.feedforward());
         }
         self.begun = Some(playing);
         if !playing.starts_cycle() {
@@ -165,7 +183,8 @@ impl Rig {
         Some(result)
     }
 
-    /// Plays to the start of the next cycle or idle period: the course's decision there.
+    /// Plays to the start of the next cycle, idle period or settle segment: the course's
+    /// decision there.
     fn boundary(&mut self) -> Result<Decision, CourseError> {
         loop {
             if let Some(result) = self.segment() {
@@ -181,6 +200,21 @@ impl Rig {
         assert_eq!(rig.course.stage(), Stage::Waiting);
         rig.scheduler.start();
         rig
+    }
+
+    /// Plays through the settle and the soft start's rise to the held step, up to the first
+    /// held cycle's start (the probe's first).
+    fn to_probe(&mut self) -> Decision {
+        loop {
+            let decision = self.boundary().expect("a course on a plate within reach");
+            if self.course.stage() == Stage::Probing {
+                return decision;
+            }
+            assert!(matches!(
+                self.course.stage(),
+                Stage::Waiting | Stage::Settling
+            ));
+        }
     }
 
     /// Identifies the drive from a complete probe and hands it over; `None` without one.
@@ -247,43 +281,49 @@ fn largest(values: impl Iterator<Item = f64>) -> f64 {
     values.fold(0.0, f64::max)
 }
 
-/// On an ideal drive the course goes through every stage once, in order: the probe on the held
-/// cycles, one offer of the probe for identification, held cycles until the hold for it ends,
-/// centring on the identified drive, and one
-/// release after which the soft start goes on from the held step. The drive found is the ideal
-/// one.
+/// On an ideal drive the course goes through every stage once, in order: the settle, the soft
+/// start's rise to the held step, the probe on the held cycles, one offer of the probe for
+/// identification, held cycles until the hold for it ends, centring on the identified drive,
+/// and one release after which the soft start goes on from the held step. The drive found is
+/// the ideal one.
 #[test]
-fn an_ideal_drive_is_probed_identified_centred_and_released() {
+fn an_ideal_drive_is_settled_probed_identified_centred_and_released() {
     let mut rig = Rig::started(IDEAL);
     let records = run_course(&mut rig, 30);
     let mut stages: Vec<Stage> = records.iter().map(|r| r.stage).collect();
     stages.dedup();
     use Stage::*;
-    assert_eq!(stages, [Probing, Identifying, Centring, Feeding]);
-    // The first held cycle begins the probe; its fifth start completes it.
-    assert_eq!(records[0].stage, Probing);
-    assert_eq!(indices(&records, |r| r.decision.identify), [4]);
+    assert_eq!(stages, [Settling, Probing, Identifying, Centring, Feeding]);
+    // The settle's segments at step 0, then one cycle a step up to the held one, which begins
+    // the probe; its fifth start completes it.
+    let settle = usize::from(rig.course.config().settle_segments);
+    let held = rig.course.probe_step();
+    let probe = records.iter().position(|r| r.stage == Probing).unwrap();
+    assert_eq!(probe, settle + usize::from(held) - 1);
+    let steps: Vec<u16> = records[..=probe].iter().map(|r| r.step).collect();
+    let rise: Vec<u16> = (1..=held).collect();
+    assert_eq!(steps[..settle], vec![0; settle]);
+    assert_eq!(steps[settle..], rise);
+    assert_eq!(indices(&records, |r| r.decision.identify), [probe + 4]);
     // Handed over at once, the drive is taken at the first boundary 5 s (250 cycles) after the
     // probe's; the probe is there until then.
     assert_eq!(
         indices(&records, |r| r.probe),
-        (4..4 + 250).collect::<Vec<_>>()
+        (probe + 4..probe + 4 + 250).collect::<Vec<_>>()
     );
     let centring = indices(&records, |r| r.stage == Centring);
-    assert_eq!(centring.first(), Some(&(4 + 250)));
+    assert_eq!(centring.first(), Some(&(probe + 4 + 250)));
     let releases = indices(&records, |r| r.decision.release);
     assert_eq!(releases.len(), 1);
     let release = releases[0];
-    assert!(records[..=release]
-        .iter()
-        .all(|r| r.step == rig.course.probe_step()));
+    assert!(records[probe..=release].iter().all(|r| r.step == held));
     assert_eq!(records[release].stage, Feeding);
     // Centred 3 cycles in a row within 25 µm before the release.
     assert!(records[release - 2..=release]
         .iter()
         .all(|r| r.start_error_m.abs() <= 25e-6));
     let steps: Vec<u16> = records[release + 1..].iter().map(|r| r.step).collect();
-    assert_eq!(steps[..3], [9, 10, 11]);
+    assert_eq!(steps[..3], [held + 1, held + 2, held + 3]);
     assert_eq!(steps.last(), Some(&RAMP_CYCLES));
     let found = rig.course.identified().copied().unwrap();
     assert!((found.gain_positive - 1.0).abs() < 1e-6, "{found:?}");
@@ -320,16 +360,15 @@ fn a_mismatched_drive_is_identified_and_its_cycles_centred() {
 }
 
 /// A stop during the probe (the soft stop from the held step, then idle periods) sends the
-/// course back to waiting with the probe dropped; after a new start the probe begins again at
-/// the first held cycle and keeps 4 whole cycles from that cycle's start, from which the drive
-/// is found.
+/// course back to waiting with the probe dropped; after a new start the settle and the rise
+/// come again, the probe begins again at the first held cycle and keeps 4 whole cycles from
+/// that cycle's start, led in by the levels of the cycle before, from which the drive is found.
 #[test]
 fn a_stop_during_the_probe_begins_the_probe_again_at_the_next_start() {
     let mut rig = Rig::started(IDEAL);
-    for _ in 0..2 {
-        rig.boundary().unwrap();
-        assert_eq!(rig.course.stage(), Stage::Probing);
-    }
+    rig.to_probe();
+    rig.boundary().unwrap();
+    assert_eq!(rig.course.stage(), Stage::Probing);
     rig.scheduler.stop();
     let mut steps = Vec::new();
     for _ in 0..10 {
@@ -343,19 +382,21 @@ fn a_stop_during_the_probe_begins_the_probe_again_at_the_next_start() {
     }
     assert_eq!(steps, [7, 6, 5, 4, 3, 2, 1, 0, 0, 0]);
     rig.scheduler.start();
-    let start_tick = rig.plate.tick + u64::from(rig.scheduler.plan().period_ticks);
-    for cycle in 0..5 {
-        rig.boundary().unwrap();
+    rig.to_probe();
+    let start_tick = rig.start.tick;
+    for cycle in 0..4 {
         assert_eq!(rig.begun.unwrap().amplitude.step, rig.course.probe_step());
-        let stage = [Stage::Probing, Stage::Identifying][cycle / 4];
-        assert_eq!(rig.course.stage(), stage);
+        assert_eq!(rig.course.stage(), Stage::Probing, "cycle {cycle}");
+        rig.boundary().unwrap();
     }
+    assert_eq!(rig.course.stage(), Stage::Identifying);
     let probe = rig.course.probe().unwrap();
     let positions = probe.positions();
-    // Every 250 ticks over 4 cycles of 20 000, both ends included, timed from the new start.
-    assert_eq!((positions.len(), probe.segments().len()), (321, 16));
-    assert_eq!(positions[0].t_s, 0.0);
-    assert!((positions[320].t_s - 0.08).abs() < 1e-12);
+    // Every 250 ticks over 4 cycles of 20 000, both ends included, timed from the lead-in's
+    // start a cycle before.
+    assert_eq!((positions.len(), probe.segments().len()), (321, 20));
+    assert!((positions[0].t_s - 0.02).abs() < 1e-12);
+    assert!((positions[320].t_s - 0.1).abs() < 1e-12);
     assert_eq!(rig.start.tick, start_tick + 80_000);
     let found = probe.identify().unwrap();
     let gains = [found.gain_positive, found.gain_negative];
@@ -368,8 +409,14 @@ fn assert_trims_nothing(rig: &mut Rig) {
     assert_eq!(rig.course.stage(), Stage::Failed);
     for _ in 0..10 {
         let decision = rig.boundary().expect("a failed course decides on");
-        let cycle = rig.begun.unwrap().cycle + 1;
-        assert_eq!(decision.cycle, cycle);
+        // The next cycle made: after a settle segment, one segment long, the one after.
+        let begun = rig.begun.unwrap();
+        let ahead = if begun.kind == SegmentKind::Settle {
+            2
+        } else {
+            1
+        };
+        assert_eq!(decision.cycle, begun.cycle + ahead);
         assert_eq!((decision.trims, decision.release), (Trims::NONE, false));
         assert!(!decision.identify && rig.course.probe().is_none());
         assert_eq!(rig.course.stage(), Stage::Failed);
@@ -417,6 +464,7 @@ fn a_refused_identification_fails_the_course() {
     let mut rig = Rig::started(IDEAL);
     rig.course.set_identified(Err(IdentifyError::Singular));
     assert_eq!(rig.course.stage(), Stage::Waiting);
+    rig.to_probe();
     while !rig.boundary().unwrap().identify {
         assert_eq!(rig.course.stage(), Stage::Probing);
     }
@@ -440,17 +488,19 @@ fn an_identification_later_than_the_hold_fails_the_course() {
 }
 
 /// The course's probe counts its cycles from the first held one, however the scheduler starts:
-/// started before its first segment (no idle period first), it still probes 4 whole cycles.
+/// started before its first segment (no idle period first), it still settles and probes 4 whole
+/// cycles.
 #[test]
 fn a_course_started_at_once_probes_its_full_cycles() {
     let mut rig = Rig::new(IDEAL, true);
-    for _ in 0..4 {
+    assert!(!rig.to_probe().identify);
+    for _ in 0..3 {
         assert!(!rig.boundary().unwrap().identify);
         assert_eq!(rig.course.stage(), Stage::Probing);
     }
     assert!(rig.boundary().unwrap().identify);
     let probe = rig.course.probe().unwrap();
-    assert_eq!((probe.positions().len(), probe.segments().len()), (321, 16));
+    assert_eq!((probe.positions().len(), probe.segments().len()), (321, 20));
     assert_eq!(rig.identify(), Some(()));
 }
 

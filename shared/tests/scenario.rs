@@ -270,11 +270,11 @@ fn strokes_beyond_the_limits_and_segments_below_the_boards_floor_are_refused() {
             ..
         })
     ));
-    // At 50 Hz and d = 0.9 the forward acceleration lasts 56 µs, below QEMU's 524 µs floor.
+    // At 50 Hz and d = 0.9 the forward acceleration lasts 56 µs, below QEMU's 528 µs floor.
     assert!(matches!(
         check(&["duty=0.9", "new_duty=0.9", "stroke_m=0.0001"]),
         Err(ScenarioRefusal {
-            cause: RefusalCause::Waveform(Error::SegmentBelowFloor { min_ticks: 524, .. }),
+            cause: RefusalCause::Waveform(Error::SegmentBelowFloor { min_ticks: 528, .. }),
             ..
         })
     ));

@@ -377,10 +377,11 @@ fn the_longest_ramp_set_at_full_amplitude_keeps_full_amplitude() {
 }
 
 proptest! {
-    /// A held start runs every cycle at the held step from the first on, each ending at rest
-    /// within the drift bound; released, the soft start goes on one step a cycle from there.
+    /// A held start rises one step a cycle to the held step and runs every cycle there, each
+    /// ending at rest within the drift bound; released, the soft start goes on one step a cycle
+    /// from there.
     #[test]
-    fn a_held_start_stays_at_its_step_and_a_release_ramps_on_from_it(
+    fn a_held_start_rises_to_its_step_stays_and_a_release_ramps_on_from_it(
         ramp_cycles in 2u16..30,
         held in 1u16..40,
         held_cycles in 1u64..20,
@@ -392,10 +393,12 @@ proptest! {
         let expected = held.min(ramp_cycles);
         let bound_m = scheduler.plan().drift_bound_m;
         let mut plate = Plate::default();
-        for _ in 0..held_cycles {
+        let rise = u64::from(expected) - 1;
+        for cycle in 0..rise + held_cycles {
             for _ in 0..4 {
                 let segment = scheduler.next_segment();
-                prop_assert_eq!(segment.amplitude.step, expected);
+                let step = (cycle + 1).min(u64::from(expected));
+                prop_assert_eq!(u64::from(segment.amplitude.step), step);
                 plate.apply(&segment);
             }
             prop_assert_eq!(plate.velocity, 0);
@@ -416,6 +419,66 @@ proptest! {
             }
         }
     }
+
+    /// Each start from rest begins with the settle segments asked for: level zero, step 0, the
+    /// plan's settle length, each its own cycle, back to back; then the soft start's first
+    /// cycle. A start while running, or a restart of a soft stop, settles nothing.
+    #[test]
+    fn a_start_from_rest_settles_first(
+        segments in 0u16..50,
+        freq_hz in 50.0f64..100.0,
+        idle_periods in 0usize..3,
+    ) {
+        let spec = WaveformSpec::from_frequency(freq_hz, 0.586, Drive::Stroke { stroke_m: 1e-3 });
+        let plan = TickPlan::new(&Waveform::new(spec, &Limits::NONE).unwrap(), TickClock::new(1_000_000)).unwrap();
+        let mut scheduler = Scheduler::new(plan, 4);
+        scheduler.settle_before_start(segments);
+        for _ in 0..idle_periods {
+            prop_assert_eq!(scheduler.next_segment().kind, SegmentKind::Idle);
+        }
+        scheduler.start();
+        let ticks = plan.settle_ticks();
+        prop_assert!(f64::from(ticks) >= 2.5e-3 * 1e6 && ticks <= plan.period_ticks);
+        let mut tick = scheduler.next_tick();
+        let mut cycle = scheduler.cycle();
+        for _ in 0..segments {
+            let settle = scheduler.next_segment();
+            prop_assert_eq!(
+                (settle.kind, settle.level, settle.amplitude.step, settle.ticks),
+                (SegmentKind::Settle, Level::Zero, 0, ticks)
+            );
+            prop_assert_eq!((settle.start_tick, settle.cycle), (tick, cycle));
+            prop_assert!(settle.starts_cycle() && scheduler.at_boundary());
+            tick += u64::from(ticks);
+            cycle += 1;
+        }
+        let first = scheduler.next_segment();
+        prop_assert_eq!((first.kind, first.amplitude.step, first.start_tick), (SegmentKind::Accelerate, 1, tick));
+        for _ in 0..3 {
+            scheduler.next_segment();
+        }
+        scheduler.stop();
+        scheduler.start();
+        prop_assert_eq!(scheduler.next_segment().kind, SegmentKind::Accelerate);
+    }
+}
+
+/// A stop asked for during the settle idles at the next settle boundary, and the next start
+/// from rest settles its whole count again.
+#[test]
+fn a_stop_during_the_settle_idles_and_the_next_start_settles_anew() {
+    let mut scheduler = paper_scheduler(0.586, 4);
+    scheduler.settle_before_start(6);
+    scheduler.start();
+    for _ in 0..3 {
+        assert_eq!(scheduler.next_segment().kind, SegmentKind::Settle);
+    }
+    scheduler.stop();
+    assert_eq!(scheduler.next_segment().kind, SegmentKind::Idle);
+    scheduler.start();
+    let kinds: Vec<SegmentKind> = (0..7).map(|_| scheduler.next_segment().kind).collect();
+    assert_eq!(kinds[..6], [SegmentKind::Settle; 6]);
+    assert_eq!(kinds[6], SegmentKind::Accelerate);
 }
 
 #[test]
@@ -434,12 +497,14 @@ fn a_hold_set_while_running_drops_to_its_step_at_the_next_boundary() {
 }
 
 #[test]
-fn a_hold_at_zero_idles_while_motion_is_requested_and_a_new_hold_resumes_at_once() {
+fn a_hold_at_zero_idles_while_motion_is_requested_and_a_new_hold_rises_again() {
     let mut scheduler = paper_scheduler(0.586, 10);
     scheduler.hold_step(4);
     scheduler.start();
-    for _ in 0..(2 * 4) {
-        assert_eq!(scheduler.next_segment().amplitude.step, 4);
+    for step in [1, 2, 3, 4, 4] {
+        for _ in 0..4 {
+            assert_eq!(scheduler.next_segment().amplitude.step, step);
+        }
     }
     scheduler.hold_step(0);
     for _ in 0..3 {
@@ -451,7 +516,7 @@ fn a_hold_at_zero_idles_while_motion_is_requested_and_a_new_hold_resumes_at_once
     let first = scheduler.next_segment();
     assert_eq!(
         (first.kind, first.amplitude.step),
-        (SegmentKind::Accelerate, 4)
+        (SegmentKind::Accelerate, 1)
     );
 }
 
@@ -462,6 +527,12 @@ fn a_new_ramp_length_scales_the_held_step() {
     let mut scheduler = paper_scheduler(0.586, 25);
     scheduler.hold_step(8);
     scheduler.start();
+    for step in 1..=8 {
+        assert_eq!(scheduler.next_segment().amplitude.step, step);
+        for _ in 0..3 {
+            scheduler.next_segment();
+        }
+    }
     assert_eq!(scheduler.next_segment().amplitude.step, 8);
     scheduler.set_ramp_cycles(8);
     for _ in 0..3 {
@@ -483,8 +554,12 @@ fn a_hold_with_a_new_ramp_length_pending_counts_its_steps() {
     assert_eq!(scheduler.held_step(), Some(8));
     scheduler.start();
     let first = scheduler.next_segment();
-    assert_eq!((first.amplitude.step, first.amplitude.steps), (2, 8));
+    assert_eq!((first.amplitude.step, first.amplitude.steps), (1, 8));
     assert_eq!(scheduler.held_step(), Some(2));
+    for _ in 0..3 {
+        scheduler.next_segment();
+    }
+    assert_eq!(scheduler.next_segment().amplitude.step, 2);
     scheduler.release_hold();
     for _ in 0..3 {
         scheduler.next_segment();

@@ -72,6 +72,10 @@ impl Plant for Delayed {
         self.plant.level(tick, code);
     }
 
+    fn enable(&mut self, tick: u64, on: bool) {
+        self.plant.enable(tick, on);
+    }
+
     fn sample(&mut self, tick: u64) -> i32 {
         let delay = self.next_delay();
         thread::sleep(delay);

@@ -103,8 +103,10 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     async fn run_plan(mut self, plan: TickPlan) -> ! {
         let mut scheduler = Scheduler::new(plan, config::RAMP_CYCLES);
         if CLOSED_LOOP {
-            // The course probes and centres on held cycles from the first start.
+            // The course settles the plate before every start from rest, then probes and
+            // centres on held cycles.
             scheduler.hold_step(regulate::probe_step(config::RAMP_CYCLES));
+            scheduler.settle_before_start(regulate::settle_segments());
         }
         let mut queued = self.resync(&mut scheduler);
         loop {
@@ -239,7 +241,11 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         trace::segment(playing, self.output.started(playing));
         if playing.starts_cycle() {
             self.cycle = playing.cycle;
-            self.idle = playing.kind == SegmentKind::Idle;
+            let idle = playing.kind == SegmentKind::Idle;
+            if idle != self.idle {
+                self.idle = idle;
+                self.apply_driver();
+            }
             if CLOSED_LOOP {
                 BOUNDARY.signal(Boundary {
                     begun: *playing,
@@ -318,13 +324,20 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
                 trace::request(scheduler.next_tick(), traced);
             }
         }
-        self.set_driver(self.supervisor.driver_enabled());
+        self.apply_driver();
         let after = self.supervisor.state();
         if after != before {
             info!("{} -> {}", before, after);
             self.report_latched_fault();
         }
         request
+    }
+
+    /// The driver is enabled while the supervisor lets it and the output plays anything but
+    /// an idle period: a feeder at rest has its drive off, so that the drive's zero offset
+    /// cannot walk the plate.
+    fn apply_driver(&mut self) {
+        self.set_driver(self.supervisor.driver_enabled() && !self.idle);
     }
 
     fn set_driver(&mut self, enabled: bool) {

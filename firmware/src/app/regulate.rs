@@ -67,6 +67,11 @@ pub fn probe_step(ramp_cycles: u16) -> u16 {
     course_config(0.0).probe_step(ramp_cycles.max(1))
 }
 
+/// The settle segments before each start from rest, for the scheduler.
+pub fn settle_segments() -> u16 {
+    course_config(0.0).settle_segments
+}
+
 /// The course for an output whose levels move in steps of `level_step_mps2`.
 fn course_config(level_step_mps2: f64) -> CourseConfig {
     CourseConfig::new(<Sensor as PositionSensor>::RESOLUTION_M, level_step_mps2)

@@ -56,6 +56,8 @@ pub struct Stepper {
     end_stop: Option<EndStop>,
     points: Option<Vec<PlatePoint>>,
     pieces: Option<Vec<Piece>>,
+    /// The drive's enable: while off its target force is zero, whatever the command.
+    drive_enabled: bool,
 }
 
 impl Stepper {
@@ -83,7 +85,15 @@ impl Stepper {
             end_stop: None,
             points: None,
             pieces: None,
+            drive_enabled: true,
         })
+    }
+
+    /// Switches the drive's enable for the segments that follow (on from the start): while it
+    /// is off the drive's target force is zero, its offset included, and with a current loop
+    /// its force decays to zero through it.
+    pub fn set_drive_enabled(&mut self, enabled: bool) {
+        self.drive_enabled = enabled;
     }
 
     /// Also records the plate and the part at every event and at [`TRACE_SAMPLES_PER_SEGMENT`]
@@ -164,7 +174,11 @@ impl Stepper {
             return Ok(());
         }
         let model = &self.model;
-        let target_n = model.params.target_force_n(segment.accel_mps2);
+        let target_n = if self.drive_enabled {
+            model.params.target_force_n(segment.accel_mps2)
+        } else {
+            0.0
+        };
         if model.lag_per_s.is_none() {
             self.z[F] = target_n;
         }

@@ -1,11 +1,17 @@
 //! The closed loop's course from the first start to feeding, one state machine for the firmware
 //! and the simulator:
 //!
-//! 1. **Probe**: the scheduler holds its soft start at a low step. The cycle-rate loop runs from
-//!    the first held cycle on a nominal drive (gains 1, no offset, no friction), so that an
-//!    unknown offset cannot walk the plate away; the positions sampled through the first
-//!    `probe_cycles` cycles and the levels they were commanded are kept ([`Probe`]).
-//! 2. **Identify**: held cycles go on, still on the nominal drive, while the drive is identified
+//! 0. **Settle**: a start from rest begins with the scheduler's settle segments
+//!    ([`CourseConfig::settle_segments`]), fractions of a period at level zero, in which
+//!    [`Settle`] holds the plate through a bias alone, shakes it with a dither to learn the
+//!    drive's zero offset and the difference of its gains, and brings it to where the first
+//!    cycle should start. The cycles take that drive as their feedforward.
+//! 1. **Probe**: the soft start rises to the scheduler's held step, a low one, with the
+//!    cycle-rate loop trimming every cycle from the first, so that what the settle did not find
+//!    grows with the levels and is caught while small; the positions sampled through the first
+//!    `probe_cycles` held cycles and the levels they and the cycle before were commanded are
+//!    kept ([`Probe`]).
+//! 2. **Identify**: held cycles go on, still on the settle's drive, while the drive is identified
 //!    from the probe ([`Probe::identify`], long: the firmware runs it below the loop) and handed
 //!    back ([`Course::set_identified`]). The course takes it at the first boundary
 //!    [`CourseConfig::identify_hold_s`] after the probe's end, however early it came, so that
@@ -15,14 +21,16 @@
 //! 4. **Feed**: the hold is released, the soft start goes on from the held step, and the loop
 //!    trims every cycle from then on.
 //!
-//! At every cycle or idle period that begins, [`Course::boundary`] takes the segment begun, the
+//! At every cycle, idle period or settle segment that begins, [`Course::boundary`] takes the segment begun, the
 //! scheduler right after it (a copy: the plans of the cycles ahead), the position sampled at its
 //! start tick and the positions sampled at a fixed interval since the previous start. It returns
-//! the trims of the next cycle and whether the hold ends. The caller applies both at the next
+//! the trims of the next cycle (after a settle segment, of the one after it: [`Decision`]) and
+//! whether the hold ends. The caller applies both at the next
 //! segment it begins: the firmware decides below the edge path, so the decision is there at the
 //! earliest then, and the simulator applies it at the same point. The cycle after an idle period
 //! was made before its trims were decided: it runs the feedforward alone
-//! ([`Course::feedforward`]), and the loop starts its history afresh from its start.
+//! ([`Course::feedforward`]), and the loop starts its history afresh from its start; after a
+//! settle it starts from the plate at rest.
 
 mod config;
 mod decision;
@@ -41,10 +49,11 @@ pub use stage::{LoopReport, Stage};
 
 use super::cycle_loop::{CycleLoop, Stroke, Trims};
 use super::identify::{Identified, IdentifyError};
+use super::settle::Settle;
 use super::shape::{CommandSegment, CycleShape};
 use crate::scheduler::{Scheduler, Segment};
 use crate::segment::SegmentKind;
-use lookahead::{next_shape, rest_of_cycle};
+use lookahead::{next_shape, next_shape_from, rest_of_cycle};
 use measure::{mean_position_m, turn_position_m, Begun};
 
 /// The start of a cycle or idle period as [`Course::boundary`] takes it.
@@ -53,6 +62,13 @@ struct At<'a> {
     ahead: &'a Scheduler,
     start: PositionSample,
     samples: &'a [PositionSample],
+}
+
+/// A settle in progress.
+#[derive(Debug, Clone, Copy)]
+struct SettleRun {
+    settle: Settle,
+    target_m: f64,
 }
 
 /// The course's state.
@@ -69,6 +85,12 @@ pub struct Course {
     /// … at the first boundary from this tick on.
     identify_tick: u64,
     cycle_loop: CycleLoop,
+    /// The settle of the start in progress, where it holds the plate and where the probe's
+    /// first cycle starts, and the settle segments begun.
+    settle: Option<SettleRun>,
+    /// The cycle begun at the last boundary: its start tick and its levels as commanded, the
+    /// probe's lead-in.
+    lead_in: Option<(u64, [CommandSegment; 4], usize)>,
     /// The trims last decided, for the cycle after the one begun at the last boundary.
     decided: Trims,
     centred: u32,
@@ -91,11 +113,17 @@ impl Course {
             identify_tick: 0,
             cycle_loop: CycleLoop::new(&Identified::NOMINAL, config.loop_limits)
                 .with_level_step(config.level_step_mps2),
+            settle: None,
+            lead_in: None,
             decided: Trims::NONE,
             centred: 0,
             centring_cycles: 0,
             last: None,
         }
+    }
+
+    pub fn config(&self) -> &CourseConfig {
+        &self.config
     }
 
     pub fn stage(&self) -> Stage {
@@ -194,6 +222,10 @@ impl Course {
         if self.stage == Stage::Identifying && start.tick >= self.identify_tick {
             self.take_identified()?;
         }
+        if begun.kind == SegmentKind::Settle {
+            return self.settle(begun, ahead, start);
+        }
+        self.settle = None;
         let mut lookahead = ahead.clone();
         let (segments, count) = rest_of_cycle(begun, &mut lookahead);
         let segments = &segments[..count];
@@ -204,6 +236,7 @@ impl Course {
             shape: self.shape(segments, idle)?,
             full: !idle && begun.amplitude.step == begun.amplitude.steps,
             idle,
+            settle: false,
             clock_hz: plan.clock_hz,
         };
         let last = self.last.replace(now);
@@ -215,8 +248,14 @@ impl Course {
         };
         let held = !idle && ahead.held_step() == Some(begun.amplitude.step);
         let mut decision = Decision::trims(begun, self.feedforward());
+        let rising = !idle
+            && !held
+            && ahead
+                .held_step()
+                .is_some_and(|step| begun.amplitude.step < step);
         match self.stage {
-            Stage::Waiting | Stage::Probing if !held => {
+            Stage::Waiting | Stage::Settling if rising => {}
+            Stage::Waiting | Stage::Settling | Stage::Probing if !held => {
                 // A stop (or anything but the held cycles) before the probe is complete: it
                 // begins again at the next held cycle.
                 self.stage = Stage::Waiting;
@@ -226,17 +265,39 @@ impl Course {
                 self.decided = decision.trims;
                 return Ok(decision);
             }
-            Stage::Waiting => {
+            Stage::Waiting | Stage::Settling => {
                 self.stage = Stage::Probing;
-                self.probe = Some(Probe::new(
+                // The cycle before, commanded but not latched, leads the probe in: the current
+                // loop's state at its first latch is then the commands' own.
+                let (lead_in_tick, lead_in) = match &self.lead_in {
+                    Some((tick, segments, count)) => (*tick, &segments[..*count]),
+                    None => (start.tick, &[][..]),
+                };
+                let mut probe = Probe::new(
+                    lead_in_tick,
                     start.tick,
                     plan.clock_hz,
                     plan.ticks_to_s(u64::from(plan.period_ticks)),
                     self.config.resolution_m,
-                ));
+                );
+                for segment in lead_in {
+                    probe.keep_segment(*segment);
+                }
+                self.probe = Some(probe);
             }
             _ => {}
         }
+        let mut commanded = [CommandSegment {
+            duration_s: 0.0,
+            accel_mps2: 0.0,
+        }; 4];
+        for (kept, segment) in commanded.iter_mut().zip(segments) {
+            *kept = CommandSegment {
+                accel_mps2: applied.apply(segment.accel_mps2),
+                ..*segment
+            };
+        }
+        self.lead_in = (!idle).then_some((start.tick, commanded, segments.len()));
         if let (Stage::Probing, Some(probe)) = (self.stage, self.probe.as_mut()) {
             for sample in samples {
                 probe.keep_position(*sample);
@@ -249,11 +310,8 @@ impl Course {
                 self.identify_tick = start.tick.saturating_add(hold_ticks as u64);
                 decision.identify = true;
             } else {
-                for segment in segments {
-                    probe.keep_segment(CommandSegment {
-                        accel_mps2: applied.apply(segment.accel_mps2),
-                        ..*segment
-                    });
+                for segment in &commanded[..segments.len()] {
+                    probe.keep_segment(*segment);
                 }
                 self.probe_cycles += 1;
             }
@@ -276,10 +334,16 @@ impl Course {
         samples: &[PositionSample],
         decision: &mut Decision,
     ) -> Result<Trims, CourseError> {
-        if now.idle || last.is_none_or(|last| last.idle) {
+        if now.idle || last.is_none_or(|last| last.idle || last.settle) {
             // The cycle after an idle period was made before this decision: it runs the
-            // feedforward, and the loop starts again from its start.
-            self.cycle_loop.restart();
+            // feedforward, and the loop starts again from its start; so does the cycle after a
+            // settle, which ran the feedforward with the drive the settle found, from the plate
+            // at rest.
+            if last.is_some_and(|last| last.settle) {
+                self.cycle_loop.restart_at_rest();
+            } else {
+                self.cycle_loop.restart();
+            }
             if now.idle {
                 return Ok(decision.trims);
             }
@@ -326,6 +390,75 @@ impl Course {
                 [&next[0], &next[1]],
             )
             .map_err(CourseError::Loop)
+    }
+
+    /// At the start of a settle segment: the bias of the next segment, or after the last one
+    /// the offset found handed to the loop and its feedforward for the probe's first cycle.
+    fn settle(
+        &mut self,
+        begun: &Segment,
+        ahead: &Scheduler,
+        start: PositionSample,
+    ) -> Result<Decision, CourseError> {
+        let plan = ahead.plan();
+        if self.stage != Stage::Settling {
+            // A new start from rest: the plate is held where the probe's first cycle starts.
+            self.stage = Stage::Settling;
+            self.probe = None;
+            self.probe_cycles = 0;
+            self.cycle_loop.restart();
+            let mut lookahead = ahead.clone();
+            let mut first = lookahead.next_segment();
+            while first.kind == SegmentKind::Settle {
+                first = lookahead.next_segment();
+            }
+            let target_m = if first.kind == SegmentKind::Idle {
+                0.0
+            } else {
+                -next_shape_from(&self.cycle_loop, first, &mut lookahead)?.mean_m
+            };
+            self.settle = Some(SettleRun {
+                settle: Settle::new(
+                    self.config.loop_limits,
+                    self.config.level_step_mps2,
+                    self.feedforward().bias_mps2,
+                ),
+                target_m,
+            });
+        }
+        let Some(run) = self.settle.as_mut() else {
+            return Err(CourseError::Plan);
+        };
+        let segment_s = plan.ticks_to_s(u64::from(begun.ticks));
+        let bias_mps2 = run
+            .settle
+            .update(start.position_m, segment_s, run.target_m)
+            .map_err(CourseError::Loop)?;
+        let (offset_mps2, gain_difference) = run.settle.drive();
+        // The decision is for the segment after the next: once that is not a settle segment,
+        // the probe's cycles take the offset found.
+        let mut lookahead = ahead.clone();
+        lookahead.next_segment();
+        let settled = lookahead.next_segment().kind != SegmentKind::Settle;
+        let trims = if settled {
+            self.cycle_loop.hold_drive(offset_mps2, gain_difference);
+            self.feedforward()
+        } else {
+            Trims {
+                bias_mps2,
+                ..self.feedforward()
+            }
+        };
+        self.last = Some(Begun {
+            start,
+            shape: CycleShape::idle(segment_s),
+            full: false,
+            idle: false,
+            settle: true,
+            clock_hz: plan.clock_hz,
+        });
+        self.decided = trims;
+        Ok(Decision::trims(begun, trims))
     }
 
     fn shape(&self, segments: &[CommandSegment], idle: bool) -> Result<CycleShape, CourseError> {

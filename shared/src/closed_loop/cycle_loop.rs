@@ -167,6 +167,8 @@ pub struct CycleLoop {
     previous_x_m: Option<f64>,
     /// The start before the previous one.
     earlier_x_m: Option<f64>,
+    /// The plate rests at the next start (after a settle): that start gives its velocity too.
+    at_rest: bool,
     /// The plans of the cycles that began at those two starts.
     previous_shape: Option<CycleShape>,
     earlier_shape: Option<CycleShape>,
@@ -198,6 +200,7 @@ impl CycleLoop {
             earlier: Input::NONE,
             previous_x_m: None,
             earlier_x_m: None,
+            at_rest: false,
             previous_shape: None,
             earlier_shape: None,
             disturbance: Disturbance::new(),
@@ -299,14 +302,25 @@ impl CycleLoop {
         }
     }
 
-    /// Goes on with another drive (the identified one after the nominal): its gains, offset
-    /// and friction fed forward from the next update on. The disturbance estimate, which held
-    /// what the old feedforward left, starts again from zero.
+    /// Goes on with another drive (the identified one after the settle's): its gains, offset
+    /// and friction fed forward from the next update on. The disturbance estimate goes on too:
+    /// the settle's drive is close to the identified one, so what the old feedforward left is
+    /// the better start for what the new one leaves.
     pub fn set_drive(&mut self, identified: &Identified) {
         let other = CycleLoop::new(identified, self.limits);
         self.feedforward = other.feedforward;
         self.friction_mps2 = other.friction_mps2;
-        self.disturbance = Disturbance::new();
+    }
+
+    /// Holds against the drive as the settle found it: a zero offset `offset_mps2` and gains
+    /// `1 ± gain_half_difference` (their mean is left to the stroke's trim).
+    pub fn hold_drive(&mut self, offset_mps2: f64, gain_half_difference: f64) {
+        self.feedforward = Trims {
+            positive: 1.0 / (1.0 + gain_half_difference),
+            negative: 1.0 / (1.0 - gain_half_difference),
+            bias_mps2: -offset_mps2,
+        };
+        self.trims = self.feedforward();
     }
 
     /// Forgets the cycle starts seen so far: the next [`CycleLoop::update`] takes its position
@@ -318,9 +332,17 @@ impl CycleLoop {
         self.earlier = Input::NONE;
         self.previous_x_m = None;
         self.earlier_x_m = None;
+        self.at_rest = false;
         self.previous_shape = None;
         self.earlier_shape = None;
         self.trims = self.feedforward();
+    }
+
+    /// [`CycleLoop::restart`] where the plate rests at the next start (a settle held it there):
+    /// that start gives its velocity too, so the loop decides from it on.
+    pub fn restart_at_rest(&mut self) {
+        self.restart();
+        self.at_rest = true;
     }
 
     /// The plan of a cycle of `segments` as the loop aims at it: its shape, with the mean sign of
@@ -380,6 +402,11 @@ impl CycleLoop {
         }
         // `w = T·v` at this start, from the last two starts and the correction between them;
         // the first start only gives the position, and the next cycle runs the feedforward.
+        if core::mem::take(&mut self.at_rest) {
+            // At rest: as if the plate had stood here through a cycle without command.
+            self.previous_x_m = Some(start_m);
+            self.previous_shape = Some(CycleShape::idle(shape.period_s));
+        }
         let (Some(previous_x_m), Some(previous_shape)) = (self.previous_x_m, self.previous_shape)
         else {
             self.previous_x_m = Some(start_m);

@@ -33,7 +33,7 @@ use crate::output::EdgeMissed;
 const CYCLES_PER_INSTRUCTION: f64 = 1.5;
 
 /// The shortest segment either output stage takes: the worst work per edge measured in
-/// instructions, at this core's speed, times the margin (about 289 µs).
+/// instructions, at this core's speed, times the margin (about 291 µs).
 pub const MIN_SEGMENT_S: f64 =
     EDGE_WORK_MARGIN * EDGE_WORK_INSTRUCTIONS * CYCLES_PER_INSTRUCTION / CORE_HZ;
 

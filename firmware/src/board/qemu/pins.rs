@@ -9,8 +9,24 @@ use embedded_hal_async::digital::Wait;
 use super::{register_write, DRIVER_ENABLE};
 use crate::ports::Watchdog;
 
-/// The driver enable, in [`DRIVER_ENABLE`].
-pub struct EnableRegister;
+/// The driver enable, in [`DRIVER_ENABLE`]; in lockstep each change also goes to the plant.
+pub struct EnableRegister {
+    on: Option<bool>,
+}
+
+impl EnableRegister {
+    pub const fn new() -> Self {
+        EnableRegister { on: None }
+    }
+
+    fn set(&mut self, on: bool) {
+        register_write(DRIVER_ENABLE as usize, u32::from(on));
+        if self.on.replace(on) != Some(on) {
+            #[cfg(feature = "cosim")]
+            super::plant_link::with(|plant| plant.send_enable(on));
+        }
+    }
+}
 
 impl ErrorType for EnableRegister {
     type Error = Infallible;
@@ -18,12 +34,12 @@ impl ErrorType for EnableRegister {
 
 impl OutputPin for EnableRegister {
     fn set_low(&mut self) -> Result<(), Infallible> {
-        register_write(DRIVER_ENABLE as usize, 0);
+        self.set(false);
         Ok(())
     }
 
     fn set_high(&mut self) -> Result<(), Infallible> {
-        register_write(DRIVER_ENABLE as usize, 1);
+        self.set(true);
         Ok(())
     }
 }

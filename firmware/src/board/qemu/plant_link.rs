@@ -32,6 +32,8 @@
 //! * [`KIND_LEVEL`]: from `tick` on the output holds the DAC code `value`.
 //! * [`KIND_SAMPLE`]: the firmware waits for the plant's capture at `tick` (`value` 0); the
 //!   host answers with exactly one [`Sample`] carrying the same `tick` and the encoder count.
+//! * [`KIND_ENABLE`]: from `tick`, the last level's, on the driver is enabled (`value` 1) or
+//!   not (0); a disabled driver drives nothing, whatever the code. The driver comes up disabled.
 //! * `KIND_STREAM`: the firmware takes the samples up to `tick`, a capture it has had: the
 //!   host answers with a [`Sample`] carrying `tick` and, as its count, how many follow, then
 //!   those: every interval sample not yet taken with a tick up to `tick`, and every capture, in
@@ -57,6 +59,8 @@ pub const SAMPLE_BYTES: usize = 12;
 pub const KIND_LEVEL: u32 = 1;
 /// [`Message::kind`]: the firmware waits for the capture at `tick`.
 pub const KIND_SAMPLE: u32 = 2;
+/// [`Message::kind`]: from `tick` on the driver is enabled (`value` 1) or not (0).
+pub const KIND_ENABLE: u32 = 5;
 
 /// A record from the firmware to the host.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -137,6 +141,8 @@ pub enum LinkError {
 pub struct PlantLink {
     levels: usize,
     samples: usize,
+    /// The tick of the last level sent.
+    level_tick: u64,
 }
 
 impl PlantLink {
@@ -146,7 +152,11 @@ impl PlantLink {
     pub fn open() -> Result<Self, LinkError> {
         let samples = open(Channel::Samples, R_BINARY)?;
         let levels = open(Channel::Levels, W_TRUNC_BINARY)?;
-        Ok(PlantLink { levels, samples })
+        Ok(PlantLink {
+            levels,
+            samples,
+            level_tick: 0,
+        })
     }
 
     /// Writes all of `bytes` to `plant-levels`.
@@ -185,11 +195,25 @@ impl PlantLink {
     /// Tells the plant that the output holds `code` from `tick` on.
     pub fn send_level(&mut self, tick: u64, code: u32) -> Result<(), LinkError> {
         let value = i32::try_from(code).unwrap_or(i32::MAX);
+        self.level_tick = tick;
         self.send(
             &Message {
                 tick,
                 kind: KIND_LEVEL,
                 value,
+            }
+            .encode(),
+        )
+    }
+
+    /// Tells the plant that the driver is enabled (`on`) or not from the last level's tick on:
+    /// the control loop switches it at the start of the segment whose level was sent last.
+    pub fn send_enable(&mut self, on: bool) -> Result<(), LinkError> {
+        self.send(
+            &Message {
+                tick: self.level_tick,
+                kind: KIND_ENABLE,
+                value: i32::from(on),
             }
             .encode(),
         )

@@ -46,7 +46,7 @@ pub fn init() -> (SendSpawner, Board<Hardware>) {
     super::plant_link::open_or_end();
     let board = Board {
         output: ReportingOutput::new(),
-        driver_enable: EnableRegister,
+        driver_enable: EnableRegister::new(),
         led: EmulatedPin,
         button: NoButton,
         watchdog: NoWatchdog,

@@ -101,6 +101,10 @@ impl Plant for Watched {
         self.plant.level(tick, code);
     }
 
+    fn enable(&mut self, tick: u64, on: bool) {
+        self.plant.enable(tick, on);
+    }
+
     fn sample(&mut self, tick: u64) -> i32 {
         self.cycle_starts += 1;
         self.bar.set_message(format!(

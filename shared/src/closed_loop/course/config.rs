@@ -7,6 +7,8 @@ use crate::closed_loop::cycle_loop::LoopLimits;
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CourseConfig {
+    /// Settle segments before the probe ([`Scheduler::settle_before_start`](crate::Scheduler::settle_before_start)).
+    pub settle_segments: u16,
     /// Held cycles the probe keeps (1 to [`PROBE_CYCLES_MAX`](super::PROBE_CYCLES_MAX)).
     pub probe_cycles: u32,
     /// The held step as a fraction of the soft start's steps (at least one step).
@@ -30,18 +32,21 @@ pub struct CourseConfig {
 }
 
 impl CourseConfig {
-    /// 4 probe cycles at 30 % of the levels; the identification taken 5 s after the probe (the
-    /// firmware needs 3.9 s under QEMU at 50 Hz); centred within 25 µm for 3 cycles, in at most
-    /// 250 cycles; the loop may add up to 50 m/s² (a quarter of the envelope's full scale: a
-    /// spring or slide friction at its limit needs that much), trim the stroke by ±20 % and
-    /// gives up 4 mm from centre; levels in steps of `level_step_mps2`.
+    /// The settle's pairs (60 segments, 150 ms at 50 Hz and at 100 Hz); 4 probe cycles at 30 %
+    /// of the levels; the identification taken 5 s after the probe (the firmware needs 3.9 s
+    /// under QEMU at 50 Hz); centred within 25 µm for 20 cycles (the loop's disturbance estimate
+    /// settles on the identified drive meanwhile), in at most 250 cycles; the loop may add up to
+    /// 50 m/s² (a quarter of the envelope's full scale: a spring or slide friction at its limit
+    /// needs that much), trim the stroke by ±20 % and gives up 4 mm from centre; levels in steps
+    /// of `level_step_mps2`.
     pub fn new(resolution_m: f64, level_step_mps2: f64) -> Self {
         CourseConfig {
+            settle_segments: 2 * crate::closed_loop::settle::PAIRS,
             probe_cycles: 4,
             probe_fraction: 0.3,
             resolution_m,
             centred_m: 25e-6,
-            centred_cycles: 3,
+            centred_cycles: 20,
             centring_cycles_max: 250,
             identify_hold_s: 5.0,
             loop_limits: LoopLimits {

@@ -9,7 +9,8 @@ use crate::segment::SegmentKind;
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Decision {
-    /// The cycle these trims are for: the one after the cycle begun.
+    /// The cycle these trims are for: the first made after the decision, the one after the
+    /// cycle begun (after a settle segment, which is one segment long, the one after that).
     pub cycle: u64,
     pub trims: Trims,
     /// The plate is centred: release the scheduler's hold ([`Scheduler::release_hold`](crate::scheduler::Scheduler::release_hold)).
@@ -19,10 +20,15 @@ pub struct Decision {
 }
 
 impl Decision {
-    /// `trims` for the cycle after the one `begun` starts, nothing else.
+    /// `trims` for the first cycle made after the decision at the start of `begun`, nothing else.
     pub(super) fn trims(begun: &Segment, trims: Trims) -> Self {
+        let ahead = if begun.kind == SegmentKind::Settle {
+            2
+        } else {
+            1
+        };
         Decision {
-            cycle: begun.cycle + 1,
+            cycle: begun.cycle + ahead,
             trims,
             release: false,
             identify: false,
@@ -33,12 +39,15 @@ impl Decision {
 /// The trims each cycle runs, as the output takes them (the firmware's control loop and the
 /// simulator both): a decision is taken at the segment after the boundary that made it, and a
 /// cycle's trims are fixed when its first segment is made. That is the cycle's decided trims;
-/// after an idle period, whose first segment was made before the decision, the feedforward. An
-/// idle period runs the plan's zero level.
+/// after an idle period, whose first segment was made before the decision, the feedforward, and
+/// so for the second settle segment after it, made as the first began. An idle period runs the
+/// plan's zero level.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CycleTrims {
     decided: Option<(u64, Trims)>,
     feedforward: Trims,
+    /// Cycles made since the last idle period made (or since the first, at most 3).
+    since_idle: u8,
 }
 
 /// A running cycle that follows a running cycle has no trims decided for it: the closed loop
@@ -54,6 +63,7 @@ impl CycleTrims {
     pub const NONE: CycleTrims = CycleTrims {
         decided: None,
         feedforward: Trims::NONE,
+        since_idle: 0,
     };
 
     /// Takes the course's `decision` and its feedforward of the moment.
@@ -63,14 +73,22 @@ impl CycleTrims {
     }
 
     /// The trims of the cycle `first` begins, made while a cycle or idle period (`after_idle`)
-    /// plays: `None` for an idle period.
-    pub fn for_cycle(&self, first: &Segment, after_idle: bool) -> Result<Option<Trims>, LateTrims> {
+    /// plays: `None` for an idle period. Every cycle start made must come here, in order.
+    pub fn for_cycle(
+        &mut self,
+        first: &Segment,
+        after_idle: bool,
+    ) -> Result<Option<Trims>, LateTrims> {
         if first.kind == SegmentKind::Idle {
+            self.since_idle = 0;
             return Ok(None);
         }
+        self.since_idle = self.since_idle.saturating_add(1).min(3);
+        // The first two settle segments are made before any decision for them.
+        let early_settle = first.kind == SegmentKind::Settle && self.since_idle <= 2;
         match self.decided {
             Some((cycle, trims)) if cycle == first.cycle => Ok(Some(trims)),
-            _ if after_idle => Ok(Some(self.feedforward)),
+            _ if after_idle || early_settle => Ok(Some(self.feedforward)),
             _ => Err(LateTrims { cycle: first.cycle }),
         }
     }

@@ -9,7 +9,7 @@ use crate::segment::SegmentKind;
 use super::error::CourseError;
 
 /// The segments of the cycle `begun` starts, in seconds, with `scheduler` right after it
-/// (advanced to the next boundary); an idle period is its one segment.
+/// (advanced to the next boundary); an idle period or a settle segment is its one segment.
 pub(super) fn rest_of_cycle(
     begun: &Segment,
     scheduler: &mut Scheduler,
@@ -17,7 +17,7 @@ pub(super) fn rest_of_cycle(
     let plan = *scheduler.plan();
     let mut segments = [CommandSegment::of(begun, &plan); 4];
     let mut count = 1;
-    if begun.kind != SegmentKind::Idle {
+    if !matches!(begun.kind, SegmentKind::Idle | SegmentKind::Settle) {
         while !scheduler.at_boundary() && count < 4 {
             segments[count] = CommandSegment::of(&scheduler.next_segment(), &plan);
             count += 1;
@@ -32,8 +32,17 @@ pub(super) fn next_shape(
     scheduler: &mut Scheduler,
 ) -> Result<CycleShape, CourseError> {
     let first = scheduler.next_segment();
+    next_shape_from(cycle_loop, first, scheduler)
+}
+
+/// The plan of the cycle `first` begins, with `scheduler` right after it.
+pub(super) fn next_shape_from(
+    cycle_loop: &CycleLoop,
+    first: Segment,
+    scheduler: &mut Scheduler,
+) -> Result<CycleShape, CourseError> {
     let (segments, count) = rest_of_cycle(&first, scheduler);
-    if first.kind == SegmentKind::Idle {
+    if matches!(first.kind, SegmentKind::Idle | SegmentKind::Settle) {
         return Ok(CycleShape::idle(segments[0].duration_s));
     }
     cycle_loop.plan(&segments[..count]).ok_or(CourseError::Plan)

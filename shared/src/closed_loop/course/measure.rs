@@ -19,6 +19,8 @@ pub(super) struct Begun {
     /// Runs at the plan's full amplitude: only those cycles' strokes and means are held.
     pub(super) full: bool,
     pub(super) idle: bool,
+    /// A settle segment.
+    pub(super) settle: bool,
     pub(super) clock_hz: u32,
 }
 

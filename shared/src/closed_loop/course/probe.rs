@@ -10,14 +10,17 @@ use super::measure::PositionSample;
 pub const PROBE_POSITIONS_MAX: usize = 512;
 /// The most probe cycles.
 pub const PROBE_CYCLES_MAX: u32 = 8;
-/// The most segments in the probe's cycles.
-const PROBE_SEGMENTS_MAX: usize = 4 * PROBE_CYCLES_MAX as usize;
+/// The most segments in the probe's cycles and its lead-in.
+const PROBE_SEGMENTS_MAX: usize = 4 * (PROBE_CYCLES_MAX as usize + 1);
 
 /// The probe's record: the levels its cycles were commanded and the positions sampled through
-/// them, timed from its first start.
+/// them, timed from the start of its lead-in (the cycle before, whose levels are kept but not
+/// its positions).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Probe {
     start_tick: u64,
+    /// Positions are kept from this tick on: the probe's first start.
+    latch_tick: u64,
     clock_hz: u32,
     /// The plan's period.
     period_s: f64,
@@ -29,7 +32,13 @@ pub struct Probe {
 }
 
 impl Probe {
-    pub(super) fn new(start_tick: u64, clock_hz: u32, period_s: f64, resolution_m: f64) -> Self {
+    pub(super) fn new(
+        start_tick: u64,
+        latch_tick: u64,
+        clock_hz: u32,
+        period_s: f64,
+        resolution_m: f64,
+    ) -> Self {
         let latch = Latch {
             t_s: 0.0,
             position_m: 0.0,
@@ -40,6 +49,7 @@ impl Probe {
         };
         Probe {
             start_tick,
+            latch_tick,
             clock_hz,
             period_s,
             resolution_m,
@@ -50,8 +60,12 @@ impl Probe {
         }
     }
 
-    /// Keeps `sample` if it is later than the last one kept (and there is room).
+    /// Keeps `sample` if it is from the probe's first start on, later than the last one kept
+    /// (and there is room).
     pub(super) fn keep_position(&mut self, sample: PositionSample) {
+        if sample.tick < self.latch_tick {
+            return;
+        }
         let Some(ticks) = sample.tick.checked_sub(self.start_tick) else {
             return;
         };

@@ -6,8 +6,10 @@ use crate::closed_loop::identify::Identified;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Stage {
-    /// Waiting for the first held cycle.
+    /// Waiting for a start.
     Waiting,
+    /// Holding the plate at rest through the settle segments before the first cycle.
+    Settling,
     /// Keeping the positions of the probe's cycles.
     Probing,
     /// The probe complete, held until the identification handed over
@@ -26,6 +28,7 @@ impl Stage {
     pub const fn name(self) -> &'static str {
         match self {
             Stage::Waiting => "waiting",
+            Stage::Settling => "settling",
             Stage::Probing => "probing",
             Stage::Identifying => "identifying",
             Stage::Centring => "centring",

@@ -1,0 +1,317 @@
+//! The settle: before the first cycle of a start, segments of a fraction of a period `h` at
+//! level zero ([`SegmentKind::Settle`](crate::SegmentKind::Settle)), run in pairs, in which the
+//! loop holds the plate through a bias alone and learns what a cycle's feedforward must hold
+//! against before the first cycle runs: the drive's zero offset and the difference of its gains.
+//!
+//! **Dither.** At rest a slide's friction hides the offset. So the middle pairs shake the plate
+//! at `±D` (a pair runs `b + (D' + D)/2`, then `b − D`, `D'` the pair before's), fast enough
+//! that the plate moves back and forth within every pair: friction and viscous drag then cancel
+//! over a pair as they do over a cycle, and what is left of the pair's mean acceleration is the
+//! offset plus the gains' difference times the dither, `e = o + ε·D` with `ε = (g₊ − g₋)/2`.
+//! The dither rises through several levels ([`DITHER_MPS2`]), which tell `o` from `ε` (a
+//! least-squares line through every dithered measurement); each level's error is found at the
+//! level below, where it moves the plate less.
+//!
+//! **Pairs.** In pair `j` (start `X_j`, length `H = 2h`) the dither's half-level entry makes the
+//! plate's velocity at every pair start `−D'·h/2` above the slow part `w_j`, and moves it
+//! `k_j = (D − D')·h²/4`; the slow part is a double integrator in the bias:
+//! `X_{j+1} = X_j + w_j·H + (b_j + e_j)·H²/2 + k_j`, `w_{j+1} = w_j + (b_j + e_j)·H`. Three pair
+//! starts measure `(e_j + e_{j−1})/2 = (X_{j+1} − 2X_j + X_{j−1} − k_j + k_{j−1})/H² −
+//! (b_j + b_{j−1})/2`. The gains' difference scales a pair's swing by `ε·b` too, so that a bias
+//! moved between the two pairs adds `ε·(b_j − b_{j−1})/4`: the dither's regressor carries it.
+//!
+//! **Loop.** A settle segment is one segment long, so the next one is made as it begins, before
+//! the decision ([`Decision`](super::Decision)): at a pair's start the loop decides the next
+//! pair, predicting the slow state at its start, and places both poles of the sampled double
+//! integrator at [`POLE`]: `b = −ê − k₁·(X_p − x*) − k₂·w_p`, `k₁ = (1 − p)²/H²`,
+//! `k₂ = (3 − 2p − p²)/(2H)`. The first pair was made before any decision and runs the
+//! feedforward; the last pairs hold the plate, without dither, where the first cycle should
+//! start.
+
+use libm::fabs;
+
+use super::cycle_loop::{LoopError, LoopLimits};
+
+/// Both poles of the settle's loop, per pair.
+pub const POLE: f64 = 0.4;
+
+/// The dither levels, m/s², in turn: the upper ones above the envelope's stickiest slide
+/// (15 N on 0.5 kg, 30 m/s²) with its largest offset, all within the output's linear range
+/// with a bias on top.
+pub const DITHER_MPS2: [f64; 4] = [25.0, 50.0, 75.0, 100.0];
+
+/// Pairs of the settle: held where the plate rests, dithered at each level, then moved to
+/// where the cycles start and held there.
+const HOLD_PAIRS: u16 = 3;
+const DITHER_PAIRS: u16 = 5;
+const MOVE_PAIRS: u16 = 7;
+/// The settle's pairs.
+pub const PAIRS: u16 = HOLD_PAIRS + DITHER_MPS2.len() as u16 * DITHER_PAIRS + MOVE_PAIRS;
+
+/// Least squares for `e = o + ε·D + (ḡ − 1)·b − c·w − F'·w/(D·h)` through the dithered
+/// measurements. What a pair's levels drive is `ḡ·b + o + ε·D` (`ḡ = (g₊ + g₋)/2`,
+/// `ε = (g₊ − g₋)/2`), so the bias the loop moves is itself a regressor. Dither turns the slide's
+/// Coulomb friction into a drag, the slow velocity `w` over the dither's velocity swing `D·h`,
+/// and a viscous one adds `c·w`, so a plate the loop is still moving would read them as offset.
+/// The mean gain and the drags are held near their plain values by a small ridge, so that a
+/// plate held still reads its offset and gains' difference alone. What holds the plate at a
+/// dither `D` is then `b = −(o + ε·D)/ḡ`: the feedforward takes `o/ḡ` and `ε/ḡ`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct Fit {
+    /// `AᵀA` and `Aᵀe` of the regressors `[1, D, b, w, w/(D·h)]`.
+    normal: [[f64; TERMS]; TERMS],
+    right: [f64; TERMS],
+    count: u16,
+    /// The first and the last dither level measured.
+    levels: Option<(f64, f64)>,
+}
+
+const TERMS: usize = 5;
+
+/// The ridge on the mean gain's term (`b`, m/s²), the viscous drag's (`w`, m/s) and
+/// friction's (`w/(D·h)`): each about the sum of squares of a few measurements of its
+/// regressor's typical spread, so that a term is fitted only once the measurements move it
+/// further (2 m/s² of bias, 10 mm/s, a tenth of the swing).
+const RIDGE: [f64; 3] = [20.0, 1e-3, 0.1];
+
+impl Fit {
+    /// A measurement at the dither `level_mps2` (its regressor `dither_mps2`).
+    fn take(
+        &mut self,
+        level_mps2: f64,
+        dither_mps2: f64,
+        bias_mps2: f64,
+        swing_mps: f64,
+        slow_mps: f64,
+        offset_mps2: f64,
+    ) {
+        let row = [1.0, dither_mps2, bias_mps2, slow_mps, slow_mps / swing_mps];
+        for i in 0..TERMS {
+            for j in 0..TERMS {
+                self.normal[i][j] += row[i] * row[j];
+            }
+            self.right[i] += row[i] * offset_mps2;
+        }
+        self.count += 1;
+        let first = self.levels.map_or(level_mps2, |(first, _)| first);
+        self.levels = Some((first, level_mps2));
+    }
+
+    /// `(o/ḡ, ε/ḡ)`; with one dither level measured `((o + ε·D)/ḡ, 0)`, what acts at that
+    /// level; `None` before any.
+    fn drive(&self) -> Option<(f64, f64)> {
+        if self.count == 0 {
+            return None;
+        }
+        let mut a = self.normal;
+        let mut b = self.right;
+        for (k, ridge) in RIDGE.iter().enumerate() {
+            a[k + 2][k + 2] += ridge;
+        }
+        if self.levels.is_none_or(|(first, last)| first == last) {
+            // One level: no slope.
+            for k in 0..TERMS {
+                a[1][k] = 0.0;
+                a[k][1] = 0.0;
+            }
+            a[1][1] = 1.0;
+            b[1] = 0.0;
+        }
+        let x = solve(&mut a, &mut b)?;
+        let gain = 1.0 + x[2];
+        (gain > 0.5).then(|| (x[0] / gain, x[1] / gain))
+    }
+}
+
+/// Solves `a·x = b` by elimination with partial pivoting; `None` if singular.
+fn solve(a: &mut [[f64; TERMS]; TERMS], b: &mut [f64; TERMS]) -> Option<[f64; TERMS]> {
+    for col in 0..TERMS {
+        let pivot = (col..TERMS).max_by(|&i, &j| fabs(a[i][col]).total_cmp(&fabs(a[j][col])))?;
+        if fabs(a[pivot][col]) < 1e-300 {
+            return None;
+        }
+        a.swap(col, pivot);
+        b.swap(col, pivot);
+        for row in col + 1..TERMS {
+            let factor = a[row][col] / a[col][col];
+            for k in col..TERMS {
+                a[row][k] -= factor * a[col][k];
+            }
+            b[row] -= factor * b[col];
+        }
+    }
+    let mut x = [0.0; TERMS];
+    for row in (0..TERMS).rev() {
+        let mut sum = b[row];
+        for k in row + 1..TERMS {
+            sum -= a[row][k] * x[k];
+        }
+        x[row] = sum / a[row][row];
+    }
+    Some(x)
+}
+
+/// The position the dither adds over pair `pair`: `(D − D')·h²/4`.
+fn kick_m(pair: u16, h: f64) -> f64 {
+    let before = pair.checked_sub(1).map_or(0.0, Settle::dither_mps2);
+    (Settle::dither_mps2(pair) - before) * h * h / 4.0
+}
+
+/// The settle's state.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settle {
+    limits: LoopLimits,
+    /// The output's smallest step of a level (0: continuous): biases are rounded to it.
+    level_step_mps2: f64,
+    /// Boundaries seen.
+    boundaries: u16,
+    /// The biases of the next pair (decided at the running one's start), of the running one,
+    /// of the one before and of the one before that.
+    biases_mps2: [f64; 4],
+    /// The starts of the running pair and of the one before.
+    starts_m: [Option<f64>; 2],
+    fit: Fit,
+    /// Where the plate rested at the first start.
+    rest_m: Option<f64>,
+    /// The measurements of the held pairs before the dither: the sum and the count.
+    held_sum_mps2: f64,
+    held: u16,
+}
+
+impl Settle {
+    /// A settle that has seen no start, its first pair run at `first_bias_mps2` (made before
+    /// any decision).
+    pub fn new(limits: LoopLimits, level_step_mps2: f64, first_bias_mps2: f64) -> Self {
+        Settle {
+            limits,
+            level_step_mps2: if level_step_mps2.is_finite() && level_step_mps2 > 0.0 {
+                level_step_mps2
+            } else {
+                0.0
+            },
+            boundaries: 0,
+            biases_mps2: [first_bias_mps2; 4],
+            starts_m: [None; 2],
+            fit: Fit::default(),
+            rest_m: None,
+            held_sum_mps2: 0.0,
+            held: 0,
+        }
+    }
+
+    /// The zero offset `ô` and the gains' half difference `ε̂ = (ĝ₊ − ĝ₋)/2` found so far:
+    /// from the dither once it has measured both levels, before that the held pairs' mean.
+    pub fn drive(&self) -> (f64, f64) {
+        match self.fit.drive() {
+            Some(drive) => drive,
+            None if self.held > 0 => (self.held_sum_mps2 / f64::from(self.held), 0.0),
+            None => (0.0, 0.0),
+        }
+    }
+
+    /// The dither of pair `pair`.
+    fn dither_mps2(pair: u16) -> f64 {
+        pair.checked_sub(HOLD_PAIRS)
+            .and_then(|k| DITHER_MPS2.get(usize::from(k / DITHER_PAIRS)))
+            .copied()
+            .unwrap_or(0.0)
+    }
+
+    /// At the start of a settle segment of `segment_s`: `start_m` the position latched there,
+    /// `target_m` where the first cycle should start (the plate is held where it rests until
+    /// the last pairs). Returns the level of the segment after the next (bias and dither).
+    pub fn update(
+        &mut self,
+        start_m: f64,
+        segment_s: f64,
+        target_m: f64,
+    ) -> Result<f64, LoopError> {
+        if !start_m.is_finite() {
+            return Err(LoopError::Sensor);
+        }
+        let rest_m = *self.rest_m.get_or_insert(start_m);
+        let moving = self.boundaries >= 2 * (PAIRS - MOVE_PAIRS);
+        let error_m = start_m - if moving { target_m } else { rest_m };
+        if fabs(error_m) > self.limits.position_error_max_m {
+            return Err(LoopError::Position { error_m });
+        }
+        let boundary = self.boundaries;
+        self.boundaries = self.boundaries.saturating_add(1);
+        let pair = boundary / 2;
+        if boundary % 2 == 1 {
+            // Mid-pair: the next pair's second half, decided at this pair's start.
+            return Ok(self.biases_mps2[0] - Self::dither_mps2(pair + 1));
+        }
+        if pair > 0 {
+            let [next, now, before, _] = self.biases_mps2;
+            self.biases_mps2 = [next, next, now, before];
+        }
+        let [_, now, before, earlier] = self.biases_mps2;
+        let h = segment_s;
+        let span = 2.0 * h;
+        let dither = |back: u16| pair.checked_sub(back).map_or(0.0, Self::dither_mps2);
+        let kick = |back: u16| pair.checked_sub(back).map_or(0.0, |j| kick_m(j, h));
+        match self.starts_m {
+            [Some(x1), Some(x2)] => {
+                let measured = (start_m - 2.0 * x1 + x2 - kick(1) + kick(2)) / (span * span)
+                    - (before + earlier) / 2.0;
+                // Steady dither through both pairs (no level change at their starts, where the
+                // drive's mean gain would scale the dither's kick), or held before it.
+                if dither(1) > 0.0 && dither(1) == dither(2) && dither(2) == dither(3) {
+                    let slow_mps = (start_m - x2 - kick(1) - kick(2)) / (2.0 * span);
+                    // The gains' difference also scales the pair's swing by `ε·b`: a bias that
+                    // moved between the pairs kicks the plate by `ε·Δb·h²`.
+                    self.fit.take(
+                        dither(1),
+                        dither(1) + (before - earlier) / 4.0,
+                        (before + earlier) / 2.0,
+                        dither(1) * h,
+                        slow_mps,
+                        measured,
+                    );
+                } else if pair <= HOLD_PAIRS {
+                    self.take_held(measured);
+                }
+            }
+            // The first pair started from rest.
+            [Some(x1), None] => self.take_held(2.0 * (start_m - x1) / (span * span) - before),
+            _ => {}
+        }
+        let (offset, slope) = self.drive();
+        let acting = |back: u16| offset + slope * dither(back);
+        let slow_v = match self.starts_m[0] {
+            Some(x1) => (start_m - x1 - kick(1)) / span + (before + acting(1)) * span / 2.0,
+            None => 0.0,
+        };
+        // The loop holds the slow part of the position, the dither's kicks so far taken out
+        // (they sum to `D·h²/4` and to nothing once the dither has ended), so that it never
+        // fights a kick.
+        let predicted_x = error_m + slow_v * span + (now + acting(0)) * span * span / 2.0 + kick(0)
+            - dither(0) * h * h / 4.0;
+        let predicted_v = slow_v + (now + acting(0)) * span;
+        let k1 = (1.0 - POLE) * (1.0 - POLE) / (span * span);
+        let k2 = (3.0 - 2.0 * POLE - POLE * POLE) / (2.0 * span);
+        let correction_mps2 = -k1 * predicted_x - k2 * predicted_v;
+        if fabs(correction_mps2) > self.limits.correction_max_mps2 {
+            return Err(LoopError::Correction { correction_mps2 });
+        }
+        let next_dither = Self::dither_mps2(pair + 1);
+        let next = self.rounded(-(offset + slope * next_dither) + correction_mps2);
+        self.biases_mps2[0] = next;
+        self.starts_m = [Some(start_m), self.starts_m[0]];
+        Ok(next + (dither(0) + next_dither) / 2.0)
+    }
+
+    fn take_held(&mut self, measured_mps2: f64) {
+        self.held_sum_mps2 += measured_mps2;
+        self.held += 1;
+    }
+
+    fn rounded(&self, bias_mps2: f64) -> f64 {
+        if self.level_step_mps2 > 0.0 {
+            libm::round(bias_mps2 / self.level_step_mps2) * self.level_step_mps2
+        } else {
+            bias_mps2
+        }
+    }
+}

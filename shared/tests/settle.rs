@@ -1,0 +1,97 @@
+//! The settle on a frictionless plate integrated exactly here, its drive `x'' = g±·u + o` (the
+//! gain by the command's sign), read through an encoder of 1 µm at each segment's start, each
+//! decision applied two segments on as the firmware applies it.
+
+use feeder_shared::closed_loop::settle::{PAIRS, POLE};
+use feeder_shared::closed_loop::{LoopError, LoopLimits, Settle};
+use proptest::prelude::*;
+
+const SEGMENT_S: f64 = 2.5e-3;
+const RESOLUTION_M: f64 = 1e-6;
+const LIMITS: LoopLimits = LoopLimits {
+    correction_max_mps2: 50.0,
+    amplitude_max: 0.2,
+    position_error_max_m: 4e-3,
+};
+
+/// Runs a whole settle on the drive `[g₊, g₋, o]`, holding the plate at `target_m` for its last
+/// pairs: the settle, and the largest `|x|` reached.
+fn settle(drive: [f64; 3], target_m: f64) -> Result<(Settle, f64), LoopError> {
+    let [plus, minus, offset] = drive;
+    let mut settle = Settle::new(LIMITS, 0.0, 0.0);
+    let (mut x, mut v, mut largest) = (0.0f64, 0.0f64, 0.0f64);
+    // The levels of the segment running and of the next, made before any decision.
+    let mut levels = std::collections::VecDeque::from([0.0, 0.0]);
+    for _ in 0..2 * PAIRS {
+        let read = (x / RESOLUTION_M).floor() * RESOLUTION_M + RESOLUTION_M / 2.0;
+        let level = settle.update(read, SEGMENT_S, target_m)?;
+        levels.push_back(level);
+        let u = levels.pop_front().unwrap();
+        let a = u * if u > 0.0 { plus } else { minus } + offset;
+        let turn_s = -v / a;
+        if a != 0.0 && turn_s > 0.0 && turn_s < SEGMENT_S {
+            largest = largest.max((x + v * turn_s + a * turn_s * turn_s / 2.0).abs());
+        }
+        x += v * SEGMENT_S + a * SEGMENT_S * SEGMENT_S / 2.0;
+        v += a * SEGMENT_S;
+        largest = largest.max(x.abs());
+    }
+    Ok((settle, largest))
+}
+
+proptest! {
+    /// On any drive of the envelope (gains 0.90–1.10, offset up to ±4 m/s²) the settle finds
+    /// the offset and the gains' half difference as the cycles need them, over their mean gain
+    /// (`o/ḡ` and `ε/ḡ`), and holds the plate within half a millimetre (the dither's own swing is 0.23 mm).
+    #[test]
+    fn a_drive_of_the_envelope_is_found_and_the_plate_held(
+        plus in 0.9f64..1.1,
+        minus in 0.9f64..1.1,
+        offset in -4.0f64..4.0,
+    ) {
+        let (settle, largest_m) = settle([plus, minus, offset], 0.0).unwrap();
+        let mean = (plus + minus) / 2.0;
+        let (found_offset, found_half_difference) = settle.drive();
+        prop_assert!((found_offset - offset / mean).abs() < 0.1, "offset {found_offset}");
+        prop_assert!(
+            (found_half_difference - (plus - minus) / 2.0 / mean).abs() < 2e-3,
+            "ε {found_half_difference}"
+        );
+        prop_assert!(largest_m < 0.5e-3, "{largest_m} m");
+    }
+}
+
+/// The settle's last pairs bring the plate to the target it is given, at rest.
+#[test]
+fn the_last_pairs_bring_the_plate_to_its_target() {
+    let mut settle = Settle::new(LIMITS, 0.0, 0.0);
+    let target_m = -300e-6;
+    let (mut x, mut v) = (0.0f64, 0.0f64);
+    let mut levels = std::collections::VecDeque::from([0.0, 0.0]);
+    for _ in 0..2 * PAIRS {
+        let level = settle.update(x, SEGMENT_S, target_m).unwrap();
+        levels.push_back(level);
+        let a = levels.pop_front().unwrap() + 1.0;
+        x += v * SEGMENT_S + a * SEGMENT_S * SEGMENT_S / 2.0;
+        v += a * SEGMENT_S;
+    }
+    assert!((x - target_m).abs() < 30e-6, "{x} m");
+    assert!(v.abs() < 5e-3, "{v} m/s");
+    assert!(POLE > 0.0 && POLE < 1.0);
+}
+
+/// A plate beyond the loop's reach stops the settle by name: a position past the limit, or a
+/// position that is not a number.
+#[test]
+fn a_plate_out_of_reach_stops_the_settle() {
+    let mut settle = Settle::new(LIMITS, 0.0, 0.0);
+    assert!(settle.update(0.0, SEGMENT_S, 0.0).is_ok());
+    assert_eq!(
+        settle.update(5e-3, SEGMENT_S, 0.0),
+        Err(LoopError::Position { error_m: 5e-3 })
+    );
+    assert_eq!(
+        settle.update(f64::NAN, SEGMENT_S, 0.0),
+        Err(LoopError::Sensor)
+    );
+}
