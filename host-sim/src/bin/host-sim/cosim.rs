@@ -107,11 +107,13 @@ impl Plant for Watched {
 
     fn sample(&mut self, tick: u64) -> i32 {
         self.cycle_starts += 1;
-        self.bar.set_message(format!(
-            "co-simulation: cycle start {}, {:.2} s of plate time",
-            self.cycle_starts,
-            tick as f64 / f64::from(TICK_HZ)
-        ));
+        if !self.bar.is_hidden() {
+            self.bar.set_message(format!(
+                "co-simulation: cycle start {}, {:.2} s of plate time",
+                self.cycle_starts,
+                tick as f64 / f64::from(TICK_HZ)
+            ));
+        }
         self.plant.sample(tick)
     }
 
