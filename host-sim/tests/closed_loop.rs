@@ -62,9 +62,8 @@ fn the_realistic_plate_is_identified_centred_and_feeds_as_the_ideal_one() {
     let gain_error = |found: f64, truth: f64| (found / truth - 1.0).abs();
     assert!(gain_error(identified.gain_positive, plant.gain_positive) < 0.01);
     assert!(gain_error(identified.gain_negative, plant.gain_negative) < 0.01);
-    // The probe starts from rest, where the slide's friction holds the plate against the
-    // offset: over three cycles the two are told apart to about 7 %, which the loop's
-    // disturbance estimate takes up.
+    // At rest the slide's friction holds the plate against the offset; the probe's cycles tell
+    // the two apart to about 7 %, which the loop's disturbance estimate takes up.
     let offset_mps2 = plant.zero_offset_fraction * plant.full_scale_accel_mps2;
     assert!((identified.offset_mps2 - offset_mps2).abs() < 0.1 * offset_mps2);
     assert_eq!(run.end_stop, None);
@@ -208,5 +207,41 @@ fn the_loop_holds_other_drives_centred() {
             worst_m * 1e6
         );
         assert!(worst_m < 50e-6, "{worst_m}");
+    }
+}
+
+/// The settle holds the plate from the first start: on `realistic.toml` the start-up, from
+/// power-up to the release, stays within the 1 mm bound (0.49 mm, the probe's own stroke of
+/// 0.75 mm peak to peak included), and the drive is off through the idle periods before the
+/// start, so the plate stands where it rests until then.
+#[test]
+fn the_start_up_stays_within_its_bound() {
+    let run = run(&ClosedLoopOptions::new(30));
+    assert!(run.startup_peak_m < 1e-3, "{} m", run.startup_peak_m);
+    let idle: Vec<_> = run.cycles.iter().take_while(|c| c.idle).collect();
+    assert_eq!(idle.len(), 2);
+    assert!(idle.iter().all(|c| c.peak_m <= 1e-6));
+}
+
+/// A drive whose zero offset lies beyond the envelope (8 m/s², twice its limit) is refused by
+/// the settle, before the probe: by its cause, with the plate moved less than half a millimetre.
+#[test]
+fn an_offset_beyond_the_envelope_is_refused_before_the_probe() {
+    for offset_fraction in [0.04, -0.04] {
+        let mut plant = realistic();
+        plant.plate.zero_offset_fraction = offset_fraction;
+        let run =
+            run_closed_loop(&plant, &contact(), plan(0.586), &ClosedLoopOptions::new(30)).unwrap();
+        let Some(SimError::Identification(error)) = &run.gave_up else {
+            panic!("not refused: {:?}", run.gave_up);
+        };
+        assert_eq!(
+            error.cause(),
+            Some(feeder_shared::closed_loop::Cause::Offset),
+            "{error}"
+        );
+        assert!(run.peak_excursion_m < 0.5e-3, "{} m", run.peak_excursion_m);
+        assert!(run.identified.is_none());
+        assert!(run.simulated_s < 0.3, "{} s", run.simulated_s);
     }
 }

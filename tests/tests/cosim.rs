@@ -428,6 +428,9 @@ fn compared_plants() -> Vec<(String, host_sim::plate::PlantFile)> {
         .expect("the sample has a plant outside by its gain");
     let mut slow = realistic.clone();
     slow.plate.current_bandwidth_hz = Some(159.0);
+    // Twice the envelope's offset: the settle refuses it before the probe.
+    let mut offset = realistic.clone();
+    offset.plate.zero_offset_fraction = -0.04;
     vec![
         ("realistic.toml".into(), realistic),
         named("a flexure mount", flexure),
@@ -438,6 +441,10 @@ fn compared_plants() -> Vec<(String, host_sim::plate::PlantFile)> {
         ),
         named("the most slide friction, a bare slide", friction),
         named("a gain outside the envelope", gain_outside),
+        (
+            "realistic.toml with an offset outside the envelope".into(),
+            offset,
+        ),
     ]
 }
 

@@ -48,6 +48,7 @@ pub use probe::{Probe, PROBE_CYCLES_MAX, PROBE_POSITIONS_MAX};
 pub use stage::{LoopReport, Stage};
 
 use super::cycle_loop::{CycleLoop, Stroke, Trims};
+use super::envelope::ENVELOPE;
 use super::identify::{Identified, IdentifyError};
 use super::settle::Settle;
 use super::shape::{CommandSegment, CycleShape};
@@ -440,6 +441,20 @@ impl Course {
         let mut lookahead = ahead.clone();
         lookahead.next_segment();
         let settled = lookahead.next_segment().kind != SegmentKind::Settle;
+        // An offset beyond the envelope is refused as soon as it shows: from the held pairs
+        // (what acts on a plate at rest is never more than the offset), else from the dither.
+        let limit_mps2 = ENVELOPE.settled_offset_max_mps2();
+        let found = run
+            .settle
+            .held_mps2()
+            .filter(|held| libm::fabs(*held) > limit_mps2)
+            .or((settled && libm::fabs(offset_mps2) > limit_mps2).then_some(offset_mps2));
+        if let Some(offset_mps2) = found {
+            return Err(CourseError::Identify(IdentifyError::Offset {
+                offset_mps2,
+                limit_mps2,
+            }));
+        }
         let trims = if settled {
             self.cycle_loop.hold_drive(offset_mps2, gain_difference);
             self.feedforward()

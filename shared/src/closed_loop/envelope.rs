@@ -69,6 +69,13 @@ impl Envelope {
         self.zero_offset_fraction_max * self.full_scale_mps2 * (1.0 + 8.0 * IDENTIFIED_MARGIN)
     }
 
+    /// The largest `|offset|` a settle may find ([`Settle::drive`](crate::closed_loop::Settle::drive)
+    /// reads it over the drive's mean gain): [`Envelope::offset_max_mps2`] over the weakest
+    /// gain, so that no plant of the envelope is refused for it.
+    pub fn settled_offset_max_mps2(&self) -> f64 {
+        self.offset_max_mps2() / self.gain_min
+    }
+
     /// The highest planned peak acceleration the closed loop takes on an output whose linear
     /// range reaches `linear_mps2`: its `+a` level, divided by the weakest gain, with the
     /// largest offset and the friction of the lightest plate on the stiffest slide fed forward

@@ -209,6 +209,12 @@ impl Settle {
         }
     }
 
+    /// What the held pairs before the dither measured acting on the plate, once they have: the
+    /// offset less the slide's friction where the plate moved (never more than the offset).
+    pub fn held_mps2(&self) -> Option<f64> {
+        (self.held > 0).then(|| self.held_sum_mps2 / f64::from(self.held))
+    }
+
     /// The dither of pair `pair`.
     fn dither_mps2(pair: u16) -> f64 {
         pair.checked_sub(HOLD_PAIRS)
