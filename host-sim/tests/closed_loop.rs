@@ -245,3 +245,27 @@ fn an_offset_beyond_the_envelope_is_refused_before_the_probe() {
         assert!(run.simulated_s < 0.3, "{} s", run.simulated_s);
     }
 }
+
+/// An encoder coarser than the envelope's 5 µm a count is refused by name before anything moves.
+#[test]
+fn a_sensor_coarser_than_the_envelope_is_refused_before_anything_moves() {
+    let mut plant = realistic();
+    if let Some(encoder) = plant.sensors.encoder.as_mut() {
+        encoder.resolution_m = 8e-6;
+    }
+    let run =
+        run_closed_loop(&plant, &contact(), plan(0.586), &ClosedLoopOptions::new(30)).unwrap();
+    let Some(SimError::Identification(error)) = &run.gave_up else {
+        panic!("not refused: {:?}", run.gave_up);
+    };
+    assert_eq!(
+        error.cause(),
+        Some(feeder_shared::closed_loop::Cause::Sensor)
+    );
+    assert_eq!(
+        error.to_string(),
+        "the position sensor counts 8 µm, coarser than the 5 µm the loop reads: fit a finer \
+         position sensor"
+    );
+    assert!(run.peak_excursion_m < 1e-6, "{} m", run.peak_excursion_m);
+}

@@ -402,6 +402,14 @@ impl Course {
         start: PositionSample,
     ) -> Result<Decision, CourseError> {
         let plan = ahead.plan();
+        let limit_m = ENVELOPE.resolution_max_m;
+        if self.config.resolution_m > limit_m {
+            // Known from the configuration: refused before anything moves.
+            return Err(CourseError::Identify(IdentifyError::Sensor {
+                resolution_m: self.config.resolution_m,
+                limit_m,
+            }));
+        }
         if self.stage != Stage::Settling {
             // A new start from rest: the plate is held where the probe's first cycle starts.
             self.stage = Stage::Settling;

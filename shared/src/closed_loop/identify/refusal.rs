@@ -66,6 +66,8 @@ pub enum IdentifyError {
         spring_per_s2: f64,
         limit_per_s2: f64,
     },
+    /// A position sensor coarser than the loop reads: refused before the plate moves.
+    Sensor { resolution_m: f64, limit_m: f64 },
 }
 
 impl IdentifyError {
@@ -75,6 +77,7 @@ impl IdentifyError {
             IdentifyError::Gain { .. } => Some(Cause::Gain),
             IdentifyError::Offset { .. } => Some(Cause::Offset),
             IdentifyError::Spring { .. } => Some(Cause::Spring),
+            IdentifyError::Sensor { .. } => Some(Cause::Sensor),
             _ => None,
         }
     }
@@ -133,6 +136,16 @@ impl core::fmt::Display for IdentifyError {
                 Significant(sqrt(spring_per_s2.max(0.0)) / (2.0 * core::f64::consts::PI)),
                 Significant(limit_per_s2),
                 Cause::Spring.remedy()
+            ),
+            IdentifyError::Sensor {
+                resolution_m,
+                limit_m,
+            } => write!(
+                f,
+                "the position sensor counts {} µm, coarser than the {} µm the loop reads: {}",
+                Significant(resolution_m * 1e6),
+                Significant(limit_m * 1e6),
+                Cause::Sensor.remedy()
             ),
         }
     }
