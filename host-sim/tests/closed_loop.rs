@@ -269,3 +269,32 @@ fn a_sensor_coarser_than_the_envelope_is_refused_before_anything_moves() {
     );
     assert!(run.peak_excursion_m < 1e-6, "{} m", run.peak_excursion_m);
 }
+
+/// A current loop slower than the envelope's 150 Hz is refused by the identification, named as
+/// the lag it is and not as the gains it rounds.
+#[test]
+fn a_current_loop_slower_than_the_envelope_is_refused_for_its_lag() {
+    let mut plant = realistic();
+    plant.plate.current_bandwidth_hz = Some(90.0);
+    let run =
+        run_closed_loop(&plant, &contact(), plan(0.586), &ClosedLoopOptions::new(30)).unwrap();
+    let Some(SimError::Identification(error)) = &run.gave_up else {
+        panic!("not refused: {:?}", run.gave_up);
+    };
+    assert_eq!(
+        error.cause(),
+        Some(feeder_shared::closed_loop::Cause::Lag),
+        "{error}"
+    );
+    let feeder_shared::closed_loop::IdentifyError::Lag { lag_s, .. } = *error else {
+        panic!("{error}");
+    };
+    let truth_s = 1.0 / (2.0 * std::f64::consts::PI * 90.0);
+    assert!(
+        (lag_s / truth_s - 1.0).abs() < 0.05,
+        "{lag_s} s against {truth_s} s"
+    );
+    assert!(error
+        .to_string()
+        .contains("raise the drive's current-loop bandwidth"));
+}

@@ -254,6 +254,7 @@ const WIDE: IdentifyLimits = IdentifyLimits {
     offset_max_mps2: 10.0,
     min_excursion_m: 1e-6,
     spring_max_per_s2: 1e9,
+    lag_max_s: 1.0,
 };
 
 /// A drive with ±2 % gains, a 1 m/s² offset, a 1 kHz current loop and viscous friction, on a

@@ -69,6 +69,13 @@ impl Envelope {
         self.zero_offset_fraction_max * self.full_scale_mps2 * (1.0 + 8.0 * IDENTIFIED_MARGIN)
     }
 
+    /// The longest current-loop lag an identification may find, s: the time constant of the
+    /// slowest current loop, with the identification's margin.
+    pub fn lag_max_s(&self) -> f64 {
+        (1.0 + 8.0 * IDENTIFIED_MARGIN)
+            / (2.0 * core::f64::consts::PI * self.current_bandwidth_min_hz)
+    }
+
     /// The largest `|offset|` a settle may find ([`Settle::drive`](crate::closed_loop::Settle::drive)
     /// reads it over the drive's mean gain): [`Envelope::offset_max_mps2`] over the weakest
     /// gain, so that no plant of the envelope is refused for it.

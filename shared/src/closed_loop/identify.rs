@@ -25,7 +25,7 @@ pub use refusal::{spring_max_per_s2, IdentifyError, IdentifyLimits};
 use libm::{fabs, sqrt};
 
 use super::shape::CommandSegment;
-use fit::{best_lag, fit, Model, UNKNOWNS};
+use fit::{best_lag, fit, Model, LAG_MAX_S, UNKNOWNS};
 use latched::{latched_velocity, motion_rows};
 use refit::fitted_velocity;
 
@@ -143,6 +143,18 @@ pub fn identify(
         spring_per_s2: 0.0 - spring,
         residual_m: sqrt(squares / latches.len() as f64),
     };
+    // A lag at the search's end is no lag found: the positions do not determine the drive.
+    if identified.lag_s.is_nan() || identified.lag_s >= 0.99 * LAG_MAX_S {
+        return Err(IdentifyError::Singular);
+    }
+    // A slow current loop is named first: it rounds the probe's levels, which then read as
+    // gains off their range.
+    if identified.lag_s > limits.lag_max_s {
+        return Err(IdentifyError::Lag {
+            lag_s: identified.lag_s,
+            limit_s: limits.lag_max_s,
+        });
+    }
     for (positive, gain) in [(true, gain_positive), (false, gain_negative)] {
         if !(limits.gain_min..=limits.gain_max).contains(&gain) {
             return Err(IdentifyError::Gain { positive, gain });

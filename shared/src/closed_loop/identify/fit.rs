@@ -12,7 +12,7 @@ use crate::closed_loop::shape::CommandSegment;
 pub(super) const UNKNOWNS: usize = 8;
 
 /// Longest current-loop lag searched.
-const LAG_MAX_S: f64 = 5e-3;
+pub(super) const LAG_MAX_S: f64 = 5e-3;
 
 /// Golden-section steps: the lag to `LAG_MAX_S·0.618²⁴ ≈ 5·10⁻⁸ s`, a three-thousandth of a
 /// 1 kHz current loop's time constant (0.16 ms).

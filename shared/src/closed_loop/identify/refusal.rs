@@ -19,12 +19,16 @@ pub struct IdentifyLimits {
     pub min_excursion_m: f64,
     /// A centring spring's `k/M` at most this.
     pub spring_max_per_s2: f64,
+    /// The current loop's lag at most this.
+    pub lag_max_s: f64,
 }
 
 impl IdentifyLimits {
-    /// The envelope's gains and offset ([`Envelope::identified_gains`](crate::closed_loop::Envelope::identified_gains),
-    /// [`Envelope::offset_max_mps2`](crate::closed_loop::Envelope::offset_max_mps2)), a motion of at least 20 `resolution_m`, and a spring
-    /// the cycle-rate loop holds at a period of `period_s` ([`spring_max_per_s2`]).
+    /// The envelope's gains, offset and current loop ([`Envelope::identified_gains`](crate::closed_loop::Envelope::identified_gains),
+    /// [`Envelope::offset_max_mps2`](crate::closed_loop::Envelope::offset_max_mps2),
+    /// [`Envelope::lag_max_s`](crate::closed_loop::Envelope::lag_max_s)), a motion of at least 20
+    /// `resolution_m`, and a spring the cycle-rate loop holds at a period of `period_s`
+    /// ([`spring_max_per_s2`]).
     pub fn for_probe(resolution_m: f64, period_s: f64) -> Self {
         let (gain_min, gain_max) = ENVELOPE.identified_gains();
         IdentifyLimits {
@@ -33,6 +37,7 @@ impl IdentifyLimits {
             offset_max_mps2: ENVELOPE.offset_max_mps2(),
             min_excursion_m: 20.0 * resolution_m,
             spring_max_per_s2: spring_max_per_s2(period_s),
+            lag_max_s: ENVELOPE.lag_max_s(),
         }
     }
 }
@@ -68,6 +73,8 @@ pub enum IdentifyError {
     },
     /// A position sensor coarser than the loop reads: refused before the plate moves.
     Sensor { resolution_m: f64, limit_m: f64 },
+    /// A current loop slower than the loop needs.
+    Lag { lag_s: f64, limit_s: f64 },
 }
 
 impl IdentifyError {
@@ -78,6 +85,7 @@ impl IdentifyError {
             IdentifyError::Offset { .. } => Some(Cause::Offset),
             IdentifyError::Spring { .. } => Some(Cause::Spring),
             IdentifyError::Sensor { .. } => Some(Cause::Sensor),
+            IdentifyError::Lag { .. } => Some(Cause::Lag),
             _ => None,
         }
     }
@@ -137,6 +145,19 @@ impl core::fmt::Display for IdentifyError {
                 Significant(limit_per_s2),
                 Cause::Spring.remedy()
             ),
+            IdentifyError::Lag { lag_s, limit_s } => {
+                let bandwidth_hz = |lag_s: f64| 1.0 / (2.0 * core::f64::consts::PI * lag_s);
+                write!(
+                    f,
+                    "the drive's current loop lags {} ms (a bandwidth of {} Hz), slower than the \
+                     {} ms ({} Hz) the loop needs: {}",
+                    Significant(lag_s * 1e3),
+                    Significant(bandwidth_hz(lag_s)),
+                    Significant(limit_s * 1e3),
+                    Significant(bandwidth_hz(limit_s)),
+                    Cause::Lag.remedy()
+                )
+            }
             IdentifyError::Sensor {
                 resolution_m,
                 limit_m,
