@@ -33,7 +33,7 @@ pub struct CourseConfig {
 
 impl CourseConfig {
     /// The settle's pairs (60 segments, 150 ms at 50 Hz and at 100 Hz); 4 probe cycles at 30 %
-    /// of the levels; the identification taken 5 s after the probe (the firmware needs 3.5 s
+    /// of the levels; the identification taken 5 s after the probe (the firmware needs 3.9 s
     /// under QEMU at 50 Hz); centred within 25 µm for 20 cycles (the loop's disturbance estimate
     /// settles on the identified drive meanwhile), in at most 250 cycles; the loop may add up to
     /// 50 m/s² (a quarter of the envelope's full scale: a spring or slide friction at its limit

@@ -72,14 +72,12 @@ pub(super) fn fit(
     }
     let mut normal = [[0.0; UNKNOWNS]; UNKNOWNS];
     let mut right = [0.0; UNKNOWNS];
-    let mut positions = 0.0;
     for (i, latch) in latches.iter().enumerate() {
         let mut r = row(i);
         for (r, inverse) in r.iter_mut().zip(inverse) {
             *r *= inverse;
         }
         r[columns..].fill(0.0);
-        positions += latch.position_m * latch.position_m;
         for a in 0..columns {
             right[a] += r[a] * latch.position_m;
             for b in a..columns {
@@ -94,12 +92,19 @@ pub(super) fn fit(
         }
     }
     let mut theta = cholesky_solve(normal, right, columns)?;
-    // The least-squares residual from the normal equations: `yᵀy − θᵀAᵀy`.
-    let explained: f64 = theta.iter().zip(right).map(|(t, r)| t * r).sum();
-    let squares = (positions - explained).max(0.0);
     for (t, inverse) in theta.iter_mut().zip(inverse) {
         *t *= inverse;
     }
+    // Summed latch by latch: the normal equations' `yᵀy − θᵀAᵀy` cancels to noise where the
+    // fit is exact.
+    let squares = latches
+        .iter()
+        .enumerate()
+        .map(|(i, latch)| {
+            let fitted: f64 = row(i).iter().zip(theta).map(|(r, t)| r * t).sum();
+            (fitted - latch.position_m) * (fitted - latch.position_m)
+        })
+        .sum();
     Some((theta, squares))
 }
 
