@@ -264,8 +264,8 @@ fn a_sensor_coarser_than_the_envelope_is_refused_before_anything_moves() {
     );
     assert_eq!(
         error.to_string(),
-        "the position sensor counts 8 µm, coarser than the 5 µm the loop reads: fit a finer \
-         position sensor"
+        "the position sensor counts 8.00 µm, coarser than the 5.00 µm the loop reads: fit a \
+         finer position sensor"
     );
     assert!(run.peak_excursion_m < 1e-6, "{} m", run.peak_excursion_m);
 }

@@ -149,12 +149,12 @@ impl core::fmt::Display for IdentifyError {
                 let bandwidth_hz = |lag_s: f64| 1.0 / (2.0 * core::f64::consts::PI * lag_s);
                 write!(
                     f,
-                    "the drive's current loop lags {} ms (a bandwidth of {} Hz), slower than the \
-                     {} ms ({} Hz) the loop needs: {}",
-                    Significant(lag_s * 1e3),
-                    Significant(bandwidth_hz(lag_s)),
-                    Significant(limit_s * 1e3),
-                    Significant(bandwidth_hz(limit_s)),
+                    "the drive's current loop lags {:.3} ms (a bandwidth of {:.0} Hz), slower \
+                     than the {:.3} ms ({:.0} Hz) the loop needs: {}",
+                    lag_s * 1e3,
+                    bandwidth_hz(lag_s),
+                    limit_s * 1e3,
+                    bandwidth_hz(limit_s),
                     Cause::Lag.remedy()
                 )
             }
@@ -163,9 +163,9 @@ impl core::fmt::Display for IdentifyError {
                 limit_m,
             } => write!(
                 f,
-                "the position sensor counts {} µm, coarser than the {} µm the loop reads: {}",
-                Significant(resolution_m * 1e6),
-                Significant(limit_m * 1e6),
+                "the position sensor counts {:.2} µm, coarser than the {:.2} µm the loop reads: {}",
+                resolution_m * 1e6,
+                limit_m * 1e6,
                 Cause::Sensor.remedy()
             ),
         }
