@@ -113,14 +113,14 @@ impl core::fmt::Display for IdentifyError {
                 if gain < 0.0 {
                     write!(
                         f,
-                        "the drive's {direction} gain is {gain}: the motor or the position sensor \
+                        "the drive's {direction} gain is {gain:.4}: the motor or the position sensor \
                          is wired backwards"
                     )
                 } else {
                     let (min, max) = ENVELOPE.identified_gains();
                     write!(
                         f,
-                        "the drive's {direction} gain is {gain}, outside {min}–{max}: {}",
+                        "the drive's {direction} gain is {gain:.4}, outside {min:.4}–{max:.4}: {}",
                         Cause::Gain.remedy()
                     )
                 }
@@ -130,7 +130,7 @@ impl core::fmt::Display for IdentifyError {
                 limit_mps2,
             } => write!(
                 f,
-                "the drive's zero offset is {offset_mps2} m/s², beyond ±{limit_mps2} m/s²: {}",
+                "the drive's zero offset is {offset_mps2:.2} m/s², beyond ±{limit_mps2:.2} m/s²: {}",
                 Cause::Offset.remedy()
             ),
             IdentifyError::Spring {
