@@ -57,6 +57,29 @@ pub struct PlatePlant {
     levels: Vec<(u64, f64)>,
     samples: Vec<PlateSample>,
     error: Option<SimError>,
+    /// The driver's enable as the firmware last set it.
+    drive_enabled: bool,
+}
+
+/// How the plate ends once the firmware has: where it comes to rest, or the end stop it reaches,
+/// or how it still moves after the time allowed.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RunOut {
+    /// The driver's enable as the firmware left it.
+    pub driver_enabled: bool,
+    /// Time from the firmware's end.
+    pub after_s: f64,
+    pub state: PlateState,
+    pub outcome: RunOutcome,
+}
+
+/// Where a [`RunOut`] ended.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RunOutcome {
+    AtRest,
+    EndStop,
+    StillMoving,
 }
 
 impl PlatePlant {
@@ -86,7 +109,37 @@ impl PlatePlant {
             levels: Vec::new(),
             samples: Vec::new(),
             error: None,
+            drive_enabled: false,
         })
+    }
+
+    /// Runs the plate on from the firmware's last tick, its drive as the firmware left it, until
+    /// it rests (slower than 1 µm/s over a whole millisecond), reaches an end stop or `limit_s`
+    /// has passed.
+    pub fn run_out(&mut self, limit_s: f64) -> RunOut {
+        let step_ticks = (u64::from(self.clock_hz) / 1000).max(1);
+        let from_tick = self.held.map_or(0, |(tick, _)| tick);
+        let limit_ticks = (limit_s * f64::from(self.clock_hz)) as u64;
+        let mut tick = from_tick;
+        let outcome = loop {
+            if self.stepper.end_stop().is_some() {
+                break RunOutcome::EndStop;
+            }
+            if self.stepper.plate_velocity_mps().abs() < 1e-6 && tick > from_tick {
+                break RunOutcome::AtRest;
+            }
+            if tick - from_tick >= limit_ticks || self.error.is_some() {
+                break RunOutcome::StillMoving;
+            }
+            tick += step_ticks;
+            self.advance(tick);
+        };
+        RunOut {
+            driver_enabled: self.drive_enabled,
+            after_s: (tick - from_tick) as f64 / f64::from(self.clock_hz),
+            state: self.last_state(),
+            outcome,
+        }
     }
 
     /// Runs the held level up to `tick`, sampling the encoder at every multiple of the
@@ -173,6 +226,7 @@ impl Plant for PlatePlant {
     fn enable(&mut self, tick: u64, on: bool) {
         self.advance(tick);
         self.stepper.set_drive_enabled(on);
+        self.drive_enabled = on;
     }
 
     fn sample(&mut self, tick: u64) -> i32 {

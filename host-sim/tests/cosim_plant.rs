@@ -117,3 +117,46 @@ fn a_plant_without_an_encoder_is_refused() {
         Err(SimError::MissingSensor { sensor: "encoder" })
     ));
 }
+
+/// Once the firmware has ended, the plate runs on with its drive as the firmware left it: off,
+/// a plate moving at 0.1 m/s on a slide of 2 m/s² friction stops after `v/a` = 50 ms and
+/// `v²/2a` = 2.5 mm further; without friction it is still moving when the time allowed is up.
+#[test]
+fn the_plate_runs_out_to_rest_once_the_firmware_has_ended() {
+    let params = PlateParams {
+        coulomb_friction_n: 2.0,
+        ..PlateParams::default()
+    };
+    let mut plate =
+        PlatePlant::new(&plant(params), &contact(), DacCalibration::DEFAULT, TICK_HZ).unwrap();
+    // 100 m/s² (802 counts, 2 of them against the friction) for 1 ms: 0.1 m/s.
+    plate.level(0, 2048 + 816);
+    plate.enable(0, true);
+    plate.level(1000, 2048);
+    plate.enable(1000, false);
+    let start = plate.last_state();
+    let out = plate.run_out(2.0);
+    assert_eq!(out.outcome, host_sim::cosim::RunOutcome::AtRest);
+    assert!(!out.driver_enabled);
+    let v = start.velocity_mps;
+    assert!(
+        (out.state.position_m - start.position_m - v * v / 4.0).abs() < 1e-6,
+        "{out:?}"
+    );
+    assert!((out.after_s - v / 2.0).abs() <= 1e-3, "{out:?}");
+
+    let mut free = PlatePlant::new(
+        &plant(PlateParams::default()),
+        &contact(),
+        DacCalibration::DEFAULT,
+        TICK_HZ,
+    )
+    .unwrap();
+    free.level(0, 2048 + 80);
+    free.enable(0, true);
+    free.level(1000, 2048);
+    free.enable(1000, false);
+    let out = free.run_out(0.5);
+    assert_eq!(out.outcome, host_sim::cosim::RunOutcome::StillMoving);
+    assert!((out.state.velocity_mps - 0.01).abs() < 1e-12, "{out:?}");
+}

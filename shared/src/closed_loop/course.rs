@@ -70,6 +70,8 @@ struct At<'a> {
 struct SettleRun {
     settle: Settle,
     target_m: f64,
+    /// A refusal found early, raised at the settle's end with the plate held at rest.
+    refusal: Option<CourseError>,
 }
 
 /// The course's state.
@@ -433,6 +435,7 @@ impl Course {
                     self.feedforward().bias_mps2,
                 ),
                 target_m,
+                refusal: None,
             });
         }
         let Some(run) = self.settle.as_mut() else {
@@ -451,17 +454,34 @@ impl Course {
         let settled = lookahead.next_segment().kind != SegmentKind::Settle;
         // An offset beyond the envelope is refused as soon as it shows: from the held pairs
         // (what acts on a plate at rest is never more than the offset), else from the dither.
+        // An offset beyond the envelope is refused as soon as it shows in the held pairs (what
+        // acts on a plate at rest is never more than the offset): the dither ends there and the
+        // settle holds the plate where it rests, and the refusal stops the feeder at the
+        // settle's end, with the plate at rest. Else the dither's reading is checked.
         let limit_mps2 = ENVELOPE.settled_offset_max_mps2();
-        let found = run
+        let refusal = |offset_mps2| {
+            CourseError::Identify(IdentifyError::Offset {
+                offset_mps2,
+                limit_mps2,
+            })
+        };
+        if let Some(held) = run
             .settle
             .held_mps2()
             .filter(|held| libm::fabs(*held) > limit_mps2)
-            .or((settled && libm::fabs(offset_mps2) > limit_mps2).then_some(offset_mps2));
-        if let Some(offset_mps2) = found {
-            return Err(CourseError::Identify(IdentifyError::Offset {
-                offset_mps2,
-                limit_mps2,
-            }));
+        {
+            if run.refusal.is_none() {
+                run.refusal = Some(refusal(held));
+                run.settle.hold();
+            }
+        }
+        if settled {
+            if let Some(error) = run.refusal {
+                return Err(error);
+            }
+            if libm::fabs(offset_mps2) > limit_mps2 {
+                return Err(refusal(offset_mps2));
+            }
         }
         let trims = if settled {
             self.cycle_loop.hold_drive(offset_mps2, gain_difference);

@@ -151,12 +151,6 @@ fn solve(a: &mut [[f64; TERMS]; TERMS], b: &mut [f64; TERMS]) -> Option<[f64; TE
     Some(x)
 }
 
-/// The position the dither adds over pair `pair`: `(D − D')·h²/4`.
-fn kick_m(pair: u16, h: f64) -> f64 {
-    let before = pair.checked_sub(1).map_or(0.0, Settle::dither_mps2);
-    (Settle::dither_mps2(pair) - before) * h * h / 4.0
-}
-
 /// The settle's state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Settle {
@@ -173,6 +167,9 @@ pub struct Settle {
     fit: Fit,
     /// Where the plate rested at the first start.
     rest_m: Option<f64>,
+    /// From this pair on no dither and no move: the plate is held where it rested
+    /// ([`Settle::hold`]).
+    hold_from: Option<u16>,
     /// The measurements of the held pairs before the dither: the sum and the count.
     held_sum_mps2: f64,
     held: u16,
@@ -194,6 +191,7 @@ impl Settle {
             starts_m: [None; 2],
             fit: Fit::default(),
             rest_m: None,
+            hold_from: None,
             held_sum_mps2: 0.0,
             held: 0,
         }
@@ -215,12 +213,29 @@ impl Settle {
         (self.held > 0).then(|| self.held_sum_mps2 / f64::from(self.held))
     }
 
+    /// Ends the dither with the first pair not yet decided, and holds the plate where it
+    /// rested from then on, instead of moving it: for a settle whose drive is refused, so that
+    /// the plate is at rest when the refusal stops the feeder.
+    pub fn hold(&mut self) {
+        let decided = self.boundaries.saturating_sub(1) / 2 + 1;
+        self.hold_from.get_or_insert(decided + 1);
+    }
+
     /// The dither of pair `pair`.
-    fn dither_mps2(pair: u16) -> f64 {
+    fn dither_mps2(&self, pair: u16) -> f64 {
+        if self.hold_from.is_some_and(|from| pair >= from) {
+            return 0.0;
+        }
         pair.checked_sub(HOLD_PAIRS)
             .and_then(|k| DITHER_MPS2.get(usize::from(k / DITHER_PAIRS)))
             .copied()
             .unwrap_or(0.0)
+    }
+
+    /// The position the dither adds over pair `pair`: `(D − D')·h²/4`.
+    fn kick_m(&self, pair: u16, h: f64) -> f64 {
+        let before = pair.checked_sub(1).map_or(0.0, |j| self.dither_mps2(j));
+        (self.dither_mps2(pair) - before) * h * h / 4.0
     }
 
     /// At the start of a settle segment of `segment_s`: `start_m` the position latched there,
@@ -236,7 +251,7 @@ impl Settle {
             return Err(LoopError::Sensor);
         }
         let rest_m = *self.rest_m.get_or_insert(start_m);
-        let moving = self.boundaries >= 2 * (PAIRS - MOVE_PAIRS);
+        let moving = self.boundaries >= 2 * (PAIRS - MOVE_PAIRS) && self.hold_from.is_none();
         let error_m = start_m - if moving { target_m } else { rest_m };
         if fabs(error_m) > self.limits.position_error_max_m {
             return Err(LoopError::Position { error_m });
@@ -246,7 +261,7 @@ impl Settle {
         let pair = boundary / 2;
         if boundary % 2 == 1 {
             // Mid-pair: the next pair's second half, decided at this pair's start.
-            return Ok(self.biases_mps2[0] - Self::dither_mps2(pair + 1));
+            return Ok(self.biases_mps2[0] - self.dither_mps2(pair + 1));
         }
         if pair > 0 {
             let [next, now, before, _] = self.biases_mps2;
@@ -255,8 +270,12 @@ impl Settle {
         let [_, now, before, earlier] = self.biases_mps2;
         let h = segment_s;
         let span = 2.0 * h;
-        let dither = |back: u16| pair.checked_sub(back).map_or(0.0, Self::dither_mps2);
-        let kick = |back: u16| pair.checked_sub(back).map_or(0.0, |j| kick_m(j, h));
+        // The dither and the kick of the pair running (0) and of the ones before it (1, 2, 3).
+        let dithers =
+            [0, 1, 2, 3].map(|back| pair.checked_sub(back).map_or(0.0, |j| self.dither_mps2(j)));
+        let kicks = [0, 1, 2].map(|back| pair.checked_sub(back).map_or(0.0, |j| self.kick_m(j, h)));
+        let dither = |back: usize| dithers[back];
+        let kick = |back: usize| kicks[back];
         match self.starts_m {
             [Some(x1), Some(x2)] => {
                 let measured = (start_m - 2.0 * x1 + x2 - kick(1) + kick(2)) / (span * span)
@@ -284,7 +303,7 @@ impl Settle {
             _ => {}
         }
         let (offset, slope) = self.drive();
-        let acting = |back: u16| offset + slope * dither(back);
+        let acting = |back: usize| offset + slope * dither(back);
         let slow_v = match self.starts_m[0] {
             Some(x1) => (start_m - x1 - kick(1)) / span + (before + acting(1)) * span / 2.0,
             None => 0.0,
@@ -301,7 +320,7 @@ impl Settle {
         if fabs(correction_mps2) > self.limits.correction_max_mps2 {
             return Err(LoopError::Correction { correction_mps2 });
         }
-        let next_dither = Self::dither_mps2(pair + 1);
+        let next_dither = self.dither_mps2(pair + 1);
         let next = self.rounded(-(offset + slope * next_dither) + correction_mps2);
         self.biases_mps2[0] = next;
         self.starts_m = [Some(start_m), self.starts_m[0]];

@@ -12,7 +12,9 @@ use clap::Args;
 use feeder_emulator::plant_link::{Plant, TICK_HZ};
 use feeder_shared::DacCalibration;
 use host_sim::closed_loop::Verdict;
-use host_sim::cosim::{cycles, judge, CosimCycle, LoopLog, PlatePlant, PlateSample, PlateState};
+use host_sim::cosim::{
+    cycles, judge, CosimCycle, LoopLog, PlatePlant, PlateSample, PlateState, RunOut, RunOutcome,
+};
 use host_sim::plate::{EndStop, PlantFile};
 use host_sim::SimError;
 use indicatif::ProgressBar;
@@ -74,6 +76,8 @@ struct CosimReport {
     plate_peak_excursion_m: f64,
     /// The plate where the run ended: at rest once a stop has been carried out.
     plate_at_end: PlateState,
+    /// The plate run on from there, its drive as the firmware left it, until it rests.
+    plate_after_end: RunOut,
     /// When the plate hit an end stop; null if it never did.
     end_stop_after_s: Option<f64>,
     end_stop: Option<EndStop>,
@@ -87,6 +91,9 @@ struct ClosedLoopReport {
     log: LoopLog,
     verdict: Verdict,
 }
+
+/// How long the plate is run on after the firmware's end, at most, to see it come to rest.
+const RUN_OUT_LIMIT_S: f64 = 2.0;
 
 /// The plate served to the firmware, showing on a spinner how far the run has come: the cycle
 /// starts the firmware has sampled and the plate's time, against the wall time.
@@ -145,7 +152,7 @@ pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
         bar: spinner(args.output.json),
         cycle_starts: 0,
     };
-    let run = feeder_emulator::run_with_plant(&args.elf, &args.scenario, LIMIT, watched)
+    let mut run = feeder_emulator::run_with_plant(&args.elf, &args.scenario, LIMIT, watched)
         .map_err(|error| SimError::Request(format!("the co-simulation failed: {error}")))?;
     run.plant.bar.finish_and_clear();
     let wall_s = started.elapsed().as_secs_f64();
@@ -159,7 +166,8 @@ pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
     if let Some(error) = plate.error() {
         return join_failures([Err(error.clone()), log_written]).map(|()| false);
     }
-    let samples = plate.samples();
+    let samples = plate.samples().to_vec();
+    let levels = plate.levels().to_vec();
     let closed_loop = match args.open_loop {
         true => None,
         false => {
@@ -174,6 +182,12 @@ pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
         Some(report) => (report.verdict.passed, report.verdict.line()),
         None => open_loop_verdict(plate.end_stop(), simulated_s, plate.peak_excursion_m()),
     };
+    let (peak_excursion_m, plate_at_end, end_stop) = (
+        plate.peak_excursion_m(),
+        plate.last_state(),
+        plate.end_stop(),
+    );
+    let plate_after_end = run.plant.plant.run_out(RUN_OUT_LIMIT_S);
     let report = CosimReport {
         passed,
         verdict_line,
@@ -182,20 +196,21 @@ pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
         samples: samples.len(),
         simulated_s,
         wall_s,
-        plate_peak_excursion_m: plate.peak_excursion_m(),
-        plate_at_end: plate.last_state(),
-        end_stop_after_s: plate.end_stop().map(|stop| stop.time_s),
-        end_stop: plate.end_stop(),
+        plate_peak_excursion_m: peak_excursion_m,
+        plate_at_end,
+        plate_after_end,
+        end_stop_after_s: end_stop.map(|stop| stop.time_s),
+        end_stop,
         firmware_exit_code: run.run.status.code(),
         closed_loop,
     };
-    let cycles = cycles(samples, plate.levels());
+    let cycles = cycles(&samples, &levels);
     let emitted = emit(
         &args.output,
         &cycles,
         |path| plot_run(path, &report, &cycles),
         &report,
-        || print_report(&report, samples),
+        || print_report(&report, &samples),
     );
     join_failures([emitted, log_written]).map(|()| passed)
 }
@@ -273,6 +288,24 @@ fn print_report(report: &CosimReport, samples: &[PlateSample]) {
         end.position_m * 1e6,
         end.velocity_mps * 1e3,
         end.time_s
+    );
+    let out = report.plate_after_end;
+    let driver = if out.driver_enabled { "on" } else { "off" };
+    let position_um = out.state.position_m * 1e6;
+    say!(
+        "after the end     driver {driver}: {}",
+        match out.outcome {
+            RunOutcome::AtRest => format!(
+                "the plate at rest at {position_um:.1} µm, {:.3} s on",
+                out.after_s
+            ),
+            RunOutcome::EndStop => format!("the plate in its end stop {:.3} s on", out.after_s),
+            RunOutcome::StillMoving => format!(
+                "the plate still moving at {:.1} mm/s at {position_um:.1} µm, {:.3} s on",
+                out.state.velocity_mps * 1e3,
+                out.after_s
+            ),
+        }
     );
     say!(
         "firmware          exit code {}",
