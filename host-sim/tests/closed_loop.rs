@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use feeder_shared::closed_loop::{Cause, IdentifyError};
 use feeder_shared::{Drive, Limits, TickClock, TickPlan, Waveform, WaveformSpec};
 use host_sim::closed_loop::verdict::feed_rate_mps;
 use host_sim::closed_loop::{run_closed_loop, ClosedLoopOptions, ClosedLoopRun};
@@ -223,6 +224,17 @@ fn the_start_up_stays_within_its_bound() {
     assert!(idle.iter().all(|c| c.peak_m <= 1e-6));
 }
 
+/// Runs `plant` and expects the loop to refuse it for `cause`: the refusal and the run.
+fn refused(plant: &PlantFile, cause: Cause) -> (IdentifyError, ClosedLoopRun) {
+    let run = run_closed_loop(plant, &contact(), plan(0.586), &ClosedLoopOptions::new(30)).unwrap();
+    let Some(SimError::Identification(error)) = run.gave_up.clone() else {
+        panic!("not refused: {:?}", run.gave_up);
+    };
+    assert_eq!(error.cause(), Some(cause), "{error}");
+    assert!(run.identified.is_none());
+    (error, run)
+}
+
 /// A drive whose zero offset lies beyond the envelope (8 m/s², twice its limit) is refused by
 /// the settle, before the probe: by its cause, with the plate moved less than half a millimetre.
 #[test]
@@ -230,18 +242,8 @@ fn an_offset_beyond_the_envelope_is_refused_before_the_probe() {
     for offset_fraction in [0.04, -0.04] {
         let mut plant = realistic();
         plant.plate.zero_offset_fraction = offset_fraction;
-        let run =
-            run_closed_loop(&plant, &contact(), plan(0.586), &ClosedLoopOptions::new(30)).unwrap();
-        let Some(SimError::Identification(error)) = &run.gave_up else {
-            panic!("not refused: {:?}", run.gave_up);
-        };
-        assert_eq!(
-            error.cause(),
-            Some(feeder_shared::closed_loop::Cause::Offset),
-            "{error}"
-        );
+        let (_, run) = refused(&plant, Cause::Offset);
         assert!(run.peak_excursion_m < 0.5e-3, "{} m", run.peak_excursion_m);
-        assert!(run.identified.is_none());
         assert!(run.simulated_s < 0.3, "{} s", run.simulated_s);
     }
 }
@@ -253,15 +255,7 @@ fn a_sensor_coarser_than_the_envelope_is_refused_before_anything_moves() {
     if let Some(encoder) = plant.sensors.encoder.as_mut() {
         encoder.resolution_m = 8e-6;
     }
-    let run =
-        run_closed_loop(&plant, &contact(), plan(0.586), &ClosedLoopOptions::new(30)).unwrap();
-    let Some(SimError::Identification(error)) = &run.gave_up else {
-        panic!("not refused: {:?}", run.gave_up);
-    };
-    assert_eq!(
-        error.cause(),
-        Some(feeder_shared::closed_loop::Cause::Sensor)
-    );
+    let (error, run) = refused(&plant, Cause::Sensor);
     assert_eq!(
         error.to_string(),
         "the position sensor counts 8.00 µm, coarser than the 5.00 µm the loop reads: fit a \
@@ -276,17 +270,8 @@ fn a_sensor_coarser_than_the_envelope_is_refused_before_anything_moves() {
 fn a_current_loop_slower_than_the_envelope_is_refused_for_its_lag() {
     let mut plant = realistic();
     plant.plate.current_bandwidth_hz = Some(90.0);
-    let run =
-        run_closed_loop(&plant, &contact(), plan(0.586), &ClosedLoopOptions::new(30)).unwrap();
-    let Some(SimError::Identification(error)) = &run.gave_up else {
-        panic!("not refused: {:?}", run.gave_up);
-    };
-    assert_eq!(
-        error.cause(),
-        Some(feeder_shared::closed_loop::Cause::Lag),
-        "{error}"
-    );
-    let feeder_shared::closed_loop::IdentifyError::Lag { lag_s, .. } = *error else {
+    let (error, _) = refused(&plant, Cause::Lag);
+    let IdentifyError::Lag { lag_s, .. } = error else {
         panic!("{error}");
     };
     let truth_s = 1.0 / (2.0 * std::f64::consts::PI * 90.0);
