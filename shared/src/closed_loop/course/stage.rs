@@ -8,7 +8,8 @@ use crate::closed_loop::identify::Identified;
 pub enum Stage {
     /// Waiting for a start.
     Waiting,
-    /// Holding the plate at rest through the settle segments before the first cycle.
+    /// Holding the plate through the settle segments before the first cycle, then through the
+    /// soft start's rise to the probe's held step.
     Settling,
     /// Keeping the positions of the probe's cycles.
     Probing,
