@@ -350,11 +350,9 @@ impl Runner {
                     })?
                     .unwrap_or(Trims::NONE);
             }
-            // The firmware's driver enable: on while motion is requested and the output plays
-            // anything but an idle period.
-            self.plate
-                .stepper
-                .set_drive_enabled(playing.kind != SegmentKind::Idle);
+            // The firmware's driver enable: on while motion is requested (from the start on
+            // here) and the segment playing drives.
+            self.plate.stepper.set_drive_enabled(playing.kind.drives());
             self.plate.play(&playing, &trims)?;
         }
     }

@@ -44,6 +44,13 @@ impl SegmentKind {
         )
     }
 
+    /// Whether the driver is enabled while a segment of this kind plays (and the supervisor
+    /// lets it): for all but an idle period, so that a drive's zero offset cannot walk a plate
+    /// at rest.
+    pub const fn drives(self) -> bool {
+        !matches!(self, SegmentKind::Idle)
+    }
+
     /// The kind's name in the event stream and in refusals.
     pub const fn name(self) -> &'static str {
         match self {

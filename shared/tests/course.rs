@@ -46,12 +46,6 @@ struct Plate {
     samples: Vec<PositionSample>,
 }
 
-/// The driver enable as the firmware's control loop sets it once a start is requested: off
-/// through idle periods, on through everything else.
-fn driven(segment: &Segment) -> bool {
-    segment.kind != SegmentKind::Idle
-}
-
 impl Plate {
     fn reading(&self, tick: u64, position_m: f64) -> PositionSample {
         PositionSample {
@@ -66,7 +60,7 @@ impl Plate {
     fn play(&mut self, segment: &Segment, trims: &Trims) {
         let command = trims.apply(segment.accel_mps2());
         let [plus, minus, offset_mps2] = self.drive;
-        let a = if driven(segment) {
+        let a = if segment.kind.drives() {
             command * if command > 0.0 { plus } else { minus } + offset_mps2
         } else {
             0.0

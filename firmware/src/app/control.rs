@@ -241,7 +241,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         trace::segment(playing, self.output.started(playing));
         if playing.starts_cycle() {
             self.cycle = playing.cycle;
-            let idle = playing.kind == SegmentKind::Idle;
+            let idle = !playing.kind.drives();
             if idle != self.idle {
                 self.idle = idle;
                 self.apply_driver();
@@ -333,9 +333,8 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         request
     }
 
-    /// The driver is enabled while the supervisor lets it and the output plays anything but
-    /// an idle period: a feeder at rest has its drive off, so that the drive's zero offset
-    /// cannot walk the plate.
+    /// The driver is enabled while the supervisor lets it and the segment playing drives
+    /// ([`SegmentKind::drives`]).
     fn apply_driver(&mut self) {
         self.set_driver(self.supervisor.driver_enabled() && !self.idle);
     }
