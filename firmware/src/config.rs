@@ -18,8 +18,8 @@ pub const RAMP_CYCLES: u16 = SETTINGS.ramp_cycles;
 pub const LIMITS: Limits = MACHINE_LIMITS;
 
 /// Coulomb friction between the plate and the parts (μ = 0.3, typical of small metal parts on a
-/// steel plate): the feed-rate model behind `status` and `set feed` on the console.
-#[cfg(feature = "console")]
+/// steel plate): the feed-rate model behind `status` and `set feed` on the console, and the
+/// closed loop's compensation of the drive's lag for the feed.
 pub const FRICTION: feeder_shared::Friction = feeder_shared::Friction {
     mu: 0.3,
     gravity_mps2: feeder_shared::model::STANDARD_GRAVITY_MPS2,

@@ -6,8 +6,8 @@
 //! segment is made, as in the firmware's control loop.
 
 use feeder_shared::closed_loop::{
-    Course, CourseConfig, CourseError, CycleTrims, Decision, Identified, LoopLimits,
-    PositionSample, Stage, Trims, ENVELOPE,
+    Course, CourseConfig, CourseError, CycleTrims, Decision, FeedCompensation, Identified,
+    LoopLimits, PositionSample, Stage, Trims, ENVELOPE,
 };
 use feeder_shared::{DacCalibration, Scheduler, Segment, SegmentKind, TickPlan};
 
@@ -103,6 +103,9 @@ pub struct CycleRecord {
 pub struct ClosedLoopRun {
     /// The drive identified by the course (none if it never was).
     pub identified: Option<Identified>,
+    /// The feed's compensation of the drive's lag for the last plan (none before the drive is
+    /// identified).
+    pub feed: Option<FeedCompensation>,
     pub cycles: Vec<CycleRecord>,
     /// The scheduler's cycle at whose start the course decided to release the soft start (the
     /// firmware logs it as `closed loop: Feeding at cycle N`); none if it never did.
@@ -199,6 +202,7 @@ pub fn run_closed_loop(
         probe_fraction: options.probe_fraction,
         loop_limits: options.limits,
         ..CourseConfig::new(encoder.resolution_m, 1.0 / options.dac.counts_per_mps2)
+            .with_feed(contact.kinetic_accel_mps2(), linear_mps2)
     };
     let scheduler = Scheduler::new(plan, options.ramp_cycles);
     let course = Course::new(config, scheduler.ramp_cycles());
@@ -224,6 +228,7 @@ pub fn run_closed_loop(
     let stepper = &runner.plate.stepper;
     Ok(ClosedLoopRun {
         identified: runner.course.identified().copied(),
+        feed: runner.course.report().feed,
         release_cycle: runner.release_cycle,
         startup_peak_m: runner
             .startup_peak_m
@@ -298,6 +303,9 @@ impl Runner {
                     .course
                     .boundary(&playing, &self.scheduler, start, &samples)
                     .map_err(fail)?;
+                if let Some(request) = self.course.feed_request() {
+                    self.course.set_feed(request, request.solve());
+                }
 
                 // Identified at once; the course takes it at the end of its hold.
                 if let Some(probe) = self.course.probe().filter(|_| decision.identify) {

@@ -6,6 +6,7 @@ pub mod course;
 pub mod cycle_loop;
 pub mod disturbance;
 pub mod envelope;
+pub mod feed;
 pub mod identify;
 pub mod settle;
 pub mod shape;
@@ -17,6 +18,7 @@ pub use course::{
 };
 pub use cycle_loop::{CycleLoop, LoopError, LoopLimits, Stroke, Trims};
 pub use envelope::{Cause, Envelope, ENVELOPE};
+pub use feed::{compensate, feed_rate_mps, FeedCompensation, FeedRequest};
 pub use identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};
 pub use settle::Settle;
 pub use shape::{CommandSegment, CycleShape};

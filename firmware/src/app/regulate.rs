@@ -3,7 +3,8 @@
 //! and decides the next cycle's trims; the control loop takes the decision at its next edge and
 //! the output stage swaps the trimmed levels in at the cycle boundary. The drive's
 //! identification runs on the background executor, below this task, while the course holds the
-//! plate on the nominal drive.
+//! plate on the nominal drive; so does the search for the amplitude that gives the ideal plate's
+//! feed behind the drive's lag, once per plan and drive.
 
 use core::cell::Cell;
 
@@ -12,9 +13,10 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::mutex::Mutex as AsyncMutex;
 use embassy_sync::signal::Signal;
+use embassy_futures::select::{select, Either};
 use feeder_shared::closed_loop::{
-    Course, CourseConfig, CourseError, Decision, Identified, IdentifyError, PositionSample, Probe,
-    Stage, Trims,
+    Course, CourseConfig, CourseError, Decision, FeedCompensation, FeedRequest, Identified,
+    IdentifyError, PositionSample, Probe, Stage, Trims,
 };
 use feeder_shared::{Scheduler, Segment};
 
@@ -61,6 +63,11 @@ static PROBE_READY: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 static IDENTIFIED: Signal<CriticalSectionRawMutex, Result<Identified, IdentifyError>> =
     Signal::new();
 
+/// The feed compensation the course asks for, handed to the background task, and its answer.
+static FEED_ASKED: Signal<CriticalSectionRawMutex, FeedRequest> = Signal::new();
+static FEED_FOUND: Signal<CriticalSectionRawMutex, (FeedRequest, FeedCompensation)> =
+    Signal::new();
+
 /// The course's probe step for the scheduler's hold on a soft start of `ramp_cycles`: the
 /// control loop holds its scheduler there before the first start and with every new ramp length.
 pub fn probe_step(ramp_cycles: u16) -> u16 {
@@ -72,9 +79,14 @@ pub fn settle_segments() -> u16 {
     course_config(0.0).settle_segments
 }
 
-/// The course for an output whose levels move in steps of `level_step_mps2`.
+/// The course for an output whose levels move in steps of `level_step_mps2`, with the feed
+/// compensated for the configured part within the DAC's linear range.
 fn course_config(level_step_mps2: f64) -> CourseConfig {
-    CourseConfig::new(<Sensor as PositionSensor>::RESOLUTION_M, level_step_mps2)
+    let config = CourseConfig::new(<Sensor as PositionSensor>::RESOLUTION_M, level_step_mps2);
+    match config::LOOP_LINEAR_MPS2 {
+        Some(linear_mps2) => config.with_feed(config::FRICTION.accel_mps2(), linear_mps2),
+        None => config,
+    }
 }
 
 type Sensor = <crate::board::Hardware as crate::ports::Parts>::Sensor;
@@ -89,12 +101,16 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
         position_m: 0.0,
     }; SAMPLES_MAX];
     let mut last_cycle: Option<u64> = None;
+    let mut feed_asked: Option<FeedRequest> = None;
     loop {
         let boundary = BOUNDARY.wait().await;
         let stage = course.stage();
         if let Some(result) = IDENTIFIED.try_take() {
             report(&result);
             course.set_identified(result);
+        }
+        if let Some((request, found)) = FEED_FOUND.try_take() {
+            course.set_feed(request, found);
         }
         if let Some(last) = last_cycle.filter(|last| boundary.begun.cycle != last + 1) {
             stop(CourseError::MissedBoundary { cycle: last + 1 });
@@ -127,6 +143,10 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
                         PROBE_READY.signal(());
                     }
                 }
+                if let Some(request) = course.feed_request().filter(|r| feed_asked != Some(*r)) {
+                    feed_asked = Some(request);
+                    FEED_ASKED.signal(request);
+                }
                 let feedforward = course.feedforward();
                 RULING.lock(|ruling| {
                     ruling.set(Some(Ruling::Trim {
@@ -147,17 +167,45 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
     }
 }
 
-/// Identifies the drive from each probe handed over.
+/// Identifies the drive from each probe handed over, and finds each feed compensation asked
+/// for.
 #[embassy_executor::task]
 pub async fn identify_task() {
     loop {
-        PROBE_READY.wait().await;
-        info!("identifying the drive");
-        let result = match PROBE.lock().await.as_ref() {
-            Some(probe) => probe.identify(),
-            None => continue,
-        };
-        IDENTIFIED.signal(result);
+        match select(PROBE_READY.wait(), FEED_ASKED.wait()).await {
+            Either::First(()) => {
+                info!("identifying the drive");
+                let result = match PROBE.lock().await.as_ref() {
+                    Some(probe) => probe.identify(),
+                    None => continue,
+                };
+                IDENTIFIED.signal(result);
+            }
+            Either::Second(request) => {
+                let found = request.solve();
+                report_feed(&found);
+                FEED_FOUND.signal((request, found));
+            }
+        }
+    }
+}
+
+fn report_feed(found: &FeedCompensation) {
+    if found.limited {
+        info!(
+            "feed compensated: levels x{=f64}, the most the drive's linear range allows: \
+             {=f64} mm/s instead of the ideal plate's {=f64} mm/s",
+            found.amplitude,
+            found.feed_mps * 1e3,
+            found.ideal_mps * 1e3
+        );
+    } else {
+        info!(
+            "feed compensated: levels x{=f64} for the ideal plate's {=f64} mm/s behind the \
+             drive's lag",
+            found.amplitude,
+            found.ideal_mps * 1e3
+        );
     }
 }
 

@@ -49,13 +49,15 @@ pub use stage::{LoopReport, Stage};
 
 use super::cycle_loop::{CycleLoop, Stroke, Trims};
 use super::envelope::ENVELOPE;
+use super::feed::{FeedCompensation, FeedRequest};
 use super::identify::{Identified, IdentifyError};
 use super::settle::Settle;
 use super::shape::{CommandSegment, CycleShape};
 use crate::scheduler::{Scheduler, Segment};
 use crate::segment::SegmentKind;
+use crate::waveform::Waveform;
 use lookahead::{next_shape, next_shape_from, rest_of_cycle};
-use measure::{mean_position_m, turn_position_m, Begun};
+use measure::{mean_position_m, position_near_m, turn_position_m, Begun};
 
 /// The start of a cycle or idle period as [`Course::boundary`] takes it.
 struct At<'a> {
@@ -99,6 +101,14 @@ pub struct Course {
     centred: u32,
     centring_cycles: u32,
     last: Option<Begun>,
+    /// The plan of the cycles ahead, as of the last boundary.
+    waveform: Option<Waveform>,
+    /// The feed's compensation taken last, and what it was asked for …
+    feed: Option<(FeedRequest, FeedCompensation)>,
+    /// … the one asked for now, taken at the first boundary from its tick on …
+    feed_asked: Option<(FeedRequest, u64)>,
+    /// … and its answer, once handed over.
+    feed_handed: Option<FeedCompensation>,
 }
 
 impl Course {
@@ -122,6 +132,10 @@ impl Course {
             centred: 0,
             centring_cycles: 0,
             last: None,
+            waveform: None,
+            feed: None,
+            feed_asked: None,
+            feed_handed: None,
         }
     }
 
@@ -138,6 +152,7 @@ impl Course {
         LoopReport {
             stage: self.stage,
             drive: self.identified,
+            feed: self.feed.map(|(_, found)| found),
         }
     }
 
@@ -162,6 +177,53 @@ impl Course {
     /// far as they are known, nothing more.
     pub fn feedforward(&self) -> Trims {
         self.cycle_loop.feedforward()
+    }
+
+    /// The feed's compensation the course needs and has not got: for the plan ahead on the
+    /// identified drive, where the part is configured ([`CourseConfig::with_feed`]). The
+    /// answer goes to [`Course::set_feed`]; the course takes it at the first boundary
+    /// [`CourseConfig::feed_hold_s`] after it asked (the same boundary however fast it came),
+    /// and until then the loop holds the last one's amplitude. The soft start is released only
+    /// once the course has its answer.
+    pub fn feed_request(&self) -> Option<FeedRequest> {
+        let (asked, _) = self.feed_asked?;
+        (self.feed.map(|(taken, _)| taken) != Some(asked)).then_some(asked)
+    }
+
+    /// Hands over the answer to a [`Course::feed_request`]; an answer to a request no longer
+    /// current is dropped.
+    pub fn set_feed(&mut self, request: FeedRequest, found: FeedCompensation) {
+        if self.feed_request() == Some(request) {
+            self.feed_handed = Some(found);
+        }
+    }
+
+    /// At a boundary at `tick`: asks for the compensation of the plan ahead where it changed,
+    /// and takes the answer handed over once its hold is over.
+    fn update_feed(&mut self, tick: u64, clock_hz: u32) {
+        let (Some(waveform), Some(drive)) = (self.waveform, self.identified) else {
+            return;
+        };
+        if self.config.part_mps2 <= 0.0 {
+            return;
+        }
+        let request = FeedRequest::new(
+            &waveform,
+            &drive,
+            self.config.part_mps2,
+            self.config.linear_mps2,
+        );
+        if self.feed_asked.map(|(asked, _)| asked) != Some(request) {
+            let hold_ticks = libm::round(self.config.feed_hold_s * f64::from(clock_hz)) as u64;
+            self.feed_asked = Some((request, tick.saturating_add(hold_ticks)));
+            self.feed_handed = None;
+        }
+        if let Some((asked, _)) = self.feed_asked.filter(|(_, from)| tick >= *from) {
+            if let Some(found) = self.feed_handed.take() {
+                self.feed = Some((asked, found));
+                self.cycle_loop.set_feed_amplitude(found.amplitude);
+            }
+        }
     }
 
     /// Hands over the identification of [`Course::probe`], which the course takes at the end
@@ -233,6 +295,8 @@ impl Course {
         let (segments, count) = rest_of_cycle(begun, &mut lookahead);
         let segments = &segments[..count];
         let plan = ahead.plan();
+        self.waveform = Some(plan.waveform);
+        self.update_feed(start.tick, plan.clock_hz);
         let idle = begun.kind == SegmentKind::Idle;
         let now = Begun {
             start,
@@ -363,7 +427,9 @@ impl Course {
                     return Err(CourseError::Centring { error_m });
                 }
             }
-            if self.centred >= self.config.centred_cycles {
+            // The soft start waits for the feed's compensation too: its amplitude, and the feed
+            // where the drive's range limits it, are known before the feeder feeds.
+            if self.centred >= self.config.centred_cycles && self.feed_request().is_none() {
                 lookahead.release_hold();
                 decision.release = true;
             }
@@ -375,11 +441,15 @@ impl Course {
         // Stroke and mean are held on full-amplitude cycles only: friction shortens a soft
         // start's strokes, and moves its means, more than the full one's.
         let measured = last.filter(|last| last.full && self.stage == Stage::Feeding);
+        // The drive's lag delays the whole motion: the stroke is read from the start and the
+        // turn as much later (the start's capture and the one now still give the drift).
         let stroke = measured.map(|last| {
+            let lag_s = last.shape.lag_s;
+            let start_m = position_near_m(&last, samples, lag_s);
             Stroke::latched(
-                last.start.position_m,
-                turn_position_m(&last, samples),
-                now.start.position_m,
+                start_m,
+                turn_position_m(&last, samples, lag_s),
+                now.start.position_m + start_m - last.start.position_m,
                 &last.shape,
             )
         });

@@ -98,7 +98,7 @@ impl Stroke {
         let drift_m = (next_start_m - start_m) * shape.turn_s / shape.period_s;
         Stroke {
             measured_m: turn_m - start_m - drift_m,
-            planned_m: shape.stroke_m,
+            planned_m: shape.latched_stroke_m,
         }
     }
 }
@@ -157,8 +157,13 @@ pub struct CycleLoop {
     feedforward: Trims,
     /// The identified slide friction `F_c/M`, fed forward through each cycle's velocity sign.
     friction_mps2: f64,
+    /// The identified current loop's lag: the plan's strokes are read behind it.
+    lag_s: f64,
     limits: LoopLimits,
     amplitude: f64,
+    /// The amplitude the feed needs behind the drive's lag ([`super::feed`]): the stroke is
+    /// held at the plan's times this, and the trim's range is about it.
+    feed_amplitude: f64,
     /// What the trims of the cycle running now, of the one before and of the one before that
     /// add to the plate (in the loop's units), and the previous start position.
     running: Input,
@@ -193,8 +198,10 @@ impl CycleLoop {
         CycleLoop {
             feedforward,
             friction_mps2: identified.coulomb_mps2,
+            lag_s: identified.lag_s,
             limits,
             amplitude: 1.0,
+            feed_amplitude: 1.0,
             running: Input::NONE,
             previous: Input::NONE,
             earlier: Input::NONE,
@@ -310,6 +317,17 @@ impl CycleLoop {
         let other = CycleLoop::new(identified, self.limits);
         self.feedforward = other.feedforward;
         self.friction_mps2 = other.friction_mps2;
+        self.lag_s = other.lag_s;
+    }
+
+    /// Holds the stroke at `amplitude` times the plan's from the next update on: the amplitude
+    /// that gives the ideal plate's feed behind the drive's lag ([`super::feed`]). The trim
+    /// moves with it at once.
+    pub fn set_feed_amplitude(&mut self, amplitude: f64) {
+        if amplitude.is_finite() && amplitude > 0.0 {
+            self.amplitude *= amplitude / self.feed_amplitude;
+            self.feed_amplitude = amplitude;
+        }
     }
 
     /// Holds against the drive as the settle found it: a zero offset `offset_mps2` and gains
@@ -347,7 +365,8 @@ impl CycleLoop {
 
     /// The plan of a cycle of `segments` as the loop aims at it: its shape, with the mean sign of
     /// the velocity the identified slide friction leaves under the friction's feedforward (a
-    /// low-amplitude cycle may stop where the plan coasts), which that feedforward uses.
+    /// low-amplitude cycle may stop where the plan coasts), which that feedforward uses, and its
+    /// stroke as read behind the identified current loop.
     pub fn plan(&self, segments: &[CommandSegment]) -> Option<CycleShape> {
         let friction = self.friction_mps2;
         let planned = CycleShape::new(segments)?;
@@ -356,10 +375,13 @@ impl CycleLoop {
             sign_mean = CycleShape::under_friction(segments, friction, friction * sign_mean)
                 .map_or(sign_mean, |shape| shape.velocity_sign_mean);
         }
-        Some(CycleShape {
-            velocity_sign_mean: sign_mean,
-            ..planned
-        })
+        Some(
+            CycleShape {
+                velocity_sign_mean: sign_mean,
+                ..planned
+            }
+            .behind_lag(segments, self.lag_s),
+        )
     }
 
     /// The trims for the cycle that starts now (decided at the previous boundary).
@@ -392,12 +414,12 @@ impl CycleLoop {
         }
         let mut amplitude = self.amplitude;
         if let Some(stroke) = stroke {
-            if stroke.planned_m > 0.0 {
-                amplitude -=
-                    AMPLITUDE_GAIN * amplitude * (stroke.measured_m / stroke.planned_m - 1.0);
+            let planned_m = stroke.planned_m * self.feed_amplitude;
+            if planned_m > 0.0 {
+                amplitude -= AMPLITUDE_GAIN * amplitude * (stroke.measured_m / planned_m - 1.0);
             }
         }
-        if fabs(amplitude - 1.0) > self.limits.amplitude_max {
+        if fabs(amplitude / self.feed_amplitude - 1.0) > self.limits.amplitude_max {
             return Err(LoopError::Amplitude { amplitude });
         }
         // `w = T·v` at this start, from the last two starts and the correction between them;

@@ -39,6 +39,11 @@ pub struct CycleShape {
     pub turn_s: f64,
     /// Displacement at `turn_s`.
     pub stroke_m: f64,
+    /// The stroke a plate behind the drive's current loop shows, read `lag_s` after the start
+    /// and after the turn ([`CycleShape::behind_lag`]); `stroke_m` without a lag.
+    pub latched_stroke_m: f64,
+    /// The current loop's lag `τ` that delays the motion.
+    pub lag_s: f64,
     /// Mean displacement over the cycle.
     pub mean_m: f64,
     /// Mean over the cycle of the sign of the velocity: slide friction `F_c` changes the
@@ -60,6 +65,8 @@ impl CycleShape {
             period_s,
             turn_s: period_s,
             stroke_m: 0.0,
+            latched_stroke_m: 0.0,
+            lag_s: 0.0,
             mean_m: 0.0,
             velocity_sign_mean: 0.0,
             positive_mps2: 0.0,
@@ -137,11 +144,56 @@ impl CycleShape {
             period_s: t,
             turn_s,
             stroke_m,
+            latched_stroke_m: stroke_m,
+            lag_s: 0.0,
             mean_m: area / t,
             velocity_sign_mean: signed_s / t,
             positive_mps2,
             negative_mps2,
             level_effects,
         })
+    }
+
+    /// The shape of `segments` (the ones it was made from) played through a current loop of lag
+    /// `τ = lag_s`, a first-order lag `τ·ȧ + a = u`. In the periodic motion it settles into,
+    /// integrating twice gives `v = v_u − τ·a` and `x = x_u − τ·v_u + τ²·a` plus a constant,
+    /// with `x_u`, `v_u` the plan's own motion: the plate follows the plan `τ` late, and each
+    /// step `Δu` of the command leaves `Δu·τ²/2` on its position. The stroke read `τ` after the
+    /// start and after the turn is then the plan's less the steps between: `a·τ²` for the
+    /// paper's cycle where the lag settles within each segment, less where it does not.
+    pub fn behind_lag(self, segments: &[CommandSegment], lag_s: f64) -> Self {
+        if lag_s.is_nan() || lag_s <= 0.0 || segments.is_empty() {
+            return self;
+        }
+        // The lag's output at the start: the fixed point of one period's recursion
+        // `a ← u + (a − u)·e^{−d/τ}`, linear in the start value.
+        let (mut slope, mut constant) = (1.0, 0.0);
+        for segment in segments {
+            let decay = libm::exp(-segment.duration_s / lag_s);
+            slope *= decay;
+            constant = segment.accel_mps2 + (constant - segment.accel_mps2) * decay;
+        }
+        let start_accel_mps2 = constant / (1.0 - slope);
+        let at = |time_s: f64| {
+            let (mut begins_s, mut x, mut v, mut lagged) = (0.0, 0.0, 0.0, start_accel_mps2);
+            for segment in segments {
+                let (u, d) = (segment.accel_mps2, segment.duration_s);
+                let s = (time_s - begins_s).clamp(0.0, d);
+                let decay = libm::exp(-s / lag_s);
+                let (x_s, v_s) = (x + v * s + u * s * s / 2.0, v + u * s);
+                let lagged_s = u + (lagged - u) * decay;
+                if time_s <= begins_s + d {
+                    return x_s - lag_s * v_s + lag_s * lag_s * lagged_s;
+                }
+                (x, v, lagged) = (x_s, v_s, lagged_s);
+                begins_s += d;
+            }
+            x - lag_s * v + lag_s * lag_s * lagged
+        };
+        CycleShape {
+            latched_stroke_m: at(self.turn_s + lag_s) - at(lag_s),
+            lag_s,
+            ..self
+        }
     }
 }

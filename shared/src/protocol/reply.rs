@@ -176,6 +176,26 @@ impl Reply {
                     }
                 );
             }
+            if let Some(feed) = &report.feed {
+                let _ = write!(
+                    reply,
+                    " feed_amplitude={}",
+                    Fixed {
+                        value: feed.amplitude,
+                        decimals: 4
+                    }
+                );
+                if feed.limited {
+                    let _ = write!(
+                        reply,
+                        " feed_limited_mmps={}",
+                        Fixed {
+                            value: feed.feed_mps * 1e3,
+                            decimals: 3
+                        }
+                    );
+                }
+            }
         }
         if let Some(track) = &status.track {
             let _ = write!(

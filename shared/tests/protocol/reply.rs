@@ -37,11 +37,12 @@ fn status(fault: Option<&str>) -> Status<&str> {
 /// stays last.
 #[test]
 fn status_reports_the_closed_loop_before_the_fault() {
-    use feeder_shared::closed_loop::{Identified, LoopReport, Stage};
+    use feeder_shared::closed_loop::{FeedCompensation, Identified, LoopReport, Stage};
     let probing = Reply::status(&Status {
         closed_loop: Some(LoopReport {
             stage: Stage::Probing,
             drive: None,
+            feed: None,
         }),
         ..status(None)
     });
@@ -60,13 +61,19 @@ fn status_reports_the_closed_loop_before_the_fault() {
                 offset_mps2: -1.0296,
                 ..Identified::NOMINAL
             }),
+            feed: Some(FeedCompensation {
+                amplitude: 1.4,
+                feed_mps: 0.056_878_2,
+                ideal_mps: 0.077,
+                limited: true,
+            }),
         }),
         ..status(Some("closed-loop"))
     });
     assert!(
         feeding.as_str().ends_with(
             " cycles=617 loop=feeding gain_pos=1.0184 gain_neg=0.98024 offset_mps2=-1.03 \
-             fault=closed-loop"
+             feed_amplitude=1.4 feed_limited_mmps=56.878 fault=closed-loop"
         ),
         "{feeding}"
     );

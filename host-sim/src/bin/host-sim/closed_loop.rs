@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use std::time::Instant;
 
 use clap::Args;
-use feeder_shared::closed_loop::Identified;
+use feeder_shared::closed_loop::{FeedCompensation, Identified};
 use feeder_shared::Settings;
 use host_sim::closed_loop::{
     run_closed_loop, ClosedLoopOptions, ClosedLoopRun, CycleRecord, Verdict,
@@ -62,6 +62,30 @@ pub struct ClosedLoopArgs {
     to_duty: Option<f64>,
     #[command(flatten)]
     output: OutputArgs,
+}
+
+/// The feed's compensation of the drive's lag as the report gives it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+struct FeedCompensated {
+    /// The factor on every level.
+    amplitude: f64,
+    /// The feed at that amplitude on the identified drive, and the ideal plate's.
+    feed_mps: f64,
+    ideal_mps: f64,
+    /// The ideal feed needs more than the drive's linear range: `feed_mps` is what the feeder
+    /// gives instead.
+    limited: bool,
+}
+
+impl From<&FeedCompensation> for FeedCompensated {
+    fn from(found: &FeedCompensation) -> Self {
+        FeedCompensated {
+            amplitude: found.amplitude,
+            feed_mps: found.feed_mps,
+            ideal_mps: found.ideal_mps,
+            limited: found.limited,
+        }
+    }
 }
 
 /// A drive as the loop sees it: identified, or the plant file's true values.
@@ -147,6 +171,9 @@ struct ClosedLoopReport {
     /// The drive identified (null if it never was) and the plant file's.
     identified: Option<Drive>,
     plant_drive: Drive,
+    /// The amplitude that gives the ideal plate's feed behind the identified drive's lag, and
+    /// the feed it gives (null before the drive is identified).
+    feed_compensation: Option<FeedCompensated>,
     /// The plant file's end stops (null: none).
     plant_end_stop_m: Option<f64>,
     /// The verdict and every figure it judged.
@@ -294,6 +321,7 @@ impl ClosedLoopReport {
             simulated_s: run.simulated_s,
             identified: run.identified.as_ref().map(Drive::identified),
             plant_drive: Drive::truth(plate),
+            feed_compensation: run.feed.as_ref().map(FeedCompensated::from),
             plant_end_stop_m: plate.end_stop_m,
             verdict_line: verdict.line(),
             verdict,
@@ -368,6 +396,25 @@ fn print_report(report: &ClosedLoopReport, output: &OutputArgs) {
             }
         }
         _ => say!("drive             not identified"),
+    }
+    if let Some(found) = &report.feed_compensation {
+        if found.limited {
+            say!(
+                "feed compensated  levels ×{:.4}, the most the drive's linear range allows: {:.2} \
+                 mm/s instead of the ideal plate's {:.2} mm/s ({:+.1} %)",
+                found.amplitude,
+                found.feed_mps * 1e3,
+                found.ideal_mps * 1e3,
+                (found.feed_mps / found.ideal_mps - 1.0) * 1e2
+            );
+        } else {
+            say!(
+                "feed compensated  levels ×{:.4} for the ideal plate's {:.2} mm/s behind the \
+                 drive's lag",
+                found.amplitude,
+                found.ideal_mps * 1e3
+            );
+        }
     }
     let verdict = &report.verdict;
     say!(

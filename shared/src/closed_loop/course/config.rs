@@ -29,6 +29,14 @@ pub struct CourseConfig {
     /// The output's smallest step of a level (a DAC count), 0 for a continuous one
     /// ([`CycleLoop::with_level_step`](crate::closed_loop::CycleLoop::with_level_step)).
     pub level_step_mps2: f64,
+    /// The part's sliding deceleration `μg`, for the feed's compensation of the drive's lag
+    /// ([`FeedRequest`](crate::closed_loop::FeedRequest)); 0: none.
+    pub part_mps2: f64,
+    /// How far the output's levels reach in the drive's linear range.
+    pub linear_mps2: f64,
+    /// How long after the course asks for a feed compensation it takes the answer
+    /// ([`Course::feed_request`](crate::closed_loop::Course::feed_request)).
+    pub feed_hold_s: f64,
 }
 
 impl CourseConfig {
@@ -38,7 +46,8 @@ impl CourseConfig {
     /// settles on the identified drive meanwhile), in at most 250 cycles; the loop may add up to
     /// 50 m/s² (a quarter of the envelope's full scale: a spring or slide friction at its limit
     /// needs that much), trim the stroke by ±20 % and gives up 4 mm from centre; levels in steps
-    /// of `level_step_mps2`.
+    /// of `level_step_mps2`; no feed compensation ([`CourseConfig::with_feed`]), taken 0.5 s
+    /// after it is asked for where there is one (the firmware needs up to 0.4 s under QEMU).
     pub fn new(resolution_m: f64, level_step_mps2: f64) -> Self {
         CourseConfig {
             settle_segments: 2 * crate::closed_loop::settle::PAIRS,
@@ -55,6 +64,19 @@ impl CourseConfig {
                 position_error_max_m: 4e-3,
             },
             level_step_mps2,
+            part_mps2: 0.0,
+            linear_mps2: 0.0,
+            feed_hold_s: 0.5,
+        }
+    }
+
+    /// The course for a part of `part_mps2 = μg` on an output whose levels reach `linear_mps2`
+    /// in the drive's linear range: the feed is compensated for the drive's lag.
+    pub fn with_feed(self, part_mps2: f64, linear_mps2: f64) -> Self {
+        CourseConfig {
+            part_mps2,
+            linear_mps2,
+            ..self
         }
     }
 

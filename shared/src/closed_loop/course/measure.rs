@@ -24,15 +24,22 @@ pub(super) struct Begun {
     pub(super) clock_hz: u32,
 }
 
-/// The position sampled nearest the turning tick of cycle `last` (the velocity is zero there,
-/// so the nearest sample is off by at most `a·Δt²/8`).
-pub(super) fn turn_position_m(last: &Begun, samples: &[PositionSample]) -> f64 {
-    let turn_tick = last.start.tick as f64 + last.shape.turn_s * f64::from(last.clock_hz);
+/// The position sampled nearest `delay_s` after the turning tick of cycle `last`: the drive's
+/// current loop delays the plate's motion by its lag, and the velocity is zero at the delayed
+/// turn, so the nearest sample is off by at most `a·Δt²/8`.
+pub(super) fn turn_position_m(last: &Begun, samples: &[PositionSample], delay_s: f64) -> f64 {
+    position_near_m(last, samples, last.shape.turn_s + delay_s)
+}
+
+/// The position latched nearest `after_s` after the start of cycle `last`: at its start or
+/// sampled through it.
+pub(super) fn position_near_m(last: &Begun, samples: &[PositionSample], after_s: f64) -> f64 {
+    let tick = last.start.tick as f64 + after_s * f64::from(last.clock_hz);
+    let distance = |sample: &PositionSample| libm::fabs(sample.tick as f64 - tick);
     samples
         .iter()
-        .min_by(|a, b| {
-            libm::fabs(a.tick as f64 - turn_tick).total_cmp(&libm::fabs(b.tick as f64 - turn_tick))
-        })
+        .chain(core::iter::once(&last.start))
+        .min_by(|a, b| distance(a).total_cmp(&distance(b)))
         .map_or(last.start.position_m, |sample| sample.position_m)
 }
 

@@ -1,5 +1,6 @@
 //! Where the course is ([`Stage`]) and what the closed loop reports of it ([`LoopReport`]).
 
+use crate::closed_loop::feed::FeedCompensation;
 use crate::closed_loop::identify::Identified;
 
 /// Where the course is.
@@ -46,4 +47,6 @@ impl Stage {
 pub struct LoopReport {
     pub stage: Stage,
     pub drive: Option<Identified>,
+    /// The feed's compensation of the drive's lag for the plan running, once found.
+    pub feed: Option<FeedCompensation>,
 }
