@@ -3,7 +3,7 @@
 
 #[cfg(any(feature = "board-qemu", not(feature = "output-pwm")))]
 use feeder_shared::DacLevels;
-use feeder_shared::{DriveError, Level, Segment, TickClock};
+use feeder_shared::{DriveError, Segment, TickClock};
 
 #[cfg(any(feature = "board-qemu", not(feature = "output-pwm")))]
 use crate::config;
@@ -23,22 +23,18 @@ pub struct SegmentStart {
 }
 
 /// The levels of one cycle as the closed loop trims them: what each of its segments commands
-/// instead of the plan's level.
+/// instead of the plan's level, by its place in the cycle (`SegmentKind::place`).
 #[derive(Debug, Clone, Copy, PartialEq, defmt::Format)]
 pub struct TrimmedCycle {
     pub cycle: u64,
-    pub positive_mps2: f64,
-    pub zero_mps2: f64,
-    pub negative_mps2: f64,
+    pub levels_mps2: [f64; 4],
 }
 
 /// A trimmed cycle's levels in a stage's own units (DAC codes, PWM commands), converted once.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TrimmedLevels<T> {
     cycle: u64,
-    positive: T,
-    zero: T,
-    negative: T,
+    levels: [T; 4],
 }
 
 impl<T: Copy> TrimmedLevels<T> {
@@ -47,21 +43,16 @@ impl<T: Copy> TrimmedLevels<T> {
         trimmed: &TrimmedCycle,
         convert: impl Fn(f64) -> Result<T, DriveError>,
     ) -> Result<Self, DriveError> {
+        let [a, b, c, d] = trimmed.levels_mps2;
         Ok(TrimmedLevels {
             cycle: trimmed.cycle,
-            positive: convert(trimmed.positive_mps2)?,
-            zero: convert(trimmed.zero_mps2)?,
-            negative: convert(trimmed.negative_mps2)?,
+            levels: [convert(a)?, convert(b)?, convert(c)?, convert(d)?],
         })
     }
 
     /// What `segment` outputs if it belongs to the trimmed cycle.
     pub fn of(&self, segment: &Segment) -> Option<T> {
-        (segment.cycle == self.cycle).then_some(match segment.level {
-            Level::Positive => self.positive,
-            Level::Zero => self.zero,
-            Level::Negative => self.negative,
-        })
+        (segment.cycle == self.cycle).then_some(self.levels[segment.kind.place()])
     }
 }
 
@@ -135,7 +126,7 @@ pub trait SegmentOutput {
     fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError>;
 
     /// Outputs `trimmed`'s levels for the segments of its cycle preloaded from now on, instead of
-    /// the plan's; every other cycle keeps the plan's. Converts the three levels at once, before
+    /// the plan's; every other cycle keeps the plan's. Converts the four levels at once, before
     /// the cycle's first preload; on error the cycle keeps the plan's levels.
     fn trim(&mut self, trimmed: &TrimmedCycle) -> Result<(), DriveError>;
 

@@ -4,7 +4,9 @@
 //! line.
 #![no_main]
 
-use feeder_shared::closed_loop::{Identified, LoopReport, Stage, TrackReport, TrackState};
+use feeder_shared::closed_loop::{
+    FeedCompensation, Identified, LoopReport, Stage, TrackReport, TrackState,
+};
 use feeder_shared::protocol::REPLY_CAPACITY;
 use feeder_shared::recipe::{self, RECIPE_SLOTS, RECORD_LEN};
 use feeder_shared::testing;
@@ -34,7 +36,7 @@ fn machine() -> Machine {
 }
 
 /// The closed loop's report as a board with one publishes it: any stage, with or without an
-/// identified drive of any values.
+/// identified drive and a feed compensation of any values.
 fn loop_report(input: &mut Unstructured) -> Result<Option<LoopReport>> {
     if !input.arbitrary()? {
         return Ok(None);
@@ -53,7 +55,17 @@ fn loop_report(input: &mut Unstructured) -> Result<Option<LoopReport>> {
         }),
         false => None,
     };
-    Ok(Some(LoopReport { stage, drive }))
+    let feed = match input.arbitrary()? {
+        true => Some(FeedCompensation {
+            amplitude: input.arbitrary()?,
+            feed_mps: input.arbitrary()?,
+            ideal_mps: input.arbitrary()?,
+            limited: input.arbitrary()?,
+            stroke_factor: input.arbitrary()?,
+        }),
+        false => None,
+    };
+    Ok(Some(LoopReport { stage, drive, feed }))
 }
 
 /// Track control's report on a board with a part sensor: either state, any rate.

@@ -299,6 +299,16 @@ impl Runner {
                     CourseError::Identify(error) => SimError::Identification(error),
                     error => SimError::Loop { time_s, error },
                 };
+                // A new plan is queued before the course decides, as the firmware adopts one:
+                // the course sees it in the cycles ahead.
+                let idle = playing.kind == SegmentKind::Idle;
+                if self.course.stage() == Stage::Feeding && !idle {
+                    if let Some((at, new_plan)) = options.plan_change {
+                        if feeding_cycles == at {
+                            self.scheduler.set_plan(new_plan)?;
+                        }
+                    }
+                }
                 let decision = self
                     .course
                     .boundary(&playing, &self.scheduler, start, &samples)
@@ -316,13 +326,7 @@ impl Runner {
                 if decision.release {
                     self.release_cycle = Some(playing.cycle);
                 }
-                let idle = playing.kind == SegmentKind::Idle;
                 if feeding && !idle {
-                    if let Some((at, new_plan)) = options.plan_change {
-                        if feeding_cycles == at {
-                            self.scheduler.set_plan(new_plan)?;
-                        }
-                    }
                     feeding_cycles += 1;
                 }
                 self.open = Some(OpenCycle {
@@ -422,7 +426,7 @@ impl SampledPlate {
     fn play(&mut self, segment: &Segment, trims: &Trims) -> Result<(), SimError> {
         let code = self
             .dac
-            .code(trims.apply(segment.accel_mps2()))
+            .code(trims.level(segment.kind.place(), segment.accel_mps2()))
             .map_err(|error| SimError::TrimmedLevel {
                 time_s: self.time_s(),
                 error,

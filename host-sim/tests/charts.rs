@@ -131,7 +131,7 @@ fn the_firmware_in_the_loop_chart_marks_the_start_the_new_duty_and_the_stop() {
     let (texts, _) = chart_texts("chart-hil", &["hil", "--input", input]);
     for entry in [
         "start at 0.040 s",
-        "d = 0.586 → 0.606 at 0.216 s",
+        "d = 0.586 → 0.606 at 0.222 s",
         "stop at 0.416 s",
     ] {
         assert_eq!(

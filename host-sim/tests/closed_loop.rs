@@ -283,3 +283,72 @@ fn a_current_loop_slower_than_the_envelope_is_refused_for_its_lag() {
         .to_string()
         .contains("raise the drive's current-loop bandwidth"));
 }
+
+/// The feed's compensation on `realistic.toml` with a slow current loop and a draggy slide: at
+/// 50 and 100 Hz, d = 0.53 and 0.61, the part feeds within 1 % of the ideal plate where the
+/// drive's linear range allows the amplitude the model asks, and within 1 % of the feed the
+/// course said it would give where it does not (a 150 Hz current loop at 100 Hz: the drive's
+/// 200 m/s² full scale leaves 1.3 times the 140 m/s² levels, where d = 0.53 needs 1.31 and
+/// d = 0.61 about 1.8).
+/// At 100 Hz, d = 0.61 on the draggy slide the probe's four cycles read the drag 50 % high and a
+/// spring that is not there, and the feed, nearest saturation of the four, is off by 2.3 %: the
+/// test holds that point to 3 %.
+#[test]
+fn the_feed_is_compensated_for_the_drives_lag_and_the_slides_drag() {
+    let point = |frequency_hz: f64, duty: f64| {
+        let spec =
+            WaveformSpec::from_frequency(frequency_hz, duty, Drive::Accel { accel_mps2: 140.0 });
+        let waveform = Waveform::new(spec, &Limits::NONE).unwrap();
+        let plan = TickPlan::new(&waveform, TickClock::new(CLOCK_HZ)).unwrap();
+        let ideal = OperatingPoint::new(spec, contact(), Some(CLOCK_HZ))
+            .unwrap()
+            .steady()
+            .feed_rate_mps;
+        (plan, ideal)
+    };
+    for (bandwidth_hz, viscous_nspm) in [(150.0, 0.0), (100_000.0, 20.0)] {
+        let mut plant = realistic();
+        plant.plate.zero_offset_fraction = 0.0;
+        plant.plate.gain_positive = 1.0;
+        plant.plate.gain_negative = 1.0;
+        plant.plate.coulomb_friction_n = 0.0;
+        plant.plate.current_bandwidth_hz = Some(bandwidth_hz);
+        plant.plate.viscous_friction_nspm = viscous_nspm;
+        plant.plate.force_limit_n = None;
+        for (frequency_hz, duty) in [(50.0, 0.53), (50.0, 0.61), (100.0, 0.53), (100.0, 0.61)] {
+            let (plan, ideal_mps) = point(frequency_hz, duty);
+            let run =
+                run_closed_loop(&plant, &contact(), plan, &ClosedLoopOptions::new(200)).unwrap();
+            let what =
+                format!("{bandwidth_hz} Hz, {viscous_nspm} N·s/m at {frequency_hz} Hz, d = {duty}");
+            assert_eq!(run.gave_up, None, "{what}");
+            let found = run.feed.unwrap();
+            let feed_mps = feed_rate_mps(&run.fed(), 50).unwrap();
+            assert_eq!(
+                found.limited,
+                bandwidth_hz == 150.0 && frequency_hz == 100.0,
+                "{what}: {found:?}"
+            );
+            let expected_mps = if found.limited {
+                found.feed_mps
+            } else {
+                ideal_mps
+            };
+            println!(
+                "{what}: ×{:.4}, feed {:.2} mm/s, expected {:.2} mm/s",
+                found.amplitude,
+                feed_mps * 1e3,
+                expected_mps * 1e3
+            );
+            let tolerance = if viscous_nspm > 0.0 && (frequency_hz, duty) == (100.0, 0.61) {
+                0.03
+            } else {
+                0.01
+            };
+            assert!(
+                (feed_mps / expected_mps - 1.0).abs() < tolerance,
+                "{what}: {feed_mps} vs {expected_mps}"
+            );
+        }
+    }
+}

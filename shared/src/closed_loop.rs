@@ -18,8 +18,8 @@ pub use course::{
 };
 pub use cycle_loop::{CycleLoop, LoopError, LoopLimits, Stroke, Trims};
 pub use envelope::{Cause, Envelope, ENVELOPE};
-pub use feed::{compensate, feed_rate_mps, FeedCompensation, FeedRequest};
+pub use feed::{compensate, feed_rate_mps, FeedCompensation, FeedRequest, PlateModel};
 pub use identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};
 pub use settle::Settle;
-pub use shape::{CommandSegment, CycleShape};
+pub use shape::{CommandSegment, CycleShape, SegmentMotion};
 pub use track::{Track, TrackConfig, TrackReport, TrackState};

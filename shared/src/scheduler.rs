@@ -410,8 +410,9 @@ impl Scheduler {
     }
 }
 
-/// The segments of one cycle in output order (Fig. 2a).
-const CYCLE: [(SegmentKind, Level); 4] = [
+/// The segments of one cycle in output order (Fig. 2a), each at its
+/// [`SegmentKind::place`].
+pub const CYCLE: [(SegmentKind, Level); 4] = [
     (SegmentKind::Accelerate, Level::Positive),
     (SegmentKind::Plateau, Level::Zero),
     (SegmentKind::Reverse, Level::Negative),

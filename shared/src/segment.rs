@@ -51,6 +51,18 @@ impl SegmentKind {
         !matches!(self, SegmentKind::Idle)
     }
 
+    /// The segment's place in its cycle: 0 for the first (and the only one of an idle period
+    /// or a settle segment), then 1, 2, 3 through the paper's cycle
+    /// ([`CYCLE`](crate::scheduler::CYCLE)).
+    pub const fn place(self) -> usize {
+        match self {
+            SegmentKind::Accelerate | SegmentKind::Idle | SegmentKind::Settle => 0,
+            SegmentKind::Plateau => 1,
+            SegmentKind::Reverse => 2,
+            SegmentKind::Return => 3,
+        }
+    }
+
     /// The kind's name in the event stream and in refusals.
     pub const fn name(self) -> &'static str {
         match self {

@@ -554,7 +554,7 @@ fn the_closed_loop_takes_a_peak_acceleration_whose_levels_fit_the_envelopes_wors
     };
     let friction_mps2 = ENVELOPE.coulomb_max_n / ENVELOPE.mass_min_kg;
     let trims = CycleLoop::new(&corner, LOOSE).trims();
-    let level_mps2 = |accel_mps2: f64| trims.apply(accel_mps2) + friction_mps2;
+    let level_mps2 = |accel_mps2: f64| trims.level(0, accel_mps2) + friction_mps2;
     assert!((level_mps2(limit_mps2) - linear_mps2).abs() < 1e-9);
     assert_eq!(ENVELOPE.check_loop_accel(limit_mps2, linear_mps2), Ok(()));
     let above_mps2 = limit_mps2 + 0.01;
@@ -583,9 +583,53 @@ fn the_feedforward_undoes_the_identified_drive() {
     assert!((1.25 * trims.positive - 1.0).abs() < 1e-15);
     assert!((0.8 * trims.negative - 1.0).abs() < 1e-15);
     assert_eq!(trims.bias_mps2, -0.5);
-    assert_eq!(trims.apply(100.0), 100.0 * trims.positive - 0.5);
-    assert_eq!(trims.apply(-100.0), -100.0 * trims.negative - 0.5);
-    assert_eq!(trims.apply(0.0), -0.5);
+    for place in 0..4 {
+        assert_eq!(trims.level(place, 100.0), 100.0 * trims.positive - 0.5);
+        assert_eq!(trims.level(place, -100.0), -100.0 * trims.negative - 0.5);
+        assert_eq!(trims.level(place, 0.0), -0.5);
+    }
+}
+
+/// The planned motion each segment meets the slide's forces with, against the paper's cycle
+/// worked by hand: the plate speeds up to `v_max = a·t1`, holds it, brakes through zero to
+/// `v_min` and comes back to rest; the positions about the cycle's mean average to zero.
+#[test]
+fn each_segment_meets_the_slides_forces_through_the_planned_motion() {
+    let (waveform, segments) = paper_cycle(0.586);
+    let shape = CycleShape::new(&segments).unwrap();
+    let a = waveform.accel_mps2;
+    let (v_max, v_min) = (waveform.v_max_mps, waveform.v_min_mps);
+    let reverse_s = segments[2].duration_s;
+    let forward_s = v_max / a;
+    let expected = [
+        (1.0, v_max / 2.0),
+        (1.0, v_max),
+        (
+            (forward_s - (reverse_s - forward_s)) / reverse_s,
+            (v_max + v_min) / 2.0,
+        ),
+        (-1.0, v_min / 2.0),
+    ];
+    let mut moment = 0.0;
+    for (place, (motion, (sign_mean, velocity_mps))) in
+        shape.segment_motion.iter().zip(expected).enumerate()
+    {
+        assert!(
+            (motion.sign_mean - sign_mean).abs() < 1e-12,
+            "{place}: {motion:?}"
+        );
+        assert!(
+            (motion.velocity_mean_mps - velocity_mps).abs() < 1e-12,
+            "{place}: {motion:?}"
+        );
+        moment += motion.position_mean_m * segments[place].duration_s;
+        // Coulomb, viscous and spring each enter by their own mean.
+        let slide = motion.slide_mps2(2.0, 3.0, 5.0);
+        let by_hand =
+            2.0 * motion.sign_mean + 3.0 * motion.velocity_mean_mps + 5.0 * motion.position_mean_m;
+        assert!((slide - by_hand).abs() < 1e-12);
+    }
+    assert!(moment.abs() < 1e-15, "{moment}");
 }
 
 #[test]

@@ -58,7 +58,7 @@ impl Plate {
     /// multiple of 250 ticks in it (the start tick of a cycle is read as the cycle's start
     /// instead).
     fn play(&mut self, segment: &Segment, trims: &Trims) {
-        let command = trims.apply(segment.accel_mps2());
+        let command = trims.level(segment.kind.place(), segment.accel_mps2());
         let [plus, minus, offset_mps2] = self.drive;
         let a = if segment.kind.drives() {
             command * if command > 0.0 { plus } else { minus } + offset_mps2
@@ -549,6 +549,7 @@ fn a_cycle_runs_its_decided_trims_the_feedforward_after_idle_or_is_late() {
         positive: 0.98,
         negative: 1.02,
         bias_mps2: -1.0,
+        segments_mps2: [0.5, 0.25, -0.25, -0.5],
     };
     let feedforward = Trims {
         bias_mps2: -0.5,

@@ -2,7 +2,9 @@
 //! paper's closed forms without a lag (Eq. 15 sliding, Eq. 18 saturated), the lag's limits, and
 //! the amplitude that gives the ideal feed back.
 
-use feeder_shared::closed_loop::{compensate, feed_rate_mps, CommandSegment, CycleShape};
+use feeder_shared::closed_loop::{
+    compensate, feed_rate_mps, CommandSegment, CycleShape, PlateModel,
+};
 use feeder_shared::{model, Drive, Friction, Limits, Waveform, WaveformSpec};
 use proptest::prelude::*;
 
@@ -22,6 +24,13 @@ fn cycle(frequency_hz: f64, duty: f64, accel_mps2: f64) -> (Waveform, Vec<Comman
     (waveform, segments)
 }
 
+fn lagged(lag_s: f64) -> PlateModel {
+    PlateModel {
+        lag_s,
+        ..PlateModel::IDEAL
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
 
@@ -36,7 +45,7 @@ proptest! {
         let (waveform, segments) = cycle(frequency_hz, duty, accel_mps2);
         let friction = Friction::new(0.3, model::STANDARD_GRAVITY_MPS2).unwrap();
         let expected = model::steady_state(&waveform, &friction).feed_rate_mps;
-        let feed = feed_rate_mps(&segments, 0.0, MU_G);
+        let feed = feed_rate_mps(&segments, PlateModel::IDEAL, MU_G);
         prop_assert!((feed / expected - 1.0).abs() < 3e-4, "{feed} vs {expected}");
     }
 
@@ -50,14 +59,15 @@ proptest! {
     ) {
         let (_, segments) = cycle(frequency_hz, duty, 140.0);
         let lag_s = 1.0 / (2.0 * core::f64::consts::PI * bandwidth_hz);
-        let found = compensate(&segments, lag_s, MU_G, 1.4);
+        let model = lagged(lag_s);
+        let found = compensate(&segments, model, MU_G, 1.4);
         let scaled: Vec<_> = segments
             .iter()
             .map(|s| CommandSegment { accel_mps2: s.accel_mps2 * found.amplitude, ..*s })
             .collect();
-        let feed = feed_rate_mps(&scaled, lag_s, MU_G);
+        let feed = feed_rate_mps(&scaled, model, MU_G);
         prop_assert!((feed - found.feed_mps).abs() < 1e-9);
-        prop_assert!((found.ideal_mps / feed_rate_mps(&segments, 0.0, MU_G) - 1.0).abs() < 1e-12);
+        prop_assert!((found.ideal_mps / feed_rate_mps(&segments, PlateModel::IDEAL, MU_G) - 1.0).abs() < 1e-12);
         if found.limited {
             prop_assert!(found.amplitude == 1.4 || found.amplitude == 1.0 / 1.4);
             prop_assert!((feed / found.ideal_mps - 1.0).abs() > 1e-3);
@@ -72,13 +82,13 @@ proptest! {
 #[test]
 fn a_slower_current_loop_feeds_less() {
     let (_, segments) = cycle(100.0, 0.53, 140.0);
-    let ideal = feed_rate_mps(&segments, 0.0, MU_G);
-    let tiny = feed_rate_mps(&segments, 1e-7, MU_G);
+    let ideal = feed_rate_mps(&segments, PlateModel::IDEAL, MU_G);
+    let tiny = feed_rate_mps(&segments, lagged(1e-7), MU_G);
     assert!((tiny / ideal - 1.0).abs() < 1e-4, "{tiny} vs {ideal}");
     let mut previous = ideal;
     for bandwidth_hz in [2000.0, 1000.0, 500.0, 300.0, 150.0] {
         let lag_s = 1.0 / (2.0 * core::f64::consts::PI * bandwidth_hz);
-        let feed = feed_rate_mps(&segments, lag_s, MU_G);
+        let feed = feed_rate_mps(&segments, lagged(lag_s), MU_G);
         assert!(
             feed < previous,
             "{bandwidth_hz} Hz: {feed} after {previous}"

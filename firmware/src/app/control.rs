@@ -162,12 +162,9 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
                 self.trims.feedforward()
             }
         };
-        let planned_mps2 = segment.peak_accel_mps2 * segment.amplitude.fraction();
         let trimmed = TrimmedCycle {
             cycle: segment.cycle,
-            positive_mps2: trims.apply(planned_mps2),
-            zero_mps2: trims.bias_mps2,
-            negative_mps2: trims.apply(-planned_mps2),
+            levels_mps2: trims.cycle_levels(segment.peak_accel_mps2 * segment.amplitude.fraction()),
         };
         if let Err(err) = self.output.trim(&trimmed) {
             error!("closed loop: trimmed levels refused: {}", err);
@@ -235,11 +232,16 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         self.resync(scheduler)
     }
 
-    /// Work at the start of every segment: supervision and pending requests.
+    /// Work at the start of every segment: supervision and pending requests. A ready plan is
+    /// queued at a cycle's start, before the closed loop is told of it, so that the course
+    /// decides the next cycle, the plan's first, on that plan.
     fn begin(&mut self, playing: &Segment, scheduler: &mut Scheduler) {
         HEARTBEAT.fetch_add(1, Ordering::Relaxed);
         trace::segment(playing, self.output.started(playing));
         if playing.starts_cycle() {
+            if let Some(ready) = NEXT_PLAN.lock(Cell::take) {
+                self.adopt(&ready, scheduler);
+            }
             self.cycle = playing.cycle;
             let idle = !playing.kind.drives();
             if idle != self.idle {
@@ -266,9 +268,6 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         }
         while let Ok(request) = REQUESTS.try_receive() {
             self.handle(request, Some(scheduler));
-        }
-        if let Some(ready) = NEXT_PLAN.lock(Cell::take) {
-            self.adopt(&ready, scheduler);
         }
     }
 

@@ -221,7 +221,7 @@ impl Course {
         if let Some((asked, _)) = self.feed_asked.filter(|(_, from)| tick >= *from) {
             if let Some(found) = self.feed_handed.take() {
                 self.feed = Some((asked, found));
-                self.cycle_loop.set_feed_amplitude(found.amplitude);
+                self.cycle_loop.set_feed(&found);
             }
         }
     }
@@ -358,9 +358,9 @@ impl Course {
             duration_s: 0.0,
             accel_mps2: 0.0,
         }; 4];
-        for (kept, segment) in commanded.iter_mut().zip(segments) {
+        for (place, (kept, segment)) in commanded.iter_mut().zip(segments).enumerate() {
             *kept = CommandSegment {
-                accel_mps2: applied.apply(segment.accel_mps2),
+                accel_mps2: applied.level(place, segment.accel_mps2),
                 ..*segment
             };
         }

@@ -27,8 +27,10 @@
 use libm::fabs;
 
 use super::disturbance::Disturbance;
+use super::feed::FeedCompensation;
 use super::identify::Identified;
-use super::shape::{CommandSegment, CycleShape};
+use super::shape::{CommandSegment, CycleShape, SegmentMotion};
+use crate::scheduler::CYCLE;
 
 /// `ũ = −A·x_p − B·w_p − d̂` with the predicted `x_p`, `w_p` (both poles at 0.3).
 const POSITION_GAIN: f64 = 0.245;
@@ -37,6 +39,8 @@ const VELOCITY_GAIN: f64 = 0.5775;
 const MEAN_GAIN: f64 = 0.05;
 /// The amplitude trim moves by this fraction of the relative stroke error each cycle.
 const AMPLITUDE_GAIN: f64 = 0.3;
+/// The feed's amplitude moves by at most this a cycle toward a new one.
+const FEED_STEP: f64 = 0.005;
 
 /// What a cycle's trims add to the plate by its end, in the loop's units: position `x`, and
 /// `w = T·v`. A bias `δ` adds `x = δ·T²/2` and `w = δ·T²`.
@@ -60,6 +64,10 @@ pub struct Trims {
     pub negative: f64,
     /// Acceleration added to every level.
     pub bias_mps2: f64,
+    /// Acceleration added to the segment in each place of the cycle
+    /// ([`SegmentKind::place`](crate::SegmentKind::place)): the slide's forces fed forward, and
+    /// what rounding each level to the output's step adds.
+    pub segments_mps2: [f64; 4],
 }
 
 impl Trims {
@@ -68,16 +76,27 @@ impl Trims {
         positive: 1.0,
         negative: 1.0,
         bias_mps2: 0.0,
+        segments_mps2: [0.0; 4],
     };
 
-    /// The commanded acceleration for a planned one.
-    pub fn apply(&self, planned_mps2: f64) -> f64 {
+    /// The commanded levels of a cycle whose `±a` levels are planned at `peak_mps2`, each
+    /// segment in its place ([`CYCLE`]).
+    pub fn cycle_levels(&self, peak_mps2: f64) -> [f64; 4] {
+        core::array::from_fn(|place| {
+            self.level(place, f64::from(CYCLE[place].1.sign()) * peak_mps2)
+        })
+    }
+
+    /// The commanded acceleration for a planned one, in the segment at `place` of its cycle.
+    pub fn level(&self, place: usize, planned_mps2: f64) -> f64 {
         let scale = if planned_mps2 > 0.0 {
             self.positive
         } else {
             self.negative
         };
-        planned_mps2 * scale + self.bias_mps2
+        planned_mps2 * scale
+            + self.bias_mps2
+            + self.segments_mps2.get(place).copied().unwrap_or(0.0)
     }
 }
 
@@ -155,15 +174,20 @@ impl core::fmt::Display for LoopError {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CycleLoop {
     feedforward: Trims,
-    /// The identified slide friction `F_c/M`, fed forward through each cycle's velocity sign.
-    friction_mps2: f64,
+    /// The identified slide: Coulomb friction `F_c/M`, viscous friction `b/M` and a spring
+    /// `k/M`, fed forward segment by segment through the planned motion.
+    slide: [f64; 3],
     /// The identified current loop's lag: the plan's strokes are read behind it.
     lag_s: f64,
     limits: LoopLimits,
     amplitude: f64,
-    /// The amplitude the feed needs behind the drive's lag ([`super::feed`]): the stroke is
-    /// held at the plan's times this, and the trim's range is about it.
+    /// The amplitude the feed needs on the identified plate ([`super::feed`]): the trim's
+    /// range is about it, and the plate's motion is the plan's times it, its stroke times
+    /// `stroke_factor` more ([`CycleLoop::plan`]).
     feed_amplitude: f64,
+    stroke_factor: f64,
+    /// Where `feed_amplitude` is going: it moves there by [`FEED_STEP`] a cycle.
+    feed_target: f64,
     /// What the trims of the cycle running now, of the one before and of the one before that
     /// add to the plate (in the loop's units), and the previous start position.
     running: Input,
@@ -194,14 +218,21 @@ impl CycleLoop {
             positive: 1.0 / identified.gain_positive,
             negative: 1.0 / identified.gain_negative,
             bias_mps2: -identified.offset_mps2,
+            segments_mps2: [0.0; 4],
         };
         CycleLoop {
             feedforward,
-            friction_mps2: identified.coulomb_mps2,
+            slide: [
+                identified.coulomb_mps2,
+                identified.viscous_per_s,
+                identified.spring_per_s2,
+            ],
             lag_s: identified.lag_s,
             limits,
             amplitude: 1.0,
             feed_amplitude: 1.0,
+            stroke_factor: 1.0,
+            feed_target: 1.0,
             running: Input::NONE,
             previous: Input::NONE,
             earlier: Input::NONE,
@@ -231,42 +262,42 @@ impl CycleLoop {
         }
     }
 
-    /// The trims of a cycle of `shape` with its `±a` levels scaled by `positive` and `negative`
-    /// and `bias_mps2` added, each level rounded to the output's step, down or up, whichever
-    /// way leaves the plate least off by the cycle's end; with what that rounding adds. The
-    /// three levels' choices together move the plate several times finer than one step.
+    /// The trims of a cycle of `shape` with its `±a` levels scaled by `positive` and `negative`,
+    /// `bias_mps2` added to every segment and `slide_mps2` to each in its place, each segment's
+    /// level rounded to the output's step, down or up, whichever way leaves the plate least off
+    /// by the cycle's end; with what that rounding adds. The segments' choices together move
+    /// the plate several times finer than one step.
     fn rounded_trims(
         &self,
         shape: &CycleShape,
         positive: f64,
         negative: f64,
         bias_mps2: f64,
+        slide_mps2: [f64; 4],
     ) -> (Trims, Input) {
         let exact = Trims {
             positive,
             negative,
             bias_mps2,
+            segments_mps2: slide_mps2,
         };
         let step = self.level_step_mps2;
         if step <= 0.0 || shape.period_s <= 0.0 {
             return (exact, Input::NONE);
         }
-        let levels = [
-            shape.positive_mps2 * positive + bias_mps2,
-            bias_mps2,
-            -shape.negative_mps2 * negative + bias_mps2,
-        ];
+        let levels: [f64; 4] =
+            core::array::from_fn(|place| exact.level(place, shape.segment_accel_mps2[place]));
         let floors = levels.map(|level| libm::floor(level / step) * step);
         let mut best = (f64::INFINITY, levels, Input::NONE);
-        for choice in 0..8 {
+        for choice in 0..16 {
             let mut rounded = floors;
             let mut added = Input::NONE;
-            for k in 0..3 {
-                if choice >> k & 1 == 1 {
-                    rounded[k] += step;
+            for place in 0..4 {
+                if choice >> place & 1 == 1 {
+                    rounded[place] += step;
                 }
-                let error = rounded[k] - levels[k];
-                let [velocity_s, position_s2] = shape.level_effects[k];
+                let error = rounded[place] - levels[place];
+                let [velocity_s, position_s2] = shape.segment_effects[place];
                 added.x_m += error * position_s2;
                 added.w_m += error * velocity_s * shape.period_s;
             }
@@ -275,19 +306,12 @@ impl CycleLoop {
                 best = (size, rounded, added);
             }
         }
-        let ([plus, zero, minus], added) = (best.1, best.2);
+        let (rounded, added) = (best.1, best.2);
         let trims = Trims {
-            positive: if shape.positive_mps2 > 0.0 {
-                (plus - zero) / shape.positive_mps2
-            } else {
-                positive
-            },
-            negative: if shape.negative_mps2 > 0.0 {
-                (zero - minus) / shape.negative_mps2
-            } else {
-                negative
-            },
-            bias_mps2: zero,
+            segments_mps2: core::array::from_fn(|place| {
+                slide_mps2[place] + rounded[place] - levels[place]
+            }),
+            ..exact
         };
         (trims, added)
     }
@@ -316,17 +340,18 @@ impl CycleLoop {
     pub fn set_drive(&mut self, identified: &Identified) {
         let other = CycleLoop::new(identified, self.limits);
         self.feedforward = other.feedforward;
-        self.friction_mps2 = other.friction_mps2;
+        self.slide = other.slide;
         self.lag_s = other.lag_s;
     }
 
-    /// Holds the stroke at `amplitude` times the plan's from the next update on: the amplitude
-    /// that gives the ideal plate's feed behind the drive's lag ([`super::feed`]). The trim
-    /// moves with it at once.
-    pub fn set_feed_amplitude(&mut self, amplitude: f64) {
-        if amplitude.is_finite() && amplitude > 0.0 {
-            self.amplitude *= amplitude / self.feed_amplitude;
-            self.feed_amplitude = amplitude;
+    /// Goes on toward the amplitude that gives the ideal plate's feed on the identified plate
+    /// ([`super::feed`]), [`FEED_STEP`] a cycle from the next update on, so that the plate's
+    /// mean moves as gently as in a soft start; the trim moves with it, and the stroke is held
+    /// where that plate shows it.
+    pub fn set_feed(&mut self, found: &FeedCompensation) {
+        if found.amplitude.is_finite() && found.amplitude > 0.0 && found.stroke_factor > 0.0 {
+            self.feed_target = found.amplitude;
+            self.stroke_factor = found.stroke_factor;
         }
     }
 
@@ -337,6 +362,7 @@ impl CycleLoop {
             positive: 1.0 / (1.0 + gain_half_difference),
             negative: 1.0 / (1.0 - gain_half_difference),
             bias_mps2: -offset_mps2,
+            segments_mps2: [0.0; 4],
         };
         self.trims = self.feedforward();
     }
@@ -363,25 +389,23 @@ impl CycleLoop {
         self.at_rest = true;
     }
 
-    /// The plan of a cycle of `segments` as the loop aims at it: its shape, with the mean sign of
-    /// the velocity the identified slide friction leaves under the friction's feedforward (a
-    /// low-amplitude cycle may stop where the plan coasts), which that feedforward uses, and its
-    /// stroke as read behind the identified current loop.
+    /// The plan of a cycle of `segments` as the loop aims at it: its shape, with its stroke as
+    /// read behind the identified current loop, and its motion (mean, stroke, each segment's)
+    /// as the plate makes it at the amplitude the feed needs ([`CycleLoop::set_feed`]). Its
+    /// levels stay the plan's: the trims scale those.
     pub fn plan(&self, segments: &[CommandSegment]) -> Option<CycleShape> {
-        let friction = self.friction_mps2;
-        let planned = CycleShape::new(segments)?;
-        let mut sign_mean = planned.velocity_sign_mean;
-        for _ in 0..2 {
-            sign_mean = CycleShape::under_friction(segments, friction, friction * sign_mean)
-                .map_or(sign_mean, |shape| shape.velocity_sign_mean);
-        }
-        Some(
-            CycleShape {
-                velocity_sign_mean: sign_mean,
-                ..planned
-            }
-            .behind_lag(segments, self.lag_s),
-        )
+        let shape = CycleShape::new(segments)?.behind_lag(segments, self.lag_s);
+        let scale = self.feed_amplitude;
+        Some(CycleShape {
+            mean_m: shape.mean_m * scale,
+            latched_stroke_m: shape.latched_stroke_m * scale * self.stroke_factor,
+            segment_motion: shape.segment_motion.map(|motion| SegmentMotion {
+                velocity_mean_mps: motion.velocity_mean_mps * scale,
+                position_mean_m: motion.position_mean_m * scale,
+                ..motion
+            }),
+            ..shape
+        })
     }
 
     /// The trims for the cycle that starts now (decided at the previous boundary).
@@ -414,7 +438,7 @@ impl CycleLoop {
         }
         let mut amplitude = self.amplitude;
         if let Some(stroke) = stroke {
-            let planned_m = stroke.planned_m * self.feed_amplitude;
+            let planned_m = stroke.planned_m;
             if planned_m > 0.0 {
                 amplitude -= AMPLITUDE_GAIN * amplitude * (stroke.measured_m / planned_m - 1.0);
             }
@@ -464,13 +488,16 @@ impl CycleLoop {
         if fabs(correction_mps2) > self.limits.correction_max_mps2 {
             return Err(LoopError::Correction { correction_mps2 });
         }
-        let held_mps2 =
-            self.feedforward.bias_mps2 + self.friction_mps2 * next[0].velocity_sign_mean;
+        let [coulomb_mps2, viscous_per_s, spring_per_s2] = self.slide;
+        let slide_mps2 = next[0]
+            .segment_motion
+            .map(|motion| motion.slide_mps2(coulomb_mps2, viscous_per_s, spring_per_s2));
         let (trims, rounding) = self.rounded_trims(
             next[0],
             self.feedforward.positive * amplitude,
             self.feedforward.negative * amplitude,
-            held_mps2 + correction_mps2,
+            self.feedforward.bias_mps2 + correction_mps2,
+            slide_mps2,
         );
         self.amplitude = amplitude;
         self.mean_offset_m = mean_offset_m;
@@ -486,6 +513,9 @@ impl CycleLoop {
             w_m: 2.0 * correction + rounding.w_m,
         };
         self.trims = trims;
+        let step = (self.feed_target - self.feed_amplitude).clamp(-FEED_STEP, FEED_STEP);
+        self.amplitude *= (self.feed_amplitude + step) / self.feed_amplitude;
+        self.feed_amplitude += step;
         Ok(self.trims)
     }
 }

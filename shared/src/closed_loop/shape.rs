@@ -56,6 +56,35 @@ pub struct CycleShape {
     /// velocity `e·[k][0]` and the position `e·[k][1]` (the time each is commanded, and its
     /// first moment about the end).
     pub level_effects: [[f64; 2]; 3],
+    /// The same for each segment in its place in the cycle.
+    pub segment_effects: [[f64; 2]; 4],
+    /// The planned level of each segment in its place (0 past the cycle's last).
+    pub segment_accel_mps2: [f64; 4],
+    /// The planned motion through each segment in its place: the mean of the velocity's sign,
+    /// of the velocity and of the position less the cycle's mean. A plate that follows the plan
+    /// meets the slide's forces through these.
+    pub segment_motion: [SegmentMotion; 4],
+}
+
+/// The planned motion through one segment, as the slide's forces meet it.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SegmentMotion {
+    pub sign_mean: f64,
+    pub velocity_mean_mps: f64,
+    /// About the cycle's mean position.
+    pub position_mean_m: f64,
+}
+
+impl SegmentMotion {
+    /// The mean acceleration that cancels, through this segment, a slide of Coulomb friction
+    /// `coulomb_mps2` and viscous friction `viscous_per_s` and a centring spring `spring_per_s2`
+    /// (each over the moving mass) on a plate at the cycle's centre.
+    pub fn slide_mps2(&self, coulomb_mps2: f64, viscous_per_s: f64, spring_per_s2: f64) -> f64 {
+        coulomb_mps2 * self.sign_mean
+            + viscous_per_s * self.velocity_mean_mps
+            + spring_per_s2 * self.position_mean_m
+    }
 }
 
 impl CycleShape {
@@ -72,6 +101,14 @@ impl CycleShape {
             positive_mps2: 0.0,
             negative_mps2: 0.0,
             level_effects: [[0.0; 2], [period_s, period_s * period_s / 2.0], [0.0; 2]],
+            segment_effects: [
+                [period_s, period_s * period_s / 2.0],
+                [0.0; 2],
+                [0.0; 2],
+                [0.0; 2],
+            ],
+            segment_accel_mps2: [0.0; 4],
+            segment_motion: [SegmentMotion::default(); 4],
         }
     }
 
@@ -125,6 +162,16 @@ impl CycleShape {
         let (mut positive_mps2, mut negative_mps2) = (0.0_f64, 0.0_f64);
         let mut level_effects = [[0.0; 2]; 3];
         let mut begins_s = 0.0;
+        let mut segment_effects = [[0.0; 2]; 4];
+        let mut segment_accel_mps2 = [0.0; 4];
+        for (place, segment) in segments.iter().take(4).enumerate() {
+            let d = segment.duration_s;
+            segment_effects[place] = [d, d * (t - begins_s - d / 2.0)];
+            segment_accel_mps2[place] = segment.accel_mps2;
+            begins_s += d;
+        }
+        let segment_motion = Self::segment_motion(segments, area / t);
+        let mut begins_s = 0.0;
         for segment in segments {
             let level = if segment.accel_mps2 > 0.0 {
                 positive_mps2 = positive_mps2.max(segment.accel_mps2);
@@ -151,7 +198,36 @@ impl CycleShape {
             positive_mps2,
             negative_mps2,
             level_effects,
+            segment_effects,
+            segment_accel_mps2,
+            segment_motion,
         })
+    }
+
+    /// The planned motion from rest through each of `segments` (at most four), positions about
+    /// `mean_m`: each segment integrated exactly, split where its velocity changes sign.
+    fn segment_motion(segments: &[CommandSegment], mean_m: f64) -> [SegmentMotion; 4] {
+        let mut motion = [SegmentMotion::default(); 4];
+        let (mut v, mut x) = (0.0_f64, 0.0_f64);
+        for (place, segment) in segments.iter().take(4).enumerate() {
+            let (a, d) = (segment.accel_mps2, segment.duration_s);
+            if d <= 0.0 {
+                continue;
+            }
+            let end_v = v + a * d;
+            // Time with the velocity's sign as at the segment's start, up to a change of sign.
+            let turn_s = if v * end_v < 0.0 { -v / a } else { d };
+            let start_sign = if v != 0.0 { sign(v) } else { sign(a) };
+            let signed_s = start_sign * turn_s + sign(end_v) * (d - turn_s);
+            motion[place] = SegmentMotion {
+                sign_mean: signed_s / d,
+                velocity_mean_mps: v + a * d / 2.0,
+                position_mean_m: x + v * d / 2.0 + a * d * d / 6.0 - mean_m,
+            };
+            x += v * d + a * d * d / 2.0;
+            v = end_v;
+        }
+        motion
     }
 
     /// The shape of `segments` (the ones it was made from) played through a current loop of lag

@@ -66,6 +66,7 @@ fn status_reports_the_closed_loop_before_the_fault() {
                 feed_mps: 0.056_878_2,
                 ideal_mps: 0.077,
                 limited: true,
+                stroke_factor: 1.0,
             }),
         }),
         ..status(Some("closed-loop"))

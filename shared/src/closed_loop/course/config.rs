@@ -46,8 +46,8 @@ impl CourseConfig {
     /// settles on the identified drive meanwhile), in at most 250 cycles; the loop may add up to
     /// 50 m/s² (a quarter of the envelope's full scale: a spring or slide friction at its limit
     /// needs that much), trim the stroke by ±20 % and gives up 4 mm from centre; levels in steps
-    /// of `level_step_mps2`; no feed compensation ([`CourseConfig::with_feed`]), taken 0.5 s
-    /// after it is asked for where there is one (the firmware needs up to 0.4 s under QEMU).
+    /// of `level_step_mps2`; no feed compensation ([`CourseConfig::with_feed`]), taken 1 s
+    /// after it is asked for where there is one (the firmware needs up to 0.7 s under QEMU).
     pub fn new(resolution_m: f64, level_step_mps2: f64) -> Self {
         CourseConfig {
             settle_segments: 2 * crate::closed_loop::settle::PAIRS,
@@ -66,7 +66,7 @@ impl CourseConfig {
             level_step_mps2,
             part_mps2: 0.0,
             linear_mps2: 0.0,
-            feed_hold_s: 0.5,
+            feed_hold_s: 1.0,
         }
     }
 
