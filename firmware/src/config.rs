@@ -17,13 +17,10 @@ pub const RAMP_CYCLES: u16 = SETTINGS.ramp_cycles;
 /// too); every waveform is validated against it.
 pub const LIMITS: Limits = MACHINE_LIMITS;
 
-/// Coulomb friction between the plate and the parts (μ = 0.3, typical of small metal parts on a
-/// steel plate): the feed-rate model behind `status` and `set feed` on the console, and the
-/// closed loop's compensation of the drive's lag for the feed.
-pub const FRICTION: feeder_shared::Friction = feeder_shared::Friction {
-    mu: 0.3,
-    gravity_mps2: feeder_shared::model::STANDARD_GRAVITY_MPS2,
-};
+/// Coulomb friction between the plate and the parts (`Friction::CONFIGURED`, μ = 0.3): the
+/// feed-rate model behind `status` and `set feed` on the console, and the closed loop's
+/// compensation of the feed.
+pub const FRICTION: feeder_shared::Friction = feeder_shared::Friction::CONFIGURED;
 
 /// Track control (`ports::PartSensor`): the barrier blocked for 0.5 s without a break means the
 /// track is full and the feeder pauses; clear for 1 s, the track has room and it feeds again.

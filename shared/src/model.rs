@@ -30,6 +30,14 @@ pub struct Friction {
 }
 
 impl Friction {
+    /// The part the firmware is configured for: μ = 0.3, typical of small metal parts on a steel
+    /// plate, under standard gravity. The closed loop compensates the feed for it, so the
+    /// firmware in the loop carries it.
+    pub const CONFIGURED: Friction = Friction {
+        mu: 0.3,
+        gravity_mps2: STANDARD_GRAVITY_MPS2,
+    };
+
     pub fn new(mu: f64, gravity_mps2: f64) -> Result<Self, Error> {
         Ok(Friction {
             mu: positive(Quantity::FrictionCoefficient, mu)?,

@@ -221,10 +221,11 @@ fn the_firmware_walks_the_realistic_plate_into_its_end_stop_open_loop() {
     );
 }
 
-/// The part the firmware is configured for (`config::FRICTION`, μ = 0.3): the host's course
+/// The part the firmware is configured for (`Friction::CONFIGURED`): the host's course
 /// compensates the feed for the part it carries, the firmware's for its configured one.
 fn contact() -> host_sim::Contact {
-    host_sim::Contact::kinetic(0.3, 1e-4).expect("a valid contact")
+    host_sim::Contact::kinetic(feeder_shared::Friction::CONFIGURED.mu, 1e-4)
+        .expect("a valid contact")
 }
 
 /// `realistic.toml` and its plate, carrying a part, behind a DAC of the default calibration.

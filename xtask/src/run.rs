@@ -11,6 +11,7 @@ use clap::Args;
 use feeder_emulator::{Board, Serial};
 use feeder_shared::scenario::{parse_setting, qemu_clock, Scenario, SCENARIO_KEYS};
 use feeder_shared::DacCalibration;
+use feeder_shared::Friction;
 use host_sim::plate::PlantFile;
 
 use crate::command::{cargo, exec, exec_output, host_sim, root, shown};
@@ -160,6 +161,10 @@ fn run_plant(plant: &Path, args: &RunArgs) -> Result {
         .arg(root().join("target").join("cosim-run.log"));
     if args.open_loop {
         cosim.arg("--open-loop");
+    }
+    // The part the firmware is configured for, unless the flags name another.
+    if !args.hil_flags.iter().any(|flag| flag == "--mu") {
+        cosim.args(["--mu", &Friction::CONFIGURED.mu.to_string()]);
     }
     exec_output(cosim.args(&args.hil_flags).arg("--").args(&args.scenario))
 }
