@@ -212,6 +212,9 @@ pub struct FamilyRun {
     pub refused_for: Option<Cause>,
     /// An outside plant refused before it moved 0.5 mm, with its cause named.
     pub refused_by_cause: bool,
+    /// The course said, before the release, that the drive's range cannot give the ideal
+    /// plate's feed, and which feed it gives instead (m/s).
+    pub feed_limited_mps: Option<f64>,
     pub verdict: Verdict,
 }
 
@@ -311,6 +314,10 @@ pub fn run_member(member: &Member, point: FamilyPoint) -> Result<FamilyRun, SimE
         passed,
         refused_for,
         refused_by_cause,
+        feed_limited_mps: run
+            .feed
+            .filter(|found| found.limited)
+            .map(|found| found.feed_mps),
         verdict,
     })
 }

@@ -41,6 +41,8 @@ const MEAN_GAIN: f64 = 0.05;
 const AMPLITUDE_GAIN: f64 = 0.3;
 /// The feed's amplitude moves by at most this a cycle toward a new one.
 const FEED_STEP: f64 = 0.005;
+/// The share of the slide fed forward rises by this a cycle after a new drive.
+const SLIDE_STEP: f64 = 0.05;
 
 /// What a cycle's trims add to the plate by its end, in the loop's units: position `x`, and
 /// `w = T·v`. A bias `δ` adds `x = δ·T²/2` and `w = δ·T²`.
@@ -177,6 +179,9 @@ pub struct CycleLoop {
     /// The identified slide: Coulomb friction `F_c/M`, viscous friction `b/M` and a spring
     /// `k/M`, fed forward segment by segment through the planned motion.
     slide: [f64; 3],
+    /// How much of the slide is fed forward: it rises by [`SLIDE_STEP`] a cycle after a new
+    /// drive, so that the disturbance estimate, made without it, follows.
+    slide_share: f64,
     /// The identified current loop's lag: the plan's strokes are read behind it.
     lag_s: f64,
     limits: LoopLimits,
@@ -227,6 +232,7 @@ impl CycleLoop {
                 identified.viscous_per_s,
                 identified.spring_per_s2,
             ],
+            slide_share: 1.0,
             lag_s: identified.lag_s,
             limits,
             amplitude: 1.0,
@@ -341,6 +347,7 @@ impl CycleLoop {
         let other = CycleLoop::new(identified, self.limits);
         self.feedforward = other.feedforward;
         self.slide = other.slide;
+        self.slide_share = 0.0;
         self.lag_s = other.lag_s;
     }
 
@@ -488,7 +495,7 @@ impl CycleLoop {
         if fabs(correction_mps2) > self.limits.correction_max_mps2 {
             return Err(LoopError::Correction { correction_mps2 });
         }
-        let [coulomb_mps2, viscous_per_s, spring_per_s2] = self.slide;
+        let [coulomb_mps2, viscous_per_s, spring_per_s2] = self.slide.map(|k| k * self.slide_share);
         let slide_mps2 = next[0]
             .segment_motion
             .map(|motion| motion.slide_mps2(coulomb_mps2, viscous_per_s, spring_per_s2));
@@ -513,6 +520,7 @@ impl CycleLoop {
             w_m: 2.0 * correction + rounding.w_m,
         };
         self.trims = trims;
+        self.slide_share = (self.slide_share + SLIDE_STEP).min(1.0);
         let step = (self.feed_target - self.feed_amplitude).clamp(-FEED_STEP, FEED_STEP);
         self.amplitude *= (self.feed_amplitude + step) / self.feed_amplitude;
         self.feed_amplitude += step;

@@ -50,6 +50,9 @@ struct PointSummary {
     worst_feed_error: f64,
     /// How many runs missed each criterion (a run may miss several).
     missed: BTreeMap<&'static str, usize>,
+    /// How many runs the course said, before the release, would feed less than the ideal
+    /// plate: the drive's range cannot give the compensation.
+    feed_limited: usize,
 }
 
 #[derive(Serialize)]
@@ -79,6 +82,8 @@ struct FamilyRow {
     startup_peak_m: f64,
     worst_mean_position_m: Option<f64>,
     feed_rate_difference: Option<f64>,
+    /// The feed the course said it would give, where the drive's range limits it.
+    feed_limited_mps: Option<f64>,
     failures: String,
     mass_kg: f64,
     zero_offset_fraction: f64,
@@ -106,6 +111,7 @@ impl FamilyRow {
             startup_peak_m: run.verdict.startup_peak_m,
             worst_mean_position_m: run.verdict.worst_mean_position_m,
             feed_rate_difference: run.verdict.feed_rate_difference,
+            feed_limited_mps: run.feed_limited_mps,
             failures: run.verdict.failures.join("; "),
             mass_kg: plate.mass_kg,
             zero_offset_fraction: plate.zero_offset_fraction,
@@ -202,6 +208,7 @@ fn summary<'a>(point: FamilyPoint, runs: impl Iterator<Item = &'a FamilyRun>) ->
         worst_mean_position_m: 0.0,
         worst_feed_error: 0.0,
         missed: BTreeMap::new(),
+        feed_limited: 0,
     };
     for run in runs.filter(|run| run.point == point && run.outside.is_none()) {
         let verdict = &run.verdict;
@@ -217,6 +224,7 @@ fn summary<'a>(point: FamilyPoint, runs: impl Iterator<Item = &'a FamilyRun>) ->
         for name in run.missed() {
             *summary.missed.entry(name).or_default() += 1;
         }
+        summary.feed_limited += usize::from(run.feed_limited_mps.is_some());
     }
     summary
 }
@@ -344,6 +352,13 @@ fn print_report(report: &FamilyReport) {
             .collect();
         if !missed.is_empty() {
             say!("  missed          {}", missed.join(", "));
+        }
+        if p.feed_limited > 0 {
+            say!(
+                "  feed limited    {} runs: the drive's range cannot give the feed's compensation, \
+                 said before the release",
+                p.feed_limited
+            );
         }
     }
     for (cause, [by_cause, all]) in &report.refused {
