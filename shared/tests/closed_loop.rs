@@ -12,14 +12,7 @@ use proptest::prelude::*;
 fn paper_cycle(duty: f64) -> (Waveform, Vec<CommandSegment>) {
     let spec = WaveformSpec::from_frequency(50.0, duty, Drive::Stroke { stroke_m: 2.5e-3 });
     let waveform = Waveform::new(spec, &Limits::NONE).unwrap();
-    let segments = waveform
-        .segments()
-        .iter()
-        .map(|s| CommandSegment {
-            duration_s: s.duration_s,
-            accel_mps2: f64::from(s.level.sign()) * waveform.accel_mps2,
-        })
-        .collect();
+    let segments = CommandSegment::cycle_of(&waveform).to_vec();
     (waveform, segments)
 }
 

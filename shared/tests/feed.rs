@@ -13,14 +13,7 @@ const MU_G: f64 = 0.3 * model::STANDARD_GRAVITY_MPS2;
 fn cycle(frequency_hz: f64, duty: f64, accel_mps2: f64) -> (Waveform, Vec<CommandSegment>) {
     let spec = WaveformSpec::from_frequency(frequency_hz, duty, Drive::Accel { accel_mps2 });
     let waveform = Waveform::new(spec, &Limits::NONE).unwrap();
-    let segments = waveform
-        .segments()
-        .iter()
-        .map(|s| CommandSegment {
-            duration_s: s.duration_s,
-            accel_mps2: f64::from(s.level.sign()) * waveform.accel_mps2,
-        })
-        .collect();
+    let segments = CommandSegment::cycle_of(&waveform).to_vec();
     (waveform, segments)
 }
 

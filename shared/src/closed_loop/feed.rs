@@ -433,10 +433,7 @@ impl FeedRequest {
 
     /// The amplitude that gives the ideal plate's feed, or the feed the drive allows.
     pub fn solve(&self) -> FeedCompensation {
-        let segments = self.waveform.segments().map(|segment| CommandSegment {
-            duration_s: segment.duration_s,
-            accel_mps2: f64::from(segment.level.sign()) * self.waveform.accel_mps2,
-        });
+        let segments = CommandSegment::cycle_of(&self.waveform);
         compensate(&segments, self.model, self.part_mps2, self.amplitude_max)
     }
 }

@@ -21,6 +21,14 @@ pub struct CommandSegment {
 }
 
 impl CommandSegment {
+    /// The four segments of one cycle of `waveform` at its exact durations (Fig. 2a).
+    pub fn cycle_of(waveform: &crate::waveform::Waveform) -> [CommandSegment; 4] {
+        waveform.segments().map(|segment| CommandSegment {
+            duration_s: segment.duration_s,
+            accel_mps2: f64::from(segment.level.sign()) * waveform.accel_mps2,
+        })
+    }
+
     /// A scheduler's `segment` of `plan` in seconds (ticks ÷ clock).
     pub fn of(segment: &crate::scheduler::Segment, plan: &crate::plan::TickPlan) -> Self {
         CommandSegment {
