@@ -470,3 +470,22 @@ impl SampledPlate {
         })
     }
 }
+
+/// The feed's compensation in one line of a report: the amplitude on the levels and the ideal
+/// plate's feed, or, where the drive's range limits it (`limited_mps`), the feed given instead.
+pub fn feed_compensation_line(amplitude: f64, ideal_mps: f64, limited_mps: Option<f64>) -> String {
+    match limited_mps {
+        Some(feed_mps) => format!(
+            "feed compensated  levels ×{amplitude:.4}, the most the drive's linear range allows: \
+             {:.2} mm/s instead of the ideal plate's {:.2} mm/s ({:+.1} %)",
+            feed_mps * 1e3,
+            ideal_mps * 1e3,
+            (feed_mps / ideal_mps - 1.0) * 1e2
+        ),
+        None => format!(
+            "feed compensated  levels ×{amplitude:.4} for the ideal plate's {:.2} mm/s behind the \
+             drive's lag",
+            ideal_mps * 1e3
+        ),
+    }
+}

@@ -282,6 +282,40 @@ pub struct LoopLog {
     pub cycle_ticks: Vec<(u64, u64)>,
     /// The course stopped: its message.
     pub stopped: Option<String>,
+    /// The feed's compensation the firmware found last: the amplitude, the ideal plate's feed
+    /// and, where the drive's range limits it, the feed it gives instead (m/s).
+    pub feed: Option<LoggedFeed>,
+}
+
+/// A feed compensation as the firmware logs it (`feed compensated: levels x…`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct LoggedFeed {
+    pub amplitude: f64,
+    pub ideal_mps: f64,
+    pub limited_mps: Option<f64>,
+}
+
+impl LoggedFeed {
+    /// The numbers of a `feed compensated:` line's `rest`.
+    fn read(rest: &str) -> Option<Self> {
+        let numbers: Vec<f64> = rest
+            .split([' ', ',', 'x'])
+            .filter_map(|word| word.parse().ok())
+            .collect();
+        match (rest.contains("instead of"), numbers.as_slice()) {
+            (false, [amplitude, ideal_mmps]) => Some(LoggedFeed {
+                amplitude: *amplitude,
+                ideal_mps: ideal_mmps * 1e-3,
+                limited_mps: None,
+            }),
+            (true, [amplitude, feed_mmps, ideal_mmps]) => Some(LoggedFeed {
+                amplitude: *amplitude,
+                ideal_mps: ideal_mmps * 1e-3,
+                limited_mps: Some(feed_mmps * 1e-3),
+            }),
+            _ => None,
+        }
+    }
 }
 
 impl LoopLog {
@@ -291,6 +325,8 @@ impl LoopLog {
         for line in log.lines() {
             if let Some(rest) = line.split("closed loop: Feeding at cycle ").nth(1) {
                 found.feeding_cycle = rest.trim().parse().ok();
+            } else if let Some(rest) = line.split("feed compensated: ").nth(1) {
+                found.feed = LoggedFeed::read(rest).or(found.feed);
             } else if let Some(rest) = line.split("closed loop stopped: ").nth(1) {
                 found.stopped = Some(rest.trim().to_string());
             } else if let Some(rest) = line.split("drive identified: ").nth(1) {

@@ -160,3 +160,34 @@ fn the_plate_runs_out_to_rest_once_the_firmware_has_ended() {
     assert_eq!(out.outcome, host_sim::cosim::RunOutcome::StillMoving);
     assert!((out.state.velocity_mps - 0.01).abs() < 1e-12, "{out:?}");
 }
+
+/// The firmware's log of the course read back: the drive, the release and the last feed
+/// compensation, whether the drive's range gives it or limits it.
+#[test]
+fn the_loop_log_reads_the_feed_compensation_the_firmware_logged() {
+    use host_sim::cosim::{LoggedFeed, LoopLog};
+    let log = "INFO  drive identified: gain + 1.02, gain − 0.98, offset 1.0 m/s², lag 0.00016 s\n\
+               INFO  feed compensated: levels x1.0030 for the ideal plate's 125.44 mm/s behind the drive's lag\n\
+               INFO  closed loop: Feeding at cycle 373\n\
+               INFO  feed compensated: levels x1.0961, the most the drive's linear range allows: 154.44 mm/s instead of the ideal plate's 170.71 mm/s\n";
+    let read = LoopLog::read(log);
+    assert_eq!(read.identified, Some([1.02, 0.98, 1.0]));
+    assert_eq!(read.feeding_cycle, Some(373));
+    assert_eq!(
+        read.feed,
+        Some(LoggedFeed {
+            amplitude: 1.0961,
+            ideal_mps: 170.71e-3,
+            limited_mps: Some(154.44e-3),
+        })
+    );
+    let first = LoopLog::read(log.lines().take(2).collect::<Vec<_>>().join("\n").as_str());
+    assert_eq!(
+        first.feed,
+        Some(LoggedFeed {
+            amplitude: 1.003,
+            ideal_mps: 125.44e-3,
+            limited_mps: None,
+        })
+    );
+}

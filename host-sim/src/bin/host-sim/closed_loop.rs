@@ -10,7 +10,7 @@ use clap::Args;
 use feeder_shared::closed_loop::{FeedCompensation, Identified};
 use feeder_shared::Settings;
 use host_sim::closed_loop::{
-    run_closed_loop, ClosedLoopOptions, ClosedLoopRun, CycleRecord, Verdict,
+    feed_compensation_line, run_closed_loop, ClosedLoopOptions, ClosedLoopRun, CycleRecord, Verdict,
 };
 use host_sim::plate::{PlantFile, PlateParams};
 use host_sim::{OperatingPoint, SimError, Timing};
@@ -398,23 +398,14 @@ fn print_report(report: &ClosedLoopReport, output: &OutputArgs) {
         _ => say!("drive             not identified"),
     }
     if let Some(found) = &report.feed_compensation {
-        if found.limited {
-            say!(
-                "feed compensated  levels ×{:.4}, the most the drive's linear range allows: {:.2} \
-                 mm/s instead of the ideal plate's {:.2} mm/s ({:+.1} %)",
+        say!(
+            "{}",
+            feed_compensation_line(
                 found.amplitude,
-                found.feed_mps * 1e3,
-                found.ideal_mps * 1e3,
-                (found.feed_mps / found.ideal_mps - 1.0) * 1e2
-            );
-        } else {
-            say!(
-                "feed compensated  levels ×{:.4} for the ideal plate's {:.2} mm/s behind the \
-                 drive's lag",
-                found.amplitude,
-                found.ideal_mps * 1e3
-            );
-        }
+                found.ideal_mps,
+                found.limited.then_some(found.feed_mps)
+            )
+        );
     }
     let verdict = &report.verdict;
     say!(

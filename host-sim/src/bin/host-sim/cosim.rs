@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use feeder_emulator::plant_link::{Plant, TICK_HZ};
 use feeder_shared::DacCalibration;
-use host_sim::closed_loop::Verdict;
+use host_sim::closed_loop::{feed_compensation_line, Verdict};
 use host_sim::cosim::{
     cycles, judge, CosimCycle, LoopLog, PlatePlant, PlateSample, PlateState, RunOut, RunOutcome,
 };
@@ -347,6 +347,12 @@ fn print_closed_loop(closed: &ClosedLoopReport) {
             "drive             identified gains {p:.5} / {n:.5} ({:+.3} % / {:+.3} %), offset {e:.3} m/s²",
             ep * 100.0,
             en * 100.0
+        );
+    }
+    if let Some(feed) = closed.log.feed {
+        say!(
+            "{}",
+            feed_compensation_line(feed.amplitude, feed.ideal_mps, feed.limited_mps)
         );
     }
     if let Some(cycle) = closed.log.feeding_cycle {
