@@ -352,7 +352,7 @@ impl CycleLoop {
     }
 
     /// Goes on toward the amplitude that gives the ideal plate's feed on the identified plate
-    /// ([`super::feed`]), [`FEED_STEP`] a cycle from the next update on, so that the plate's
+    /// ([`super::feed`]), 0.5 % a cycle from the next update on, so that the plate's
     /// mean moves as gently as in a soft start; the trim moves with it, and the stroke is held
     /// where that plate shows it.
     pub fn set_feed(&mut self, found: &FeedCompensation) {

@@ -8,7 +8,7 @@
 //! velocity crosses the plate's, falls: at 150 Hz of bandwidth by 5 % at 50 Hz and d = 0.53, by
 //! 45 % at 100 Hz and d = 0.61. The slide's forces (Coulomb and viscous friction, a centring
 //! spring) are fed forward segment by segment as their mean along the plan
-//! ([`SegmentMotion::slide_mps2`]); inside a segment what they leave bends the profile too.
+//! ([`SegmentMotion::slide_mps2`](super::SegmentMotion::slide_mps2)); inside a segment what they leave bends the profile too.
 //! Scaling the levels by an amplitude `m` brings the feed back as far as the drive's linear
 //! range allows.
 //!
