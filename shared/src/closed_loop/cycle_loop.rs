@@ -1,12 +1,14 @@
 //! The cycle-rate loop: at every cycle boundary, from the plate positions sampled at the
 //! cycle's start tick and at its turning tick, the trims of the next cycle's levels.
 //!
-//! The command of the next cycle is `+a·s₊·m + b`, `b` and `−a·s₋·m + b` for the `+`, zero and
-//! `−` levels. Feedforward from the identification: `s± = 1/ĝ±` undo the drive's gains, and the
-//! bias `b` holds `−ê` against its zero offset and `(F̂_c/M)·⟨sign v⟩` against the slide
-//! friction the cycle's velocity profile meets. Feedback: `m` is integral action on the stroke of
-//! full-amplitude cycles (latched from start to turning tick, less the drift between two starts),
-//! and the centring correction `δ` is added to `b`.
+//! The command of the next cycle's segment `k` is `+a·s₊·m + b + f_k`, `b + f_k` or
+//! `−a·s₋·m + b + f_k` as its plan is `+a`, zero or `−a`. Feedforward from the identification:
+//! `s± = 1/ĝ±` undo the drive's gains, the bias `b` holds `−ê` against its zero offset, and `f_k`
+//! the slide's Coulomb and viscous friction and spring over the segment's planned motion
+//! ([`SegmentMotion::slide_mps2`]). Feedback: `m` is integral action on the stroke of
+//! full-amplitude cycles (latched `τ` after the start and after the turn, less the drift between
+//! two starts), held where the plate at the feed's amplitude shows it ([`super::feed`]), and the
+//! centring correction `δ` is added to `b`.
 //!
 //! Centring. Over a cycle a constant `δ` moves the plate `δ·T²/2` and changes its velocity by
 //! `δ·T`; in units of `ũ = δ·T²/2` the cycle-start position `x` and `w = T·v` obey
@@ -445,9 +447,9 @@ impl CycleLoop {
         }
         let mut amplitude = self.amplitude;
         if let Some(stroke) = stroke {
-            let planned_m = stroke.planned_m;
-            if planned_m > 0.0 {
-                amplitude -= AMPLITUDE_GAIN * amplitude * (stroke.measured_m / planned_m - 1.0);
+            if stroke.planned_m > 0.0 {
+                amplitude -=
+                    AMPLITUDE_GAIN * amplitude * (stroke.measured_m / stroke.planned_m - 1.0);
             }
         }
         if fabs(amplitude / self.feed_amplitude - 1.0) > self.limits.amplitude_max {

@@ -12,6 +12,18 @@ pub(crate) fn sign(v: f64) -> f64 {
     }
 }
 
+/// The output of a lag `τ = lag_s > 0` at the start of `segments` played periodically: the
+/// fixed point of one period's recursion `a ← u + (a − u)·e^{−d/τ}`, linear in the start value.
+pub(crate) fn lagged_start_mps2(segments: &[CommandSegment], lag_s: f64) -> f64 {
+    let (mut slope, mut constant) = (1.0, 0.0);
+    for segment in segments {
+        let decay = libm::exp(-segment.duration_s / lag_s);
+        slope *= decay;
+        constant = segment.accel_mps2 + (constant - segment.accel_mps2) * decay;
+    }
+    constant / (1.0 - slope)
+}
+
 /// One commanded segment of a cycle.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -249,15 +261,7 @@ impl CycleShape {
         if lag_s.is_nan() || lag_s <= 0.0 || segments.is_empty() {
             return self;
         }
-        // The lag's output at the start: the fixed point of one period's recursion
-        // `a ← u + (a − u)·e^{−d/τ}`, linear in the start value.
-        let (mut slope, mut constant) = (1.0, 0.0);
-        for segment in segments {
-            let decay = libm::exp(-segment.duration_s / lag_s);
-            slope *= decay;
-            constant = segment.accel_mps2 + (constant - segment.accel_mps2) * decay;
-        }
-        let start_accel_mps2 = constant / (1.0 - slope);
+        let start_accel_mps2 = lagged_start_mps2(segments, lag_s);
         let at = |time_s: f64| {
             let (mut begins_s, mut x, mut v, mut lagged) = (0.0, 0.0, 0.0, start_accel_mps2);
             for segment in segments {

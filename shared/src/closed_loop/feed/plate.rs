@@ -7,7 +7,9 @@
 use libm::exp;
 
 use crate::closed_loop::identify::Identified;
-use crate::closed_loop::shape::{sign, CommandSegment, CycleShape, SegmentMotion};
+use crate::closed_loop::shape::{
+    lagged_start_mps2, sign, CommandSegment, CycleShape, SegmentMotion,
+};
 
 /// Steps of the integration per cycle: the feed's amplitude found is within 3·10⁻⁴ of 4000
 /// steps' at 150 Hz of bandwidth, 50–100 Hz and d = 0.53–0.61.
@@ -66,21 +68,13 @@ pub(super) struct PlateCycle<'a> {
 impl<'a> PlateCycle<'a> {
     pub(super) fn new(segments: &'a [CommandSegment], model: PlateModel) -> Self {
         let lag_s = if model.lag_s > 0.0 { model.lag_s } else { 0.0 };
-        let (mut slope, mut constant) = (1.0, 0.0);
-        if lag_s > 0.0 {
-            for segment in segments {
-                let decay = exp(-segment.duration_s / lag_s);
-                slope *= decay;
-                constant = segment.accel_mps2 + (constant - segment.accel_mps2) * decay;
-            }
-        }
         let shape = CycleShape::new(segments);
         let motion = shape.map_or([SegmentMotion::default(); 4], |shape| shape.segment_motion);
         let mut cycle = PlateCycle {
             segments,
             model: PlateModel { lag_s, ..model },
             start_accel_mps2: if lag_s > 0.0 {
-                constant / (1.0 - slope)
+                lagged_start_mps2(segments, lag_s)
             } else {
                 segments.first().map_or(0.0, |s| s.accel_mps2)
             },
