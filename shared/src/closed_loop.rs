@@ -4,6 +4,7 @@
 
 pub mod course;
 pub mod cycle_loop;
+pub mod cycle_map;
 pub mod disturbance;
 pub mod envelope;
 pub mod feed;
@@ -17,6 +18,7 @@ pub use course::{
     Probe, Stage,
 };
 pub use cycle_loop::{CycleLoop, LoopError, LoopLimits, Stroke, Trims};
+pub use cycle_map::CycleMap;
 pub use envelope::{Cause, Envelope, ENVELOPE};
 pub use feed::{compensate, feed_rate_mps, FeedCompensation, FeedRequest, PlateModel};
 pub use identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};

@@ -334,7 +334,7 @@ fn identification_refuses_what_cannot_run() {
         spring_per_s2: 0.0,
     };
     let latches = plate.latches(&probe, 1e-6, 250);
-    let limits = IdentifyLimits::for_probe(1e-6, 0.02);
+    let limits = IdentifyLimits::for_probe(1e-6);
     assert!(identify(&probe, &latches, &limits).is_ok());
     // A motor that does not move the plate, or a sensor that does not count.
     let still: Vec<Latch> = latches
@@ -476,6 +476,78 @@ fn the_loop_is_stable_for_a_drive_gain_from_half_to_five_quarters_of_the_identif
         let rate = decay(&linear_run(gain, 0.1, 1e-3, 60));
         assert!(rate > 1.0, "gain {gain}: {rate}");
     }
+}
+
+/// A plate on a flexure of `k/M = spring_per_s2` (2 % damping, and the loop told that damping)
+/// under a loop told `known_per_s2`, integrated by fine Runge–Kutta steps through each cycle
+/// of 20 ms with the bias held; the drive adds `disturbance_mps2`. Returns every cycle start
+/// until the loop gives up, if it does.
+fn sprung_run(
+    known_per_s2: f64,
+    spring_per_s2: f64,
+    disturbance_mps2: f64,
+    x0_m: f64,
+    cycles: usize,
+) -> Vec<f64> {
+    let period_s = 0.02;
+    let idle = CycleShape::idle(period_s);
+    let viscous_per_s = 2.0 * 0.02 * spring_per_s2.sqrt();
+    let identified = Identified {
+        spring_per_s2: known_per_s2,
+        viscous_per_s,
+        ..Identified::NOMINAL
+    };
+    let mut cycle_loop = CycleLoop::new(&identified, LOOSE);
+    let (mut x, mut v) = (x0_m, 0.0);
+    let mut trims = cycle_loop.trims();
+    let mut starts = Vec::new();
+    let steps = 2000;
+    let h = period_s / steps as f64;
+    for _ in 0..cycles {
+        starts.push(x);
+        let Ok(next) = cycle_loop.update(x, None, None, &idle, [&idle, &idle]) else {
+            break;
+        };
+        let u = trims.bias_mps2 + disturbance_mps2;
+        let f = |x: f64, v: f64| (v, u - spring_per_s2 * x - viscous_per_s * v);
+        for _ in 0..steps {
+            let (k1x, k1v) = f(x, v);
+            let (k2x, k2v) = f(x + h / 2.0 * k1x, v + h / 2.0 * k1v);
+            let (k3x, k3v) = f(x + h / 2.0 * k2x, v + h / 2.0 * k2v);
+            let (k4x, k4v) = f(x + h * k3x, v + h * k3v);
+            x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
+            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+        }
+        trims = next;
+    }
+    starts
+}
+
+#[test]
+fn the_loop_centres_a_flexure_mount_it_knows_and_rejects_a_constant_disturbance() {
+    // Natural frequencies of 8.7, 15.9 and 20.1 Hz under 50 Hz cycles, and told 30 % low or
+    // 10 % high (the settle's reading errs low; 20 % high is unstable at 15.9 Hz).
+    for (known, spring) in [
+        (3e3, 3e3),
+        (1e4, 1e4),
+        (1.6e4, 1.6e4),
+        (0.7e4, 1e4),
+        (1.1e4, 1e4),
+    ] {
+        let starts = sprung_run(known, spring, 2.0, 1e-3, 200);
+        assert_eq!(starts.len(), 200, "k/M {spring} told {known}: gave up");
+        let rate = decay(&starts);
+        assert!(rate < 0.9, "k/M {spring} told {known}: error × {rate} a cycle");
+        assert!(
+            starts[150..].iter().all(|x| x.abs() < 1e-7),
+            "k/M {spring} told {known}: {:?}",
+            &starts[150..]
+        );
+    }
+    // Told a free plate, the loop does not hold the same flexure: the model is what holds it.
+    let starts = sprung_run(0.0, 1e4, 2.0, 1e-3, 60);
+    let peak_m = starts.iter().map(|x| x.abs()).fold(0.0, f64::max);
+    assert!(peak_m > 1.0, "{:?}", &starts[40..]);
 }
 
 proptest! {

@@ -1,8 +1,9 @@
 //! The settle on a frictionless plate integrated exactly here, its drive `x'' = g±·u + o` (the
 //! gain by the command's sign), read through an encoder of 1 µm at each segment's start, each
-//! decision applied two segments on as the firmware applies it.
+//! decision applied two segments on as the firmware applies it; and on a flexure mount,
+//! `x'' = g±·u + o − κ·x`, by fine Runge–Kutta steps.
 
-use feeder_shared::closed_loop::settle::{PAIRS, POLE};
+use feeder_shared::closed_loop::settle::{EXCURSION_M, PAIRS, POLE};
 use feeder_shared::closed_loop::{LoopError, LoopLimits, Settle};
 use proptest::prelude::*;
 
@@ -17,6 +18,15 @@ const LIMITS: LoopLimits = LoopLimits {
 /// Runs a whole settle on the drive `[g₊, g₋, o]`, holding the plate at `target_m` for its last
 /// pairs: the settle, and the largest `|x|` reached.
 fn settle(drive: [f64; 3], target_m: f64) -> Result<(Settle, f64), LoopError> {
+    sprung_settle(drive, 0.0, target_m)
+}
+
+/// [`settle`] on a plate whose mount pulls it back by `spring_per_s2·x`.
+fn sprung_settle(
+    drive: [f64; 3],
+    spring_per_s2: f64,
+    target_m: f64,
+) -> Result<(Settle, f64), LoopError> {
     let [plus, minus, offset] = drive;
     let mut settle = Settle::new(LIMITS, 0.0, 0.0);
     let (mut x, mut v, mut largest) = (0.0f64, 0.0f64, 0.0f64);
@@ -28,6 +38,21 @@ fn settle(drive: [f64; 3], target_m: f64) -> Result<(Settle, f64), LoopError> {
         levels.push_back(level);
         let u = levels.pop_front().unwrap();
         let a = u * if u > 0.0 { plus } else { minus } + offset;
+        if spring_per_s2 > 0.0 {
+            let steps = 500;
+            let h = SEGMENT_S / steps as f64;
+            let f = |x: f64, v: f64| (v, a - spring_per_s2 * x);
+            for _ in 0..steps {
+                let (k1x, k1v) = f(x, v);
+                let (k2x, k2v) = f(x + h / 2.0 * k1x, v + h / 2.0 * k1v);
+                let (k3x, k3v) = f(x + h / 2.0 * k2x, v + h / 2.0 * k2v);
+                let (k4x, k4v) = f(x + h * k3x, v + h * k3v);
+                x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
+                v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+                largest = largest.max(x.abs());
+            }
+            continue;
+        }
         let turn_s = -v / a;
         if a != 0.0 && turn_s > 0.0 && turn_s < SEGMENT_S {
             largest = largest.max((x + v * turn_s + a * turn_s * turn_s / 2.0).abs());
@@ -42,7 +67,9 @@ fn settle(drive: [f64; 3], target_m: f64) -> Result<(Settle, f64), LoopError> {
 proptest! {
     /// On any drive of the envelope (gains 0.90–1.10, offset up to ±4 m/s²) the settle finds
     /// the offset and the gains' half difference as the cycles need them, over their mean gain
-    /// (`o/ḡ` and `ε/ḡ`), and holds the plate within half a millimetre (the dither's own swing is 0.23 mm).
+    /// (`o/ḡ` and `ε/ḡ`), takes the bare slide for one without a spring, and holds the plate
+    /// within 0.2 mm of where it holds it (its rest, and the excursion's 0.6 mm off it; the
+    /// dither's own swing is 0.23 mm).
     #[test]
     fn a_drive_of_the_envelope_is_found_and_the_plate_held(
         plus in 0.9f64..1.1,
@@ -54,10 +81,31 @@ proptest! {
         let (found_offset, found_half_difference) = settle.drive();
         prop_assert!((found_offset - offset / mean).abs() < 0.15, "offset {found_offset}");
         prop_assert!(
-            (found_half_difference - (plus - minus) / 2.0 / mean).abs() < 2e-3,
+            (found_half_difference - (plus - minus) / 2.0 / mean).abs() < 3e-3,
             "ε {found_half_difference}"
         );
-        prop_assert!(largest_m < 0.5e-3, "{largest_m} m");
+        prop_assert_eq!(settle.spring_per_s2(), 0.0);
+        prop_assert!(largest_m < EXCURSION_M + 0.2e-3, "{largest_m} m");
+    }
+
+    /// On a flexure mount of 11–18 Hz the settle finds the spring's `κ = k/M` within the range
+    /// the cycles' loop holds it on (30 % low to 10 % high; `shared/tests/closed_loop.rs`), its
+    /// offset at the centre within 1.5 m/s², and keeps the plate within 0.2 mm of where it holds
+    /// it. Stiffer mounts it reads up to 45 % low, and a loop so told may not hold them.
+    #[test]
+    fn a_flexure_mounts_spring_is_found(
+        spring in 5e3f64..1.3e4,
+        plus in 0.9f64..1.1,
+        minus in 0.9f64..1.1,
+        offset in -4.0f64..4.0,
+    ) {
+        let (settle, largest_m) = sprung_settle([plus, minus, offset], spring, 0.0).unwrap();
+        let found = settle.spring_per_s2();
+        prop_assert!(found > 0.7 * spring && found < 1.1 * spring, "k/M {found} of {spring}");
+        let (found_offset, _) = settle.drive();
+        let mean = (plus + minus) / 2.0;
+        prop_assert!((found_offset - offset / mean).abs() < 1.5, "offset {found_offset}");
+        prop_assert!(largest_m < EXCURSION_M + 0.2e-3, "{largest_m} m");
     }
 }
 

@@ -344,7 +344,6 @@ impl Course {
                     lead_in_tick,
                     start.tick,
                     plan.clock_hz,
-                    plan.ticks_to_s(u64::from(plan.period_ticks)),
                     self.config.resolution_m,
                 );
                 for segment in lead_in {
@@ -554,7 +553,8 @@ impl Course {
             }
         }
         let trims = if settled {
-            self.cycle_loop.hold_drive(offset_mps2, gain_difference);
+            self.cycle_loop
+                .hold_drive(offset_mps2, gain_difference, run.settle.spring_per_s2());
             self.feedforward()
         } else {
             Trims {

@@ -10,33 +10,37 @@
 //! two starts), held where the plate at the feed's amplitude shows it ([`super::feed`]), and the
 //! centring correction `δ` is added to `b`.
 //!
-//! Centring. Over a cycle a constant `δ` moves the plate `δ·T²/2` and changes its velocity by
-//! `δ·T`; in units of `ũ = δ·T²/2` the cycle-start position `x` and `w = T·v` obey
-//! `x⁺ = x + w + ũ + d`, `w⁺ = w + 2(ũ + d)` with `d` what the feedforward leaves. The correction
-//! decided at boundary `k` runs in cycle `k + 1`, so the loop estimates `d` from the second
-//! difference of the starts (`x_k − 2x_{k−1} + x_{k−2} = ũ_{k−1} + ũ_{k−2} + d_{k−1} + d_{k−2}`,
-//! taken by [`Disturbance`], which tells an offset from a gain error that grows with the levels),
-//! reconstructs `w_k`, predicts the state at `k + 1`, cancels `d̂` and places both poles of the
-//! prediction at 0.3 (`ũ = −0.245·x − 0.5775·w − d̂`). The target is each cycle's mean
-//! position at the centre: a start at `−mean − w/2`, known two cycles ahead, so a soft start or
-//! a new plan moves the target and the loop follows it at its speed. The plan's mean is not
-//! quite the plate's (the current loop and friction round every segment): the mean measured from
-//! positions latched through each full-amplitude cycle moves the target by 0.05 of its error a
-//! cycle. On the per-cycle linear
-//! model the loop is stable for a drive gain from 0.5 to 1.25 times the identified one
-//! (`shared/tests/closed_loop.rs`), far wider than the identification's error.
+//! Centring. Over a cycle a constant `δ` moves a free plate `δ·T²/2` and changes its velocity
+//! by `δ·T`; in units of `ũ = δ·T²/2` the cycle-start position `x` and `w = T·v` obey
+//! `x⁺ = x + w + ũ + d`, `w⁺ = w + 2(ũ + d)` with `d` what the feedforward leaves. A centring
+//! spring and viscous friction turn and damp the plate's deviation from its plan within the
+//! cycle: in general `s⁺ = Φ·s + Γ·(ũ + d)` about the plan's reference ([`CycleMap`], the free
+//! plate's `Φ = [[1, 1], [0, 1]]`, `Γ = (1, 2)`). The correction decided at boundary `k` runs in
+//! cycle `k + 1`, so the loop estimates `d` from three starts (for a free plate the second
+//! difference, `x_k − 2x_{k−1} + x_{k−2} = ũ_{k−1} + ũ_{k−2} + d_{k−1} + d_{k−2}`;
+//! [`CycleMap::second_difference_weights`] in general), taken by [`Disturbance`], which tells an
+//! offset from a gain error that grows with the levels; it reconstructs `w_k`, predicts the
+//! state at `k + 1`, cancels `d̂` and places both poles of the prediction at 0.3
+//! ([`CycleMap::gains`]; for a free plate `ũ = −0.245·x − 0.5775·w − d̂`). The target is each
+//! cycle's mean position at the centre: a start at `−mean − w/2`, known two cycles ahead, so a
+//! soft start or a new plan moves the target and the loop follows it at its speed. The plan's
+//! mean is not quite the plate's (the current loop and friction round every segment): the mean
+//! measured from positions latched through each full-amplitude cycle moves the target by 0.05 of
+//! its error a cycle, and a spring's pull at a target so moved is held by `κ·x*`. On the
+//! per-cycle linear model the loop is stable for a drive gain from 0.5 to 1.25 times the
+//! identified one (`shared/tests/closed_loop.rs`), far wider than the identification's error.
 
 use libm::fabs;
 
+use super::cycle_map::CycleMap;
 use super::disturbance::Disturbance;
 use super::feed::FeedCompensation;
 use super::identify::Identified;
 use super::shape::{CommandSegment, CycleShape, SegmentMotion};
 use crate::scheduler::CYCLE;
 
-/// `ũ = −A·x_p − B·w_p − d̂` with the predicted `x_p`, `w_p` (both poles at 0.3).
-const POSITION_GAIN: f64 = 0.245;
-const VELOCITY_GAIN: f64 = 0.5775;
+/// Both poles of the centring loop ([`CycleMap::gains`]).
+const POLE: f64 = 0.3;
 /// The mean's offset moves by this fraction of each measured mean.
 const MEAN_GAIN: f64 = 0.05;
 /// The amplitude trim moves by this fraction of the relative stroke error each cycle.
@@ -150,6 +154,9 @@ pub enum LoopError {
     Position { error_m: f64 },
     /// A latched position is not finite.
     Sensor,
+    /// A spring that turns the plate about half around in a cycle: one cycle's bias cannot
+    /// steer both its position and its velocity.
+    Unsteerable { spring_per_s2: f64, period_s: f64 },
 }
 
 impl core::fmt::Display for LoopError {
@@ -170,6 +177,18 @@ impl core::fmt::Display for LoopError {
                 )
             }
             LoopError::Sensor => f.write_str("the position sensor returned no valid value"),
+            LoopError::Unsteerable {
+                spring_per_s2,
+                period_s,
+            } => write!(
+                f,
+                "the plate's mount (natural frequency {} Hz) turns it about half around in a \
+                 cycle of {} ms: the loop cannot steer it at this frequency",
+                crate::number::Significant(
+                    libm::sqrt(spring_per_s2.max(0.0)) / (2.0 * core::f64::consts::PI)
+                ),
+                crate::number::Significant(period_s * 1e3)
+            ),
         }
     }
 }
@@ -186,6 +205,12 @@ pub struct CycleLoop {
     slide_share: f64,
     /// The identified current loop's lag: the plan's strokes are read behind it.
     lag_s: f64,
+    /// How the plate's deviation from the plan moves over a cycle (the spring and viscous
+    /// friction act on it in full, fed forward or not), its period, and the gains that place
+    /// the loop's poles on it.
+    map: CycleMap,
+    map_period_s: f64,
+    gains: [f64; 2],
     limits: LoopLimits,
     amplitude: f64,
     /// The amplitude the feed needs on the identified plate ([`super::feed`]): the trim's
@@ -236,6 +261,9 @@ impl CycleLoop {
             ],
             slide_share: 1.0,
             lag_s: identified.lag_s,
+            map: CycleMap::FREE,
+            map_period_s: 0.0,
+            gains: [0.0; 2],
             limits,
             amplitude: 1.0,
             feed_amplitude: 1.0,
@@ -324,6 +352,23 @@ impl CycleLoop {
         (trims, added)
     }
 
+    /// The cycle map and its gains for cycles of `period_s`, made afresh where the period or the
+    /// drive changed.
+    fn refresh_map(&mut self, period_s: f64) -> Result<(), LoopError> {
+        if self.map_period_s == period_s {
+            return Ok(());
+        }
+        let [_, viscous_per_s, spring_per_s2] = self.slide;
+        let map = CycleMap::new(spring_per_s2, viscous_per_s, period_s);
+        self.gains = map.gains(POLE).ok_or(LoopError::Unsteerable {
+            spring_per_s2,
+            period_s,
+        })?;
+        self.map = map;
+        self.map_period_s = period_s;
+        Ok(())
+    }
+
     /// `bias_mps2` to the output's step.
     fn rounded(&self, bias_mps2: f64) -> f64 {
         if self.level_step_mps2 > 0.0 {
@@ -351,6 +396,7 @@ impl CycleLoop {
         self.slide = other.slide;
         self.slide_share = 0.0;
         self.lag_s = other.lag_s;
+        self.map_period_s = 0.0;
     }
 
     /// Goes on toward the amplitude that gives the ideal plate's feed on the identified plate
@@ -364,9 +410,10 @@ impl CycleLoop {
         }
     }
 
-    /// Holds against the drive as the settle found it: a zero offset `offset_mps2` and gains
-    /// `1 ± gain_half_difference` (their mean is left to the stroke's trim).
-    pub fn hold_drive(&mut self, offset_mps2: f64, gain_half_difference: f64) {
+    /// Holds against the drive as the settle found it: a zero offset `offset_mps2`, gains
+    /// `1 ± gain_half_difference` (their mean is left to the stroke's trim) and a centring
+    /// spring `spring_per_s2`, fed forward as the identified one is.
+    pub fn hold_drive(&mut self, offset_mps2: f64, gain_half_difference: f64, spring_per_s2: f64) {
         self.feedforward = Trims {
             positive: 1.0 / (1.0 + gain_half_difference),
             negative: 1.0 / (1.0 - gain_half_difference),
@@ -374,6 +421,9 @@ impl CycleLoop {
             segments_mps2: [0.0; 4],
         };
         self.trims = self.feedforward();
+        self.slide = [0.0, 0.0, spring_per_s2];
+        self.slide_share = 0.0;
+        self.map_period_s = 0.0;
     }
 
     /// Forgets the cycle starts seen so far: the next [`CycleLoop::update`] takes its position
@@ -459,8 +509,12 @@ impl CycleLoop {
         // the first start only gives the position, and the next cycle runs the feedforward.
         if core::mem::take(&mut self.at_rest) {
             // At rest: as if the plate had stood here through a cycle without command.
+            // Its reference where it stands: the spring's pull the settle held is the bias's.
             self.previous_x_m = Some(start_m);
-            self.previous_shape = Some(CycleShape::idle(shape.period_s));
+            self.previous_shape = Some(CycleShape {
+                mean_m: -start_m,
+                ..CycleShape::idle(shape.period_s)
+            });
         }
         let (Some(previous_x_m), Some(previous_shape)) = (self.previous_x_m, self.previous_shape)
         else {
@@ -471,16 +525,35 @@ impl CycleLoop {
         };
         // What the feedforward leaves adds `d` to every `ũ`: the second difference of the starts
         // is `ũ_{k−1} + ũ_{k−2} + d_{k−1} + d_{k−2}`.
+        self.refresh_map(shape.period_s)?;
+        let map = self.map;
+        let [[p00, p01], [p10, p11]] = map.phi;
+        // Each start's deviation from its own cycle's reference (`ε`, the reference starting at
+        // `−mean`) and the arrival's from the cycle before's (`y`).
+        let previous_deviation_m = previous_x_m + previous_shape.mean_m;
+        let arrival_m = start_m + previous_shape.mean_m;
         let mut disturbance = self.disturbance;
         if let (Some(earlier_x_m), Some(earlier_shape)) = (self.earlier_x_m, self.earlier_shape) {
-            let measured =
-                (start_m - 2.0 * previous_x_m + earlier_x_m - self.earlier.w_m - self.previous.x_m
-                    + self.earlier.x_m)
-                    / 2.0;
+            let [late, early] = map.second_difference_weights();
+            let measured = (arrival_m - p00 * previous_deviation_m
+                - p11 * (previous_x_m + earlier_shape.mean_m)
+                + map.determinant() * (earlier_x_m + earlier_shape.mean_m)
+                - self.previous.x_m
+                + p11 * self.earlier.x_m
+                - p01 * self.earlier.w_m)
+                / (late + early);
             disturbance.measure(measured, [&previous_shape, &earlier_shape]);
         }
-        let w = start_m - previous_x_m + self.previous.w_m - self.previous.x_m
-            + disturbance.of(&previous_shape);
+        let previous_d = disturbance.of(&previous_shape);
+        let previous_w = (arrival_m
+            - p00 * previous_deviation_m
+            - self.previous.x_m
+            - map.gamma[0] * previous_d)
+            / p01;
+        let w = p10 * previous_deviation_m
+            + p11 * previous_w
+            + self.previous.w_m
+            + map.gamma[1] * previous_d;
         // The plan's mean is not quite the plate's: friction and the current loop round every
         // segment. Where the plate's mean is measured, the target moves against its error.
         let mean_offset_m = self.mean_offset_m + MEAN_GAIN * measured_mean_m.unwrap_or(0.0);
@@ -488,11 +561,18 @@ impl CycleLoop {
         let target_w = after_target_m - next_target_m;
         // A cycle that starts at `x` with `w` has its mean at `x + mean + w/2 + (ũ + d)/3`.
         let now_m = disturbance.of(shape);
-        let predicted_x = start_m + w + self.running.x_m + now_m - (next_target_m - target_w / 2.0);
-        let predicted_w = w + self.running.w_m + 2.0 * now_m - target_w;
-        let correction =
-            -POSITION_GAIN * predicted_x - VELOCITY_GAIN * predicted_w - disturbance.of(next[0]);
+        let [moved_x, moved_w] = map.apply([start_m + shape.mean_m, w]);
+        let predicted_x = moved_x - shape.mean_m + self.running.x_m + map.gamma[0] * now_m
+            - (next_target_m - target_w / 2.0);
+        let predicted_w = moved_w + self.running.w_m + map.gamma[1] * now_m - target_w;
+        let [position_gain, velocity_gain] = self.gains;
         let half_period_squared = next[0].period_s * next[0].period_s / 2.0;
+        // A target off the plan's reference (the measured mean moved it) is held against the
+        // spring's pull there: `δ = κ·x*` keeps a deviation `x*` still.
+        let held_m = self.slide[2] * (next_target_m + next[0].mean_m) * half_period_squared;
+        let correction = -position_gain * predicted_x - velocity_gain * predicted_w
+            - disturbance.of(next[0])
+            + held_m;
         let correction_mps2 = correction / half_period_squared;
         if fabs(correction_mps2) > self.limits.correction_max_mps2 {
             return Err(LoopError::Correction { correction_mps2 });
@@ -518,8 +598,8 @@ impl CycleLoop {
         self.earlier = self.previous;
         self.previous = self.running;
         self.running = Input {
-            x_m: correction + rounding.x_m,
-            w_m: 2.0 * correction + rounding.w_m,
+            x_m: map.gamma[0] * correction + rounding.x_m,
+            w_m: map.gamma[1] * correction + rounding.w_m,
         };
         self.trims = trims;
         self.slide_share = (self.slide_share + SLIDE_STEP).min(1.0);

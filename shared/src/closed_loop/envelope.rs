@@ -107,6 +107,12 @@ impl Envelope {
         Ok(())
     }
 
+    /// The stiffest centring spring an identification may find, as `k/M` (1/s²): the stiffest
+    /// spring on the lightest plate, with the identification's margin.
+    pub fn spring_max_per_s2(&self) -> f64 {
+        self.spring_max_npm / self.mass_min_kg * (1.0 + 8.0 * IDENTIFIED_MARGIN)
+    }
+
     /// The gains an identification may find.
     pub fn identified_gains(&self) -> (f64, f64) {
         (

@@ -20,7 +20,7 @@ mod refusal;
 
 pub use fit::MAX_LATCHES;
 pub use latched::Latch;
-pub use refusal::{spring_max_per_s2, IdentifyError, IdentifyLimits};
+pub use refusal::{IdentifyError, IdentifyLimits};
 
 use libm::{fabs, sqrt};
 

@@ -10,7 +10,9 @@
 //! offset plus the gains' difference times the dither, `e = o + ε·D` with `ε = (g₊ − g₋)/2`.
 //! The dither rises through several levels ([`DITHER_MPS2`]), which tell `o` from `ε` (a
 //! least-squares line through every dithered measurement); each level's error is found at the
-//! level below, where it moves the plate less.
+//! level below, where it moves the plate less. Through the second and the fourth level the plate
+//! is held [`EXCURSION_M`] off its rest, so that a centring spring's pull `−κ·X` shows in the
+//! same fit: the cycles' loop runs on that spring from the probe's first cycle.
 //!
 //! **Pairs.** In pair `j` (start `X_j`, length `H = 2h`) the dither's half-level entry makes the
 //! plate's velocity at every pair start `−D'·h/2` above the slow part `w_j`, and moves it
@@ -48,17 +50,20 @@ const MOVE_PAIRS: u16 = 7;
 /// The settle's pairs.
 pub const PAIRS: u16 = HOLD_PAIRS + DITHER_MPS2.len() as u16 * DITHER_PAIRS + MOVE_PAIRS;
 
-/// Least squares for `e = o + ε·D + (ḡ − 1)·b − c·w − F'·w/(D·h)` through the dithered
+/// Least squares for `e = o + ε·D + (ḡ − 1)·b − c·w − F'·w/(D·h) − κ·X` through the dithered
 /// measurements. What a pair's levels drive is `ḡ·b + o + ε·D` (`ḡ = (g₊ + g₋)/2`,
 /// `ε = (g₊ − g₋)/2`), so the bias the loop moves is itself a regressor. Dither turns the slide's
 /// Coulomb friction into a drag, the slow velocity `w` over the dither's velocity swing `D·h`,
 /// and a viscous one adds `c·w`, so a plate the loop is still moving would read them as offset.
 /// The mean gain and the drags are held near their plain values by a small ridge, so that a
-/// plate held still reads its offset and gains' difference alone. What holds the plate at a
-/// dither `D` is then `b = −(o + ε·D)/ḡ`: the feedforward takes `o/ḡ` and `ε/ḡ`.
+/// plate held still reads its offset and gains' difference alone. A centring spring `κ = k/M`
+/// pulls by `−κ·X` at the pairs' mean position `X`: the plate is held off its rest through two
+/// of the dither levels ([`EXCURSION_M`]) so that the pull shows. What holds the plate at a
+/// dither `D` is then `b = −(o + ε·D − κ·X)/ḡ`: the feedforward takes `o/ḡ` and `ε/ḡ`, the
+/// cycles' loop the spring.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 struct Fit {
-    /// `AᵀA` and `Aᵀe` of the regressors `[1, D, b, w, w/(D·h)]`.
+    /// `AᵀA` and `Aᵀe` of the regressors `[1, D, b, w, w/(D·h), X]`.
     normal: [[f64; TERMS]; TERMS],
     right: [f64; TERMS],
     count: u16,
@@ -66,13 +71,25 @@ struct Fit {
     levels: Option<(f64, f64)>,
 }
 
-const TERMS: usize = 5;
+const TERMS: usize = 6;
 
-/// The ridge on the mean gain's term (`b`, m/s²), the viscous drag's (`w`, m/s) and
-/// friction's (`w/(D·h)`): each about the sum of squares of a few measurements of its
-/// regressor's typical spread, so that a term is fitted only once the measurements move it
-/// further (2 m/s² of bias, 10 mm/s, a tenth of the swing).
-const RIDGE: [f64; 3] = [20.0, 1e-3, 0.1];
+/// The ridge on the mean gain's term (`b`, m/s²), the viscous drag's (`w`, m/s),
+/// friction's (`w/(D·h)`) and the spring's (`X`, m): each about the sum of squares of a few
+/// measurements of its regressor's typical spread, so that a term is fitted only once the
+/// measurements move it further (2 m/s² of bias, 10 mm/s, a tenth of the swing, 0.1 mm off
+/// the rest).
+const RIDGE: [f64; 4] = [20.0, 1e-3, 0.1, 1e-8];
+
+/// How far the plate is held off its rest through the second and the fourth dither level,
+/// toward where the cycles start: far enough that a spring's pull shows above the sensor's
+/// steps and the slide's friction, inside the start-up's bound of 1 mm.
+pub const EXCURSION_M: f64 = 0.6e-3;
+
+/// A spring softer than this (`k/M`, 1/s²: 8.7 Hz) is taken for none. Friction that the dither
+/// leaves reads as up to about 2000 1/s² of spring on a bare slide over the excursion; a spring
+/// this soft moves the plate by less than `(k/M)·T²/2 = 0.6` of its offset from centre over a
+/// 50 Hz cycle, and the cycles' loop holds it as a disturbance until the probe finds it.
+const SPRING_FLOOR_PER_S2: f64 = 3000.0;
 
 impl Fit {
     /// A measurement at the dither `level_mps2` (its regressor `dither_mps2`).
@@ -83,9 +100,17 @@ impl Fit {
         bias_mps2: f64,
         swing_mps: f64,
         slow_mps: f64,
+        position_m: f64,
         offset_mps2: f64,
     ) {
-        let row = [1.0, dither_mps2, bias_mps2, slow_mps, slow_mps / swing_mps];
+        let row = [
+            1.0,
+            dither_mps2,
+            bias_mps2,
+            slow_mps,
+            slow_mps / swing_mps,
+            position_m,
+        ];
         for i in 0..TERMS {
             for j in 0..TERMS {
                 self.normal[i][j] += row[i] * row[j];
@@ -97,9 +122,9 @@ impl Fit {
         self.levels = Some((first, level_mps2));
     }
 
-    /// `(o/ḡ, ε/ḡ)`; with one dither level measured `((o + ε·D)/ḡ, 0)`, what acts at that
-    /// level; `None` before any.
-    fn drive(&self) -> Option<(f64, f64)> {
+    /// `(o/ḡ, ε/ḡ, κ)`; with one dither level measured `((o + ε·D)/ḡ, 0, κ)`, what acts at
+    /// that level; `None` before any.
+    fn drive(&self) -> Option<(f64, f64, f64)> {
         if self.count == 0 {
             return None;
         }
@@ -119,7 +144,7 @@ impl Fit {
         }
         let x = solve(&mut a, &mut b)?;
         let gain = 1.0 + x[2];
-        (gain > 0.5).then(|| (x[0] / gain, x[1] / gain))
+        (gain > 0.5).then(|| (x[0] / gain, x[1] / gain, -x[5]))
     }
 }
 
@@ -201,10 +226,24 @@ impl Settle {
     /// from the dither once it has measured both levels, before that the held pairs' mean.
     pub fn drive(&self) -> (f64, f64) {
         match self.fit.drive() {
-            Some(drive) => drive,
+            Some((offset, slope, _)) => (offset, slope),
             None if self.held > 0 => (self.held_sum_mps2 / f64::from(self.held), 0.0),
             None => (0.0, 0.0),
         }
+    }
+
+    /// A centring spring's `κ = k/M` found so far (0 where none shows): its pull on the plate
+    /// at `X` is `−κ·X`, and [`Settle::drive`]'s offset is the one at `X = 0`.
+    pub fn spring_per_s2(&self) -> f64 {
+        self.fit
+            .drive()
+            .map_or(0.0, |(_, _, spring)| {
+                if spring >= SPRING_FLOOR_PER_S2 {
+                    spring
+                } else {
+                    0.0
+                }
+            })
     }
 
     /// What the held pairs before the dither measured acting on the plate, once they have: the
@@ -232,6 +271,27 @@ impl Settle {
             .unwrap_or(0.0)
     }
 
+    /// Where the plate is held through pair `pair`: where it rested, [`EXCURSION_M`] off it
+    /// toward `target_m` through the second and the fourth dither level, at `target_m` through
+    /// the last pairs; where it rested from [`Settle::hold`] on.
+    fn held_at_m(&self, pair: u16, rest_m: f64, target_m: f64) -> f64 {
+        if self.hold_from.is_some() {
+            return rest_m;
+        }
+        if pair >= PAIRS - MOVE_PAIRS {
+            return target_m;
+        }
+        let level = pair
+            .checked_sub(HOLD_PAIRS)
+            .map(|k| k / DITHER_PAIRS)
+            .filter(|level| level % 2 == 1);
+        match level {
+            Some(_) if target_m < rest_m => rest_m - EXCURSION_M,
+            Some(_) => rest_m + EXCURSION_M,
+            None => rest_m,
+        }
+    }
+
     /// The position the dither adds over pair `pair`: `(D − D')·h²/4`.
     fn kick_m(&self, pair: u16, h: f64) -> f64 {
         let before = pair.checked_sub(1).map_or(0.0, |j| self.dither_mps2(j));
@@ -251,8 +311,7 @@ impl Settle {
             return Err(LoopError::Sensor);
         }
         let rest_m = *self.rest_m.get_or_insert(start_m);
-        let moving = self.boundaries >= 2 * (PAIRS - MOVE_PAIRS) && self.hold_from.is_none();
-        let error_m = start_m - if moving { target_m } else { rest_m };
+        let error_m = start_m - self.held_at_m(self.boundaries / 2, rest_m, target_m);
         if fabs(error_m) > self.limits.position_error_max_m {
             return Err(LoopError::Position { error_m });
         }
@@ -292,6 +351,7 @@ impl Settle {
                         (before + earlier) / 2.0,
                         dither(1) * h,
                         slow_mps,
+                        (x2 + 2.0 * x1 + start_m) / 4.0,
                         measured,
                     );
                 } else if pair <= HOLD_PAIRS {
@@ -303,7 +363,10 @@ impl Settle {
             _ => {}
         }
         let (offset, slope) = self.drive();
-        let acting = |back: usize| offset + slope * dither(back);
+        let spring = self.spring_per_s2();
+        // Where the running pair (0) and the one before (1) are, as the spring pulls them.
+        let positions_m = [start_m, self.starts_m[0].map_or(start_m, |x1| (x1 + start_m) / 2.0)];
+        let acting = |back: usize| offset + slope * dither(back) - spring * positions_m[back];
         let slow_v = match self.starts_m[0] {
             Some(x1) => (start_m - x1 - kick(1)) / span + (before + acting(1)) * span / 2.0,
             None => 0.0,

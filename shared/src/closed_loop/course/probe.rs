@@ -22,8 +22,6 @@ pub struct Probe {
     /// Positions are kept from this tick on: the probe's first start.
     latch_tick: u64,
     clock_hz: u32,
-    /// The plan's period.
-    period_s: f64,
     resolution_m: f64,
     positions: [Latch; PROBE_POSITIONS_MAX],
     position_count: usize,
@@ -36,7 +34,6 @@ impl Probe {
         start_tick: u64,
         latch_tick: u64,
         clock_hz: u32,
-        period_s: f64,
         resolution_m: f64,
     ) -> Self {
         let latch = Latch {
@@ -51,7 +48,6 @@ impl Probe {
             start_tick,
             latch_tick,
             clock_hz,
-            period_s,
             resolution_m,
             positions: [latch; PROBE_POSITIONS_MAX],
             position_count: 0,
@@ -101,7 +97,7 @@ impl Probe {
 
     /// The drive identified from the probe, within [`IdentifyLimits::for_probe`].
     pub fn identify(&self) -> Result<Identified, IdentifyError> {
-        let limits = IdentifyLimits::for_probe(self.resolution_m, self.period_s);
+        let limits = IdentifyLimits::for_probe(self.resolution_m);
         identify(self.segments(), self.positions(), &limits)
     }
 }

@@ -27,27 +27,19 @@ impl IdentifyLimits {
     /// The envelope's gains, offset and current loop ([`Envelope::identified_gains`](crate::closed_loop::Envelope::identified_gains),
     /// [`Envelope::offset_max_mps2`](crate::closed_loop::Envelope::offset_max_mps2),
     /// [`Envelope::lag_max_s`](crate::closed_loop::Envelope::lag_max_s)), a motion of at least 20
-    /// `resolution_m`, and a spring the cycle-rate loop holds at a period of `period_s`
-    /// ([`spring_max_per_s2`]).
-    pub fn for_probe(resolution_m: f64, period_s: f64) -> Self {
+    /// `resolution_m`, and the envelope's stiffest spring on its lightest plate
+    /// ([`Envelope::spring_max_per_s2`](crate::closed_loop::Envelope::spring_max_per_s2)).
+    pub fn for_probe(resolution_m: f64) -> Self {
         let (gain_min, gain_max) = ENVELOPE.identified_gains();
         IdentifyLimits {
             gain_min,
             gain_max,
             offset_max_mps2: ENVELOPE.offset_max_mps2(),
             min_excursion_m: 20.0 * resolution_m,
-            spring_max_per_s2: spring_max_per_s2(period_s),
+            spring_max_per_s2: ENVELOPE.spring_max_per_s2(),
             lag_max_s: ENVELOPE.lag_max_s(),
         }
     }
-}
-
-/// The stiffest spring (`k/M`) the cycle-rate loop holds at a period of `period_s`: one whose
-/// pull over a cycle, `(k/M)·T²/2` of the plate's offset from centre, is at most a tenth of it.
-/// The loop's per-cycle model is a free mass; a stiffer mount turns the plate back within the
-/// cycle, which that model does not describe.
-pub fn spring_max_per_s2(period_s: f64) -> f64 {
-    0.1 * 2.0 / (period_s * period_s)
 }
 
 /// Why an identification was refused.
