@@ -23,3 +23,27 @@ pub const fn machine() -> Machine {
         loop_linear_mps2: None,
     }
 }
+
+/// `(x, v)` of a plate under a constant acceleration `accel_mps2`, pulled back by
+/// `spring_per_s2·x` and damped by `viscous_per_s·v`, after `duration_s`, by `steps` classic
+/// Runge–Kutta steps: an integration independent of the closed loop's cycle map.
+pub fn sprung_motion(
+    (mut x, mut v): (f64, f64),
+    accel_mps2: f64,
+    spring_per_s2: f64,
+    viscous_per_s: f64,
+    duration_s: f64,
+    steps: usize,
+) -> (f64, f64) {
+    let h = duration_s / steps as f64;
+    let f = |x: f64, v: f64| (v, accel_mps2 - spring_per_s2 * x - viscous_per_s * v);
+    for _ in 0..steps {
+        let (k1x, k1v) = f(x, v);
+        let (k2x, k2v) = f(x + h / 2.0 * k1x, v + h / 2.0 * k1v);
+        let (k3x, k3v) = f(x + h / 2.0 * k2x, v + h / 2.0 * k2v);
+        let (k4x, k4v) = f(x + h * k3x, v + h * k3v);
+        x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
+        v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+    }
+    (x, v)
+}

@@ -6,6 +6,7 @@ use feeder_shared::closed_loop::{
     identify, Cause, CommandSegment, CycleLoop, CycleShape, Identified, IdentifyError,
     IdentifyLimits, Latch, LoopError, LoopLimits, Stroke, Track, TrackConfig, TrackState, ENVELOPE,
 };
+use feeder_shared::testing::sprung_motion;
 use feeder_shared::{Drive, Limits, Waveform, WaveformSpec};
 use proptest::prelude::*;
 
@@ -501,23 +502,13 @@ fn sprung_run(
     let (mut x, mut v) = (x0_m, 0.0);
     let mut trims = cycle_loop.trims();
     let mut starts = Vec::new();
-    let steps = 2000;
-    let h = period_s / steps as f64;
     for _ in 0..cycles {
         starts.push(x);
         let Ok(next) = cycle_loop.update(x, None, None, &idle, [&idle, &idle]) else {
             break;
         };
         let u = trims.bias_mps2 + disturbance_mps2;
-        let f = |x: f64, v: f64| (v, u - spring_per_s2 * x - viscous_per_s * v);
-        for _ in 0..steps {
-            let (k1x, k1v) = f(x, v);
-            let (k2x, k2v) = f(x + h / 2.0 * k1x, v + h / 2.0 * k1v);
-            let (k3x, k3v) = f(x + h / 2.0 * k2x, v + h / 2.0 * k2v);
-            let (k4x, k4v) = f(x + h * k3x, v + h * k3v);
-            x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-            v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
-        }
+        (x, v) = sprung_motion((x, v), u, spring_per_s2, viscous_per_s, period_s, 2000);
         trims = next;
     }
     starts
@@ -537,7 +528,10 @@ fn the_loop_centres_a_flexure_mount_it_knows_and_rejects_a_constant_disturbance(
         let starts = sprung_run(known, spring, 2.0, 1e-3, 200);
         assert_eq!(starts.len(), 200, "k/M {spring} told {known}: gave up");
         let rate = decay(&starts);
-        assert!(rate < 0.9, "k/M {spring} told {known}: error × {rate} a cycle");
+        assert!(
+            rate < 0.9,
+            "k/M {spring} told {known}: error × {rate} a cycle"
+        );
         assert!(
             starts[150..].iter().all(|x| x.abs() < 1e-7),
             "k/M {spring} told {known}: {:?}",

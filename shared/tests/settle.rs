@@ -5,6 +5,7 @@
 
 use feeder_shared::closed_loop::settle::{EXCURSION_M, PAIRS, POLE};
 use feeder_shared::closed_loop::{LoopError, LoopLimits, Settle};
+use feeder_shared::testing::sprung_motion;
 use proptest::prelude::*;
 
 const SEGMENT_S: f64 = 2.5e-3;
@@ -39,16 +40,8 @@ fn sprung_settle(
         let u = levels.pop_front().unwrap();
         let a = u * if u > 0.0 { plus } else { minus } + offset;
         if spring_per_s2 > 0.0 {
-            let steps = 500;
-            let h = SEGMENT_S / steps as f64;
-            let f = |x: f64, v: f64| (v, a - spring_per_s2 * x);
-            for _ in 0..steps {
-                let (k1x, k1v) = f(x, v);
-                let (k2x, k2v) = f(x + h / 2.0 * k1x, v + h / 2.0 * k1v);
-                let (k3x, k3v) = f(x + h / 2.0 * k2x, v + h / 2.0 * k2v);
-                let (k4x, k4v) = f(x + h * k3x, v + h * k3v);
-                x += h / 6.0 * (k1x + 2.0 * k2x + 2.0 * k3x + k4x);
-                v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
+            for _ in 0..50 {
+                (x, v) = sprung_motion((x, v), a, spring_per_s2, 0.0, SEGMENT_S / 50.0, 10);
                 largest = largest.max(x.abs());
             }
             continue;

@@ -535,7 +535,8 @@ impl CycleLoop {
         let mut disturbance = self.disturbance;
         if let (Some(earlier_x_m), Some(earlier_shape)) = (self.earlier_x_m, self.earlier_shape) {
             let [late, early] = map.second_difference_weights();
-            let measured = (arrival_m - p00 * previous_deviation_m
+            let measured = (arrival_m
+                - p00 * previous_deviation_m
                 - p11 * (previous_x_m + earlier_shape.mean_m)
                 + map.determinant() * (earlier_x_m + earlier_shape.mean_m)
                 - self.previous.x_m
@@ -570,9 +571,9 @@ impl CycleLoop {
         // A target off the plan's reference (the measured mean moved it) is held against the
         // spring's pull there: `δ = κ·x*` keeps a deviation `x*` still.
         let held_m = self.slide[2] * (next_target_m + next[0].mean_m) * half_period_squared;
-        let correction = -position_gain * predicted_x - velocity_gain * predicted_w
-            - disturbance.of(next[0])
-            + held_m;
+        let correction =
+            -position_gain * predicted_x - velocity_gain * predicted_w - disturbance.of(next[0])
+                + held_m;
         let correction_mps2 = correction / half_period_squared;
         if fabs(correction_mps2) > self.limits.correction_max_mps2 {
             return Err(LoopError::Correction { correction_mps2 });

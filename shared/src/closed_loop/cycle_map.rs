@@ -71,7 +71,7 @@ impl CycleMap {
         let pg = self.apply(g);
         let det = g[0] * pg[1] - pg[0] * g[1];
         let scale = (fabs(g[0]) + fabs(g[1])) * (fabs(pg[0]) + fabs(pg[1]));
-        if !(fabs(det) > 1e-3 * scale) {
+        if fabs(det).is_nan() || fabs(det) <= 1e-3 * scale {
             return None;
         }
         // p(Φ) = Φ² − 2p·Φ + p²·I.
@@ -162,7 +162,10 @@ mod tests {
         let map = CycleMap::new(0.0, 0.0, 0.02);
         assert_eq!(map, CycleMap::FREE);
         let k = map.gains(0.3).unwrap();
-        assert!(fabs(k[0] - 0.245) < 1e-12 && fabs(k[1] - 0.5775) < 1e-12, "{k:?}");
+        assert!(
+            fabs(k[0] - 0.245) < 1e-12 && fabs(k[1] - 0.5775) < 1e-12,
+            "{k:?}"
+        );
         assert_eq!(map.second_difference_weights(), [1.0, 1.0]);
     }
 
@@ -206,7 +209,10 @@ mod tests {
                 });
                 let trace = closed[0][0] + closed[1][1];
                 let det = closed[0][0] * closed[1][1] - closed[0][1] * closed[1][0];
-                assert!(fabs(trace - 0.6) < 1e-9 && fabs(det - 0.09) < 1e-9, "{spring} {period}");
+                assert!(
+                    fabs(trace - 0.6) < 1e-9 && fabs(det - 0.09) < 1e-9,
+                    "{spring} {period}"
+                );
             }
         }
     }

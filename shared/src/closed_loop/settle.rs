@@ -92,25 +92,9 @@ pub const EXCURSION_M: f64 = 0.6e-3;
 const SPRING_FLOOR_PER_S2: f64 = 3000.0;
 
 impl Fit {
-    /// A measurement at the dither `level_mps2` (its regressor `dither_mps2`).
-    fn take(
-        &mut self,
-        level_mps2: f64,
-        dither_mps2: f64,
-        bias_mps2: f64,
-        swing_mps: f64,
-        slow_mps: f64,
-        position_m: f64,
-        offset_mps2: f64,
-    ) {
-        let row = [
-            1.0,
-            dither_mps2,
-            bias_mps2,
-            slow_mps,
-            slow_mps / swing_mps,
-            position_m,
-        ];
+    /// A measurement `offset_mps2` at the dither `level_mps2`, its regressors
+    /// `[1, D, b, w, w/(D·h), X]` in `row`.
+    fn take(&mut self, level_mps2: f64, row: [f64; TERMS], offset_mps2: f64) {
         for i in 0..TERMS {
             for j in 0..TERMS {
                 self.normal[i][j] += row[i] * row[j];
@@ -235,15 +219,13 @@ impl Settle {
     /// A centring spring's `κ = k/M` found so far (0 where none shows): its pull on the plate
     /// at `X` is `−κ·X`, and [`Settle::drive`]'s offset is the one at `X = 0`.
     pub fn spring_per_s2(&self) -> f64 {
-        self.fit
-            .drive()
-            .map_or(0.0, |(_, _, spring)| {
-                if spring >= SPRING_FLOOR_PER_S2 {
-                    spring
-                } else {
-                    0.0
-                }
-            })
+        self.fit.drive().map_or(0.0, |(_, _, spring)| {
+            if spring >= SPRING_FLOOR_PER_S2 {
+                spring
+            } else {
+                0.0
+            }
+        })
     }
 
     /// What the held pairs before the dither measured acting on the plate, once they have: the
@@ -345,15 +327,15 @@ impl Settle {
                     let slow_mps = (start_m - x2 - kick(1) - kick(2)) / (2.0 * span);
                     // The gains' difference also scales the pair's swing by `ε·b`: a bias that
                     // moved between the pairs kicks the plate by `ε·Δb·h²`.
-                    self.fit.take(
-                        dither(1),
+                    let row = [
+                        1.0,
                         dither(1) + (before - earlier) / 4.0,
                         (before + earlier) / 2.0,
-                        dither(1) * h,
                         slow_mps,
+                        slow_mps / (dither(1) * h),
                         (x2 + 2.0 * x1 + start_m) / 4.0,
-                        measured,
-                    );
+                    ];
+                    self.fit.take(dither(1), row, measured);
                 } else if pair <= HOLD_PAIRS {
                     self.take_held(measured);
                 }
@@ -365,7 +347,10 @@ impl Settle {
         let (offset, slope) = self.drive();
         let spring = self.spring_per_s2();
         // Where the running pair (0) and the one before (1) are, as the spring pulls them.
-        let positions_m = [start_m, self.starts_m[0].map_or(start_m, |x1| (x1 + start_m) / 2.0)];
+        let positions_m = [
+            start_m,
+            self.starts_m[0].map_or(start_m, |x1| (x1 + start_m) / 2.0),
+        ];
         let acting = |back: usize| offset + slope * dither(back) - spring * positions_m[back];
         let slow_v = match self.starts_m[0] {
             Some(x1) => (start_m - x1 - kick(1)) / span + (before + acting(1)) * span / 2.0,

@@ -30,12 +30,7 @@ pub struct Probe {
 }
 
 impl Probe {
-    pub(super) fn new(
-        start_tick: u64,
-        latch_tick: u64,
-        clock_hz: u32,
-        resolution_m: f64,
-    ) -> Self {
+    pub(super) fn new(start_tick: u64, latch_tick: u64, clock_hz: u32, resolution_m: f64) -> Self {
         let latch = Latch {
             t_s: 0.0,
             position_m: 0.0,
