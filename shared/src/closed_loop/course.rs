@@ -100,6 +100,10 @@ pub struct Course {
     decided: Trims,
     centred: u32,
     centring_cycles: u32,
+    /// The plate is centred and the feed known: the soft start is released at the next
+    /// boundary, so that the first cycle to rise is the one after next and the loop has a cycle
+    /// to move the plate toward that cycle's start.
+    release_due: bool,
     last: Option<Begun>,
     /// The plan of the cycles ahead, as of the last boundary.
     waveform: Option<Waveform>,
@@ -130,6 +134,7 @@ impl Course {
             lead_in: None,
             decided: Trims::NONE,
             centred: 0,
+            release_due: false,
             centring_cycles: 0,
             last: None,
             waveform: None,
@@ -385,6 +390,7 @@ impl Course {
         decision.trims = self.close_loop(&lookahead, now, last, samples, &mut decision)?;
         if decision.release {
             self.stage = Stage::Feeding;
+            self.release_due = false;
         }
         self.decided = decision.trims;
         Ok(decision)
@@ -428,15 +434,20 @@ impl Course {
             }
             // The soft start waits for the feed's compensation too: its amplitude, and the feed
             // where the drive's range limits it, are known before the feeder feeds.
-            if self.centred >= self.config.centred_cycles && self.feed_request().is_none() {
+            if self.release_due {
                 lookahead.release_hold();
                 decision.release = true;
+            } else if self.centred >= self.config.centred_cycles && self.feed_request().is_none()
+            {
+                self.release_due = true;
             }
         }
-        let next = [
-            next_shape(&self.cycle_loop, &mut lookahead)?,
-            next_shape(&self.cycle_loop, &mut lookahead)?,
-        ];
+        let first = next_shape(&self.cycle_loop, &mut lookahead)?;
+        if self.release_due && !decision.release {
+            // Released at the next boundary: the cycle after next rises.
+            lookahead.release_hold();
+        }
+        let next = [first, next_shape(&self.cycle_loop, &mut lookahead)?];
         // Stroke and mean are held on full-amplitude cycles only: friction shortens a soft
         // start's strokes, and moves its means, more than the full one's.
         let measured = last.filter(|last| last.full && self.stage == Stage::Feeding);
