@@ -514,6 +514,42 @@ fn sprung_run(
     starts
 }
 
+/// An excitation scales the levels up to its peak and back, a step a cycle, and the plan the
+/// loop makes of a cycle ahead is at the scale that cycle's trims run at.
+#[test]
+fn an_excitation_rises_to_its_peak_and_back_and_the_plan_ahead_runs_at_its_scale() {
+    let (_, segments) = paper_cycle(0.53);
+    let mut cycle_loop = CycleLoop::new(&Identified::NOMINAL, LOOSE);
+    let base = cycle_loop.plan(&segments).unwrap();
+    let mut update = |cycle_loop: &mut CycleLoop| {
+        let now = cycle_loop.plan(&segments).unwrap();
+        let ahead = [1, 2].map(|n| cycle_loop.plan_ahead(&segments, n).unwrap());
+        let trims = cycle_loop
+            .update(-now.mean_m, None, None, &now, [&ahead[0], &ahead[1]])
+            .unwrap();
+        (trims, ahead[0])
+    };
+    update(&mut cycle_loop);
+    cycle_loop.excite(1.5);
+    let mut factors = Vec::new();
+    while cycle_loop.exciting() && factors.len() < 100 {
+        let (trims, next) = update(&mut cycle_loop);
+        let factor = next.mean_m / base.mean_m;
+        assert!(
+            (trims.positive - factor).abs() < 1e-12,
+            "{} {factor}",
+            trims.positive
+        );
+        assert!((trims.negative - factor).abs() < 1e-12);
+        assert!((next.positive_mps2 - factor * base.positive_mps2).abs() < 1e-9);
+        factors.push(factor);
+    }
+    let peak = factors.iter().copied().fold(0.0, f64::max);
+    assert!((peak - 1.5).abs() < 1e-12, "{factors:?}");
+    assert_eq!(factors.len(), 40, "{factors:?}");
+    assert_eq!(cycle_loop.plan(&segments).unwrap().mean_m, base.mean_m);
+}
+
 #[test]
 fn the_loop_centres_a_flexure_mount_it_knows_and_rejects_a_constant_disturbance() {
     // Natural frequencies of 8.7, 15.9 and 20.1 Hz under 50 Hz cycles, and told 30 % low or

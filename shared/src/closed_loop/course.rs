@@ -16,10 +16,13 @@
 //!    back ([`Course::set_identified`]). The course takes it at the first boundary
 //!    [`CourseConfig::identify_hold_s`] after the probe's end, however early it came, so that
 //!    every runner holds the plate as long.
-//! 3. **Centre**: the loop, now on the identified drive, trims held cycles until the plate has
-//!    started `centred_cycles` of them in a row within `centred_m` of where it should.
-//! 4. **Feed**: the hold is released, the soft start goes on from the held step, and the loop
-//!    trims every cycle from then on.
+//! 3. **Centre**: the loop, now on the identified drive, trims held cycles, their levels excited
+//!    to [`CourseConfig::excitation_peak`] and back so that what the identification left shows
+//!    at two levels, until the plate has started `centred_cycles` of them in a row within
+//!    `centred_m` of where it should.
+//! 4. **Feed**: the hold is released at the boundary after that (the first cycle to rise is
+//!    then the one after next, which the loop already aims at), the soft start goes on from the
+//!    held step, and the loop trims every cycle from then on.
 //!
 //! At every cycle, idle period or settle segment that begins, [`Course::boundary`] takes the segment begun, the
 //! scheduler right after it (a copy: the plans of the cycles ahead), the position sampled at its
@@ -246,6 +249,7 @@ impl Course {
             Some(Ok(identified)) => {
                 self.identified = Some(identified);
                 self.cycle_loop.set_drive(&identified);
+                self.cycle_loop.excite(self.config.excitation_peak);
                 self.stage = Stage::Centring;
                 Ok(())
             }
@@ -437,17 +441,19 @@ impl Course {
             if self.release_due {
                 lookahead.release_hold();
                 decision.release = true;
-            } else if self.centred >= self.config.centred_cycles && self.feed_request().is_none()
+            } else if self.centred >= self.config.centred_cycles
+                && self.feed_request().is_none()
+                && !self.cycle_loop.exciting()
             {
                 self.release_due = true;
             }
         }
-        let first = next_shape(&self.cycle_loop, &mut lookahead)?;
+        let first = next_shape(&self.cycle_loop, &mut lookahead, 1)?;
         if self.release_due && !decision.release {
             // Released at the next boundary: the cycle after next rises.
             lookahead.release_hold();
         }
-        let next = [first, next_shape(&self.cycle_loop, &mut lookahead)?];
+        let next = [first, next_shape(&self.cycle_loop, &mut lookahead, 2)?];
         // Stroke and mean are held on full-amplitude cycles only: friction shortens a soft
         // start's strokes, and moves its means, more than the full one's.
         let measured = last.filter(|last| last.full && self.stage == Stage::Feeding);
@@ -506,7 +512,7 @@ impl Course {
             let target_m = if first.kind == SegmentKind::Idle {
                 0.0
             } else {
-                -next_shape_from(&self.cycle_loop, first, &mut lookahead)?.mean_m
+                -next_shape_from(&self.cycle_loop, first, &mut lookahead, 0)?.mean_m
             };
             self.settle = Some(SettleRun {
                 settle: Settle::new(

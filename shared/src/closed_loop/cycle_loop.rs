@@ -49,6 +49,61 @@ const AMPLITUDE_GAIN: f64 = 0.3;
 const FEED_STEP: f64 = 0.005;
 /// The share of the slide fed forward rises by this a cycle after a new drive.
 const SLIDE_STEP: f64 = 0.05;
+/// The excitation's factor on the levels moves by this a cycle ([`CycleLoop::excite`]).
+const EXCITE_STEP: f64 = 0.025;
+
+/// The factor on the levels and on the planned motion: the feed's amplitude and an excitation,
+/// each on its way to where it is going, a step a cycle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Scale {
+    /// The amplitude the feed needs on the identified plate ([`super::feed`]), and where it is
+    /// going: it moves there by [`FEED_STEP`] a cycle.
+    feed: f64,
+    feed_target: f64,
+    /// The excitation's factor, and the peak it rises to before it falls back to 1
+    /// ([`CycleLoop::excite`]); it moves only once the slide is fed forward in full.
+    excitation: f64,
+    excitation_peak: Option<f64>,
+}
+
+impl Scale {
+    const ONE: Scale = Scale {
+        feed: 1.0,
+        feed_target: 1.0,
+        excitation: 1.0,
+        excitation_peak: None,
+    };
+
+    fn factor(&self) -> f64 {
+        self.feed * self.excitation
+    }
+
+    /// The scale a cycle on, the slide fed forward in full or not (`slide_full`).
+    fn stepped(self, slide_full: bool) -> Scale {
+        let mut next = self;
+        next.feed += (self.feed_target - self.feed).clamp(-FEED_STEP, FEED_STEP);
+        if slide_full {
+            // Within half a step of its end a move ends there: the steps' sums do not carry
+            // rounding into an extra cycle.
+            match self.excitation_peak {
+                Some(peak) => {
+                    next.excitation = self.excitation + EXCITE_STEP;
+                    if next.excitation >= peak - EXCITE_STEP / 2.0 {
+                        next.excitation = peak;
+                        next.excitation_peak = None;
+                    }
+                }
+                None => {
+                    next.excitation = self.excitation - EXCITE_STEP;
+                    if next.excitation <= 1.0 + EXCITE_STEP / 2.0 {
+                        next.excitation = 1.0;
+                    }
+                }
+            }
+        }
+        next
+    }
+}
 
 /// What a cycle's trims add to the plate by its end, in the loop's units: position `x`, and
 /// `w = T·v`. A bias `δ` adds `x = δ·T²/2` and `w = δ·T²`.
@@ -213,13 +268,11 @@ pub struct CycleLoop {
     gains: [f64; 2],
     limits: LoopLimits,
     amplitude: f64,
-    /// The amplitude the feed needs on the identified plate ([`super::feed`]): the trim's
-    /// range is about it, and the plate's motion is the plan's times it, its stroke times
+    /// The factor on the levels (the feed's amplitude and the excitation): the trim's range is
+    /// about it, and the plate's motion is the plan's times it, its stroke times
     /// `stroke_factor` more ([`CycleLoop::plan`]).
-    feed_amplitude: f64,
+    scale: Scale,
     stroke_factor: f64,
-    /// Where `feed_amplitude` is going: it moves there by [`FEED_STEP`] a cycle.
-    feed_target: f64,
     /// What the trims of the cycle running now, of the one before and of the one before that
     /// add to the plate (in the loop's units), and the previous start position.
     running: Input,
@@ -266,9 +319,8 @@ impl CycleLoop {
             gains: [0.0; 2],
             limits,
             amplitude: 1.0,
-            feed_amplitude: 1.0,
+            scale: Scale::ONE,
             stroke_factor: 1.0,
-            feed_target: 1.0,
             running: Input::NONE,
             previous: Input::NONE,
             earlier: Input::NONE,
@@ -397,6 +449,7 @@ impl CycleLoop {
         self.slide_share = 0.0;
         self.lag_s = other.lag_s;
         self.map_period_s = 0.0;
+        self.disturbance.forget_gain();
     }
 
     /// Goes on toward the amplitude that gives the ideal plate's feed on the identified plate
@@ -405,7 +458,7 @@ impl CycleLoop {
     /// where that plate shows it.
     pub fn set_feed(&mut self, found: &FeedCompensation) {
         if found.amplitude.is_finite() && found.amplitude > 0.0 && found.stroke_factor > 0.0 {
-            self.feed_target = found.amplitude;
+            self.scale.feed_target = found.amplitude;
             self.stroke_factor = found.stroke_factor;
         }
     }
@@ -448,14 +501,49 @@ impl CycleLoop {
         self.at_rest = true;
     }
 
+    /// Scales the levels by a factor that rises to `peak` and falls back to 1, [`EXCITE_STEP`]
+    /// a cycle, once the slide is fed forward in full: what the feedforward leaves then shows
+    /// at two levels, so that the disturbance estimate tells the part that grows with the
+    /// levels (a gain's error) from the part that does not, before a soft start raises them.
+    pub fn excite(&mut self, peak: f64) {
+        if peak.is_finite() && peak > 1.0 {
+            self.scale.excitation_peak = Some(peak);
+        }
+    }
+
+    /// Whether an excitation is under way ([`CycleLoop::excite`]).
+    pub fn exciting(&self) -> bool {
+        self.scale.excitation_peak.is_some() || self.scale.excitation != 1.0
+    }
+
+    /// The scale `cycles` boundaries on: the slide's share rises as the scale steps.
+    fn scale_ahead(&self, cycles: u32) -> Scale {
+        let mut scale = self.scale;
+        let mut share = self.slide_share;
+        for _ in 0..cycles {
+            scale = scale.stepped(share >= 1.0);
+            share = (share + SLIDE_STEP).min(1.0);
+        }
+        scale
+    }
+
     /// The plan of a cycle of `segments` as the loop aims at it: its shape, with its stroke as
     /// read behind the identified current loop, and its motion (mean, stroke, each segment's)
-    /// as the plate makes it at the amplitude the feed needs ([`CycleLoop::set_feed`]). Its
-    /// levels stay the plan's: the trims scale those.
+    /// and its `±a` levels as the plate makes them at the amplitude the feed needs
+    /// ([`CycleLoop::set_feed`]) and the excitation's. Its segments' levels stay the plan's:
+    /// the trims scale those.
     pub fn plan(&self, segments: &[CommandSegment]) -> Option<CycleShape> {
+        self.plan_ahead(segments, 0)
+    }
+
+    /// [`CycleLoop::plan`] for the cycle `cycles` after the one beginning at the next
+    /// boundary: at the scale it will run at.
+    pub fn plan_ahead(&self, segments: &[CommandSegment], cycles: u32) -> Option<CycleShape> {
         let shape = CycleShape::new(segments)?.behind_lag(segments, self.lag_s);
-        let scale = self.feed_amplitude;
+        let scale = self.scale_ahead(cycles).factor();
         Some(CycleShape {
+            positive_mps2: shape.positive_mps2 * scale,
+            negative_mps2: shape.negative_mps2 * scale,
             mean_m: shape.mean_m * scale,
             latched_stroke_m: shape.latched_stroke_m * scale * self.stroke_factor,
             segment_motion: shape.segment_motion.map(|motion| SegmentMotion {
@@ -502,7 +590,7 @@ impl CycleLoop {
                     AMPLITUDE_GAIN * amplitude * (stroke.measured_m / stroke.planned_m - 1.0);
             }
         }
-        if fabs(amplitude / self.feed_amplitude - 1.0) > self.limits.amplitude_max {
+        if fabs(amplitude / self.scale.factor() - 1.0) > self.limits.amplitude_max {
             return Err(LoopError::Amplitude { amplitude });
         }
         // `w = T·v` at this start, from the last two starts and the correction between them;
@@ -523,6 +611,11 @@ impl CycleLoop {
             self.amplitude = amplitude;
             return Ok(self.trims);
         };
+        // The cycle after next runs its levels at the next step of the scale: the plan of the
+        // cycle beginning now was made at the scale its trims were decided at.
+        let before = self.scale.factor();
+        let scale = self.scale.stepped(self.slide_share >= 1.0);
+        amplitude *= scale.factor() / before;
         // What the feedforward leaves adds `d` to every `ũ`: the second difference of the starts
         // is `ũ_{k−1} + ũ_{k−2} + d_{k−1} + d_{k−2}`.
         self.refresh_map(shape.period_s)?;
@@ -590,6 +683,7 @@ impl CycleLoop {
             slide_mps2,
         );
         self.amplitude = amplitude;
+        self.scale = scale;
         self.mean_offset_m = mean_offset_m;
         self.earlier_x_m = Some(previous_x_m);
         self.previous_x_m = Some(start_m);
@@ -604,9 +698,6 @@ impl CycleLoop {
         };
         self.trims = trims;
         self.slide_share = (self.slide_share + SLIDE_STEP).min(1.0);
-        let step = (self.feed_target - self.feed_amplitude).clamp(-FEED_STEP, FEED_STEP);
-        self.amplitude *= (self.feed_amplitude + step) / self.feed_amplitude;
-        self.feed_amplitude += step;
         Ok(self.trims)
     }
 }

@@ -45,6 +45,15 @@ impl Disturbance {
         }
     }
 
+    /// Forgets the gain error for a drive fed forward anew (its gains changed): `ε` back to
+    /// its prior, the constant part as it was.
+    pub fn forget_gain(&mut self) {
+        self.theta[1] = 0.0;
+        self.covariance[0][1] = 0.0;
+        self.covariance[1][0] = 0.0;
+        self.covariance[1][1] = PRIOR[1] * PRIOR[1];
+    }
+
     /// The displacement `d` it adds to a cycle of `shape`, in m.
     pub fn of(&self, shape: &CycleShape) -> f64 {
         let (h, half_period_squared) = regressor(shape);

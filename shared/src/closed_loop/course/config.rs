@@ -37,6 +37,10 @@ pub struct CourseConfig {
     /// How long after the course asks for a feed compensation it takes the answer
     /// ([`Course::feed_request`](crate::closed_loop::Course::feed_request)).
     pub feed_hold_s: f64,
+    /// The held cycles' levels rise to this factor and fall back once the drive is
+    /// identified ([`CycleLoop::excite`](crate::closed_loop::CycleLoop::excite)); the soft
+    /// start is released after.
+    pub excitation_peak: f64,
 }
 
 impl CourseConfig {
@@ -47,7 +51,8 @@ impl CourseConfig {
     /// 50 m/s² (a quarter of the envelope's full scale: a spring or slide friction at its limit
     /// needs that much), trim the stroke by ±20 % and gives up 4 mm from centre; levels in steps
     /// of `level_step_mps2`; no feed compensation ([`CourseConfig::with_feed`]), taken 1 s
-    /// after it is asked for where there is one (the firmware needs up to 0.7 s under QEMU).
+    /// after it is asked for where there is one (the firmware needs up to 0.7 s under QEMU);
+    /// the held levels excited to 1.5 times the probe's and back (40 cycles).
     pub fn new(resolution_m: f64, level_step_mps2: f64) -> Self {
         CourseConfig {
             settle_segments: 2 * crate::closed_loop::settle::PAIRS,
@@ -67,6 +72,7 @@ impl CourseConfig {
             part_mps2: 0.0,
             linear_mps2: 0.0,
             feed_hold_s: 1.0,
+            excitation_peak: 1.5,
         }
     }
 

@@ -26,13 +26,15 @@ pub(super) fn rest_of_cycle(
     (segments, count)
 }
 
-/// The plan of the scheduler's next cycle as the loop aims at it.
+/// The plan of the scheduler's next cycle as the loop aims at it, `ahead` cycles after the one
+/// beginning at the next boundary ([`CycleLoop::plan_ahead`]).
 pub(super) fn next_shape(
     cycle_loop: &CycleLoop,
     scheduler: &mut Scheduler,
+    ahead: u32,
 ) -> Result<CycleShape, CourseError> {
     let first = scheduler.next_segment();
-    next_shape_from(cycle_loop, first, scheduler)
+    next_shape_from(cycle_loop, first, scheduler, ahead)
 }
 
 /// The plan of the cycle `first` begins, with `scheduler` right after it.
@@ -40,10 +42,13 @@ pub(super) fn next_shape_from(
     cycle_loop: &CycleLoop,
     first: Segment,
     scheduler: &mut Scheduler,
+    ahead: u32,
 ) -> Result<CycleShape, CourseError> {
     let (segments, count) = rest_of_cycle(&first, scheduler);
     if matches!(first.kind, SegmentKind::Idle | SegmentKind::Settle) {
         return Ok(CycleShape::idle(segments[0].duration_s));
     }
-    cycle_loop.plan(&segments[..count]).ok_or(CourseError::Plan)
+    cycle_loop
+        .plan_ahead(&segments[..count], ahead)
+        .ok_or(CourseError::Plan)
 }
