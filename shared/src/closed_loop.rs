@@ -21,7 +21,9 @@ pub use cycle_loop::{CycleLoop, LoopError, LoopLimits, Stroke, Trims};
 pub use cycle_map::CycleMap;
 pub use envelope::{Cause, Envelope, ENVELOPE};
 pub use feed::{compensate, feed_rate_mps, FeedCompensation, FeedRequest, PlateModel};
-pub use identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};
+pub use identify::{
+    identify, identify_given, GainPrior, Identified, IdentifyError, IdentifyLimits, Latch,
+};
 pub use settle::Settle;
 pub use shape::{CommandSegment, CycleShape, SegmentMotion};
 pub use track::{Track, TrackConfig, TrackReport, TrackState};

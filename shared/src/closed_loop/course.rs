@@ -107,6 +107,8 @@ pub struct Course {
     /// boundary, so that the first cycle to rise is the one after next and the loop has a cycle
     /// to move the plate toward that cycle's start.
     release_due: bool,
+    /// The gains' half difference the last settle's dither measured, for the probe's fit.
+    settled_gain_half_difference: Option<f64>,
     last: Option<Begun>,
     /// The plan of the cycles ahead, as of the last boundary.
     waveform: Option<Waveform>,
@@ -138,6 +140,7 @@ impl Course {
             decided: Trims::NONE,
             centred: 0,
             release_due: false,
+            settled_gain_half_difference: None,
             centring_cycles: 0,
             last: None,
             waveform: None,
@@ -354,6 +357,7 @@ impl Course {
                     start.tick,
                     plan.clock_hz,
                     self.config.resolution_m,
+                    self.settled_gain_half_difference,
                 );
                 for segment in lead_in {
                     probe.keep_segment(*segment);
@@ -572,6 +576,7 @@ impl Course {
         let trims = if settled {
             self.cycle_loop
                 .hold_drive(offset_mps2, gain_difference, run.settle.spring_per_s2());
+            self.settled_gain_half_difference = run.settle.gain_half_difference();
             self.feedforward()
         } else {
             Trims {

@@ -18,14 +18,14 @@ mod latched;
 mod refit;
 mod refusal;
 
-pub use fit::MAX_LATCHES;
+pub use fit::{GainPrior, MAX_LATCHES};
 pub use latched::Latch;
 pub use refusal::{IdentifyError, IdentifyLimits};
 
 use libm::{fabs, sqrt};
 
 use super::shape::CommandSegment;
-use fit::{best_lag, fit, Model, LAG_MAX_S, UNKNOWNS};
+use fit::{best_lag, fit, Model, Problem, LAG_MAX_S, UNKNOWNS};
 use latched::{latched_velocity, motion_rows};
 use refit::fitted_velocity;
 
@@ -77,6 +77,18 @@ pub fn identify(
     latches: &[Latch],
     limits: &IdentifyLimits,
 ) -> Result<Identified, IdentifyError> {
+    identify_given(probe, latches, limits, None)
+}
+
+/// [`identify`] with what the settle's dither read of the gains' difference
+/// ([`Settle::gain_half_difference`](super::Settle::gain_half_difference)), where it did: the
+/// fit weighs it with the positions, which give the gains' mean.
+pub fn identify_given(
+    probe: &[CommandSegment],
+    latches: &[Latch],
+    limits: &IdentifyLimits,
+    gains: Option<GainPrior>,
+) -> Result<Identified, IdentifyError> {
     let valid_probe = probe
         .iter()
         .all(|s| s.duration_s.is_finite() && s.duration_s >= 0.0 && s.accel_mps2.is_finite());
@@ -112,21 +124,34 @@ pub fn identify(
         |i, r, _| motion[i] = r,
     );
     // The lag of a bare slide first; a spring found at that lag is searched for again with it.
-    let (mut lag_s, mut fitted) = best_lag(probe, latches, &motion, Model::Slide)?;
-    let (sprung, _) =
-        fit(probe, latches, &motion, lag_s, Model::Sprung).ok_or(IdentifyError::Singular)?;
-    let model = if -sprung[UNKNOWNS - 1] >= SPRING_MIN_PER_S2 {
-        (lag_s, fitted) = best_lag(probe, latches, &motion, Model::Sprung)?;
-        Model::Sprung
-    } else {
-        Model::Slide
+    let (lag_s, mut fitted, model) = {
+        let problem = Problem {
+            probe,
+            latches,
+            motion: &motion,
+            gains,
+        };
+        let (lag_s, fitted) = best_lag(&problem, Model::Slide)?;
+        let (sprung, _) = fit(&problem, lag_s, Model::Sprung).ok_or(IdentifyError::Singular)?;
+        if -sprung[UNKNOWNS - 1] >= SPRING_MIN_PER_S2 {
+            let (lag_s, fitted) = best_lag(&problem, Model::Sprung)?;
+            (lag_s, fitted, Model::Sprung)
+        } else {
+            (lag_s, fitted, Model::Slide)
+        }
     };
     // Differences of quantised latches read a slow plate as standing, or as turning, where it
     // does not: the friction's signs are taken again from the fitted motion's velocity, and
     // that fit is kept where it explains the latches better.
     let velocity = fitted_velocity(probe, latches, &fitted.0, lag_s);
     motion_rows(latches, |i| velocity[i], |i, r, _| motion[i] = r);
-    if let Some(refit) = fit(probe, latches, &motion, lag_s, model) {
+    let problem = Problem {
+        probe,
+        latches,
+        motion: &motion,
+        gains,
+    };
+    if let Some(refit) = fit(&problem, lag_s, model) {
         if refit.1 < fitted.1 {
             fitted = refit;
         }

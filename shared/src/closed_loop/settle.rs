@@ -216,6 +216,16 @@ impl Settle {
         }
     }
 
+    /// The gains' half difference over their mean, `ε/ḡ`, where the dither has measured it (at
+    /// two levels or more).
+    pub fn gain_half_difference(&self) -> Option<f64> {
+        let measured = self.fit.levels.is_some_and(|(first, last)| first != last);
+        self.fit
+            .drive()
+            .filter(|_| measured)
+            .map(|(_, slope, _)| slope)
+    }
+
     /// A centring spring's `κ = k/M` found so far (0 where none shows): its pull on the plate
     /// at `X` is `−κ·X`, and [`Settle::drive`]'s offset is the one at `X = 0`.
     pub fn spring_per_s2(&self) -> f64 {

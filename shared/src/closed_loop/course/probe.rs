@@ -1,7 +1,13 @@
 //! The probe's record ([`Probe`]): the levels its held cycles were commanded and the positions
 //! sampled through them, from which the drive is identified.
 
-use crate::closed_loop::identify::{identify, Identified, IdentifyError, IdentifyLimits, Latch};
+use crate::closed_loop::identify::{
+    identify_given, GainPrior, Identified, IdentifyError, IdentifyLimits, Latch,
+};
+
+/// How well the settle's dither reads the gains' half difference
+/// (`shared/tests/settle.rs`).
+const SETTLED_GAIN_SPREAD: f64 = 2e-3;
 use crate::closed_loop::shape::CommandSegment;
 
 use super::measure::PositionSample;
@@ -23,6 +29,8 @@ pub struct Probe {
     latch_tick: u64,
     clock_hz: u32,
     resolution_m: f64,
+    /// The gains' half difference over their mean as the settle found it, if it did.
+    gain_half_difference: Option<f64>,
     positions: [Latch; PROBE_POSITIONS_MAX],
     position_count: usize,
     segments: [CommandSegment; PROBE_SEGMENTS_MAX],
@@ -30,7 +38,13 @@ pub struct Probe {
 }
 
 impl Probe {
-    pub(super) fn new(start_tick: u64, latch_tick: u64, clock_hz: u32, resolution_m: f64) -> Self {
+    pub(super) fn new(
+        start_tick: u64,
+        latch_tick: u64,
+        clock_hz: u32,
+        resolution_m: f64,
+        gain_half_difference: Option<f64>,
+    ) -> Self {
         let latch = Latch {
             t_s: 0.0,
             position_m: 0.0,
@@ -44,6 +58,7 @@ impl Probe {
             latch_tick,
             clock_hz,
             resolution_m,
+            gain_half_difference,
             positions: [latch; PROBE_POSITIONS_MAX],
             position_count: 0,
             segments: [segment; PROBE_SEGMENTS_MAX],
@@ -90,9 +105,16 @@ impl Probe {
         &self.segments[..self.segment_count]
     }
 
-    /// The drive identified from the probe, within [`IdentifyLimits::for_probe`].
+    /// The drive identified from the probe, within [`IdentifyLimits::for_probe`], its gains'
+    /// difference held to the settle's ([`identify_given`]).
     pub fn identify(&self) -> Result<Identified, IdentifyError> {
         let limits = IdentifyLimits::for_probe(self.resolution_m);
-        identify(self.segments(), self.positions(), &limits)
+        // A latch is off the fit by the sensor's quantisation at least.
+        let gains = self.gain_half_difference.map(|half_difference| GainPrior {
+            half_difference,
+            spread: SETTLED_GAIN_SPREAD,
+            latch_spread_m: self.resolution_m / libm::sqrt(12.0),
+        });
+        identify_given(self.segments(), self.positions(), &limits, gains)
     }
 }

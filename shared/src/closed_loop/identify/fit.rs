@@ -40,15 +40,39 @@ impl Model {
     }
 }
 
-/// The least-squares fit of `model` for one lag, with its residual sum of squares; `motion`
-/// holds the friction and spring regressors of the latches, which do not depend on the lag.
+/// What the fit takes: the probe's commanded segments, the latches, their friction and spring
+/// regressors (which do not depend on the lag), and what is known of the gains beforehand.
+#[derive(Clone, Copy)]
+pub(super) struct Problem<'a> {
+    pub(super) probe: &'a [CommandSegment],
+    pub(super) latches: &'a [Latch],
+    pub(super) motion: &'a [[f64; 3]; MAX_LATCHES],
+    pub(super) gains: Option<GainPrior>,
+}
+
+/// The gains' half difference over their mean, `ε = (g₊ − g₋)/(g₊ + g₋)`, as the settle's
+/// dither read it, to within `spread`, and the spread of one latch about the fit (m): the fit
+/// weighs the one against the other. The probe's few short cycles barely tell the gains'
+/// difference from the slide's friction; the dither reads it well.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GainPrior {
+    pub half_difference: f64,
+    pub spread: f64,
+    pub latch_spread_m: f64,
+}
+
+/// The least-squares fit of `model` for one lag, with its residual sum of squares.
 pub(super) fn fit(
-    probe: &[CommandSegment],
-    latches: &[Latch],
-    motion: &[[f64; 3]; MAX_LATCHES],
+    problem: &Problem<'_>,
     lag_s: f64,
     model: Model,
 ) -> Option<([f64; UNKNOWNS], f64)> {
+    let Problem {
+        probe,
+        latches,
+        motion,
+        gains,
+    } = *problem;
     let columns = model.columns();
     let mut lagged = [[0.0; 3]; MAX_LATCHES];
     lagged_rows(probe, latches, lag_s, |i, r, _| lagged[i] = r);
@@ -85,6 +109,20 @@ pub(super) fn fit(
             }
         }
     }
+    if let Some(prior) = gains.filter(|p| p.spread > 0.0 && p.half_difference.is_finite()) {
+        // `g₊·(1 − ε) − g₋·(1 + ε)` is `2·(ε_true − ε)` about: a measurement of it, 0, with
+        // twice the prior's spread, as many latches' worth as the spreads say (in the scaled
+        // unknowns).
+        let epsilon = prior.half_difference;
+        let (a, b) = (inverse[3] * (1.0 - epsilon), -inverse[4] * (1.0 + epsilon));
+        let ratio = prior.latch_spread_m / (2.0 * prior.spread);
+        let weight = ratio * ratio;
+        if weight.is_finite() {
+            normal[3][3] += weight * a * a;
+            normal[3][4] += weight * a * b;
+            normal[4][4] += weight * b * b;
+        }
+    }
     let upper = normal;
     for (a, row) in normal.iter_mut().enumerate() {
         for (b, entry) in row.iter_mut().enumerate().take(a) {
@@ -111,13 +149,10 @@ pub(super) fn fit(
 /// The lag whose fit of `model` leaves the least residual (a golden-section search over
 /// `[0, LAG_MAX_S]`, and 0 itself), with that fit.
 pub(super) fn best_lag(
-    probe: &[CommandSegment],
-    latches: &[Latch],
-    motion: &[[f64; 3]; MAX_LATCHES],
+    problem: &Problem<'_>,
     model: Model,
 ) -> Result<(f64, ([f64; UNKNOWNS], f64)), IdentifyError> {
-    let residual =
-        |lag_s: f64| fit(probe, latches, motion, lag_s, model).map_or(f64::INFINITY, |(_, r)| r);
+    let residual = |lag_s: f64| fit(problem, lag_s, model).map_or(f64::INFINITY, |(_, r)| r);
     let golden = 0.5 * (sqrt(5.0) - 1.0);
     let (mut lo, mut hi) = (0.0, LAG_MAX_S);
     let (mut a, mut b) = (hi - golden * (hi - lo), lo + golden * (hi - lo));
@@ -141,7 +176,7 @@ pub(super) fn best_lag(
     // (an ideal one, or a current loop far faster than the latches) is tried at 0 itself.
     let (lag_s, inside) = if fa <= fb { (a, fa) } else { (b, fb) };
     let lag_s = if residual(0.0) <= inside { 0.0 } else { lag_s };
-    let fitted = fit(probe, latches, motion, lag_s, model).ok_or(IdentifyError::Singular)?;
+    let fitted = fit(problem, lag_s, model).ok_or(IdentifyError::Singular)?;
     Ok((lag_s, fitted))
 }
 
