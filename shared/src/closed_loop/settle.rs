@@ -69,6 +69,9 @@ struct Fit {
     count: u16,
     /// The first and the last dither level measured.
     levels: Option<(f64, f64)>,
+    /// The drive solved from the measurements so far ([`Fit::drive`]): solved once a
+    /// measurement, as a settle segment's work is bounded by its length.
+    solved: Option<(f64, f64, f64)>,
 }
 
 const TERMS: usize = 6;
@@ -104,11 +107,17 @@ impl Fit {
         self.count += 1;
         let first = self.levels.map_or(level_mps2, |(first, _)| first);
         self.levels = Some((first, level_mps2));
+        self.solved = self.solve();
     }
 
     /// `(o/ḡ, ε/ḡ, κ)`; with one dither level measured `((o + ε·D)/ḡ, 0, κ)`, what acts at
     /// that level; `None` before any.
     fn drive(&self) -> Option<(f64, f64, f64)> {
+        self.solved
+    }
+
+    /// [`Fit::drive`] from the measurements.
+    fn solve(&self) -> Option<(f64, f64, f64)> {
         if self.count == 0 {
             return None;
         }
