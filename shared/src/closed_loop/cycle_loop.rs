@@ -30,14 +30,22 @@
 //! per-cycle linear model the loop is stable for a drive gain from 0.5 to 1.25 times the
 //! identified one (`shared/tests/closed_loop.rs`), far wider than the identification's error.
 
+mod limits;
+mod scale;
+mod trims;
+
+pub use limits::{LoopError, LoopLimits};
+pub use trims::{Stroke, Trims};
+
 use libm::fabs;
+
+use scale::Scale;
 
 use super::cycle_map::CycleMap;
 use super::disturbance::Disturbance;
 use super::feed::FeedCompensation;
 use super::identify::Identified;
 use super::shape::{CommandSegment, CycleShape, SegmentMotion};
-use crate::scheduler::CYCLE;
 
 /// Both poles of the centring loop ([`CycleMap::gains`]).
 const POLE: f64 = 0.3;
@@ -45,65 +53,8 @@ const POLE: f64 = 0.3;
 const MEAN_GAIN: f64 = 0.05;
 /// The amplitude trim moves by this fraction of the relative stroke error each cycle.
 const AMPLITUDE_GAIN: f64 = 0.3;
-/// The feed's amplitude moves by at most this a cycle toward a new one.
-const FEED_STEP: f64 = 0.005;
 /// The share of the slide fed forward rises by this a cycle after a new drive.
 const SLIDE_STEP: f64 = 0.05;
-/// The excitation's factor on the levels moves by this a cycle ([`CycleLoop::excite`]).
-const EXCITE_STEP: f64 = 0.025;
-
-/// The factor on the levels and on the planned motion: the feed's amplitude and an excitation,
-/// each on its way to where it is going, a step a cycle.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Scale {
-    /// The amplitude the feed needs on the identified plate ([`super::feed`]), and where it is
-    /// going: it moves there by [`FEED_STEP`] a cycle.
-    feed: f64,
-    feed_target: f64,
-    /// The excitation's factor, and the peak it rises to before it falls back to 1
-    /// ([`CycleLoop::excite`]); it moves only once the slide is fed forward in full.
-    excitation: f64,
-    excitation_peak: Option<f64>,
-}
-
-impl Scale {
-    const ONE: Scale = Scale {
-        feed: 1.0,
-        feed_target: 1.0,
-        excitation: 1.0,
-        excitation_peak: None,
-    };
-
-    fn factor(&self) -> f64 {
-        self.feed * self.excitation
-    }
-
-    /// The scale a cycle on, the slide fed forward in full or not (`slide_full`).
-    fn stepped(self, slide_full: bool) -> Scale {
-        let mut next = self;
-        next.feed += (self.feed_target - self.feed).clamp(-FEED_STEP, FEED_STEP);
-        if slide_full {
-            // Within half a step of its end a move ends there: the steps' sums do not carry
-            // rounding into an extra cycle.
-            match self.excitation_peak {
-                Some(peak) => {
-                    next.excitation = self.excitation + EXCITE_STEP;
-                    if next.excitation >= peak - EXCITE_STEP / 2.0 {
-                        next.excitation = peak;
-                        next.excitation_peak = None;
-                    }
-                }
-                None => {
-                    next.excitation = self.excitation - EXCITE_STEP;
-                    if next.excitation <= 1.0 + EXCITE_STEP / 2.0 {
-                        next.excitation = 1.0;
-                    }
-                }
-            }
-        }
-        next
-    }
-}
 
 /// What a cycle's trims add to the plate by its end, in the loop's units: position `x`, and
 /// `w = T·v`. A bias `δ` adds `x = δ·T²/2` and `w = δ·T²`.
@@ -115,137 +66,6 @@ struct Input {
 
 impl Input {
     const NONE: Input = Input { x_m: 0.0, w_m: 0.0 };
-}
-
-/// The levels of one cycle relative to the plan's.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Trims {
-    /// Factor on the `+a` level.
-    pub positive: f64,
-    /// Factor on the `−a` level.
-    pub negative: f64,
-    /// Acceleration added to every level.
-    pub bias_mps2: f64,
-    /// Acceleration added to the segment in each place of the cycle
-    /// ([`SegmentKind::place`](crate::SegmentKind::place)): the slide's forces fed forward, and
-    /// what rounding each level to the output's step adds.
-    pub segments_mps2: [f64; 4],
-}
-
-impl Trims {
-    /// The plan's levels unchanged.
-    pub const NONE: Trims = Trims {
-        positive: 1.0,
-        negative: 1.0,
-        bias_mps2: 0.0,
-        segments_mps2: [0.0; 4],
-    };
-
-    /// The commanded levels of a cycle whose `±a` levels are planned at `peak_mps2`, each
-    /// segment in its place ([`CYCLE`]).
-    pub fn cycle_levels(&self, peak_mps2: f64) -> [f64; 4] {
-        core::array::from_fn(|place| {
-            self.level(place, f64::from(CYCLE[place].1.sign()) * peak_mps2)
-        })
-    }
-
-    /// The commanded acceleration for a planned one, in the segment at `place` of its cycle.
-    pub fn level(&self, place: usize, planned_mps2: f64) -> f64 {
-        let scale = if planned_mps2 > 0.0 {
-            self.positive
-        } else {
-            self.negative
-        };
-        planned_mps2 * scale
-            + self.bias_mps2
-            + self.segments_mps2.get(place).copied().unwrap_or(0.0)
-    }
-}
-
-/// A cycle's stroke: latched from its start tick to its turning tick, and planned.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Stroke {
-    pub measured_m: f64,
-    pub planned_m: f64,
-}
-
-impl Stroke {
-    /// The stroke of a cycle of plan `shape` from the positions latched at its start, at its
-    /// turning tick and at the next cycle's start: the turning position less the straight line
-    /// between the two starts, so that a plate drifting at constant velocity reads the stroke
-    /// it would have at rest.
-    pub fn latched(start_m: f64, turn_m: f64, next_start_m: f64, shape: &CycleShape) -> Stroke {
-        let drift_m = (next_start_m - start_m) * shape.turn_s / shape.period_s;
-        Stroke {
-            measured_m: turn_m - start_m - drift_m,
-            planned_m: shape.latched_stroke_m,
-        }
-    }
-}
-
-/// How far the loop may trim before it reports that it cannot hold the plate.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct LoopLimits {
-    /// `|δ|` at most this.
-    pub correction_max_mps2: f64,
-    /// `m` within `1 ± amplitude_max`.
-    pub amplitude_max: f64,
-    /// `|x − x_set|` at most this at a cycle start.
-    pub position_error_max_m: f64,
-}
-
-/// Why the loop gave up.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum LoopError {
-    /// The centring correction needed more than its limit.
-    Correction { correction_mps2: f64 },
-    /// The amplitude trim left its range.
-    Amplitude { amplitude: f64 },
-    /// The plate is too far from where it should start a cycle.
-    Position { error_m: f64 },
-    /// A latched position is not finite.
-    Sensor,
-    /// A spring that turns the plate about half around in a cycle: one cycle's bias cannot
-    /// steer both its position and its velocity.
-    Unsteerable { spring_per_s2: f64, period_s: f64 },
-}
-
-impl core::fmt::Display for LoopError {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        match *self {
-            LoopError::Correction { correction_mps2 } => write!(
-                f,
-                "centring the plate needs {correction_mps2} m/s², more than the loop may add"
-            ),
-            LoopError::Amplitude { amplitude } => write!(
-                f,
-                "holding the stroke needs {amplitude} × the planned level, outside the loop's range"
-            ),
-            LoopError::Position { error_m } => {
-                write!(
-                    f,
-                    "the plate is {error_m} m from its centre at a cycle start"
-                )
-            }
-            LoopError::Sensor => f.write_str("the position sensor returned no valid value"),
-            LoopError::Unsteerable {
-                spring_per_s2,
-                period_s,
-            } => write!(
-                f,
-                "the plate's mount (natural frequency {} Hz) turns it about half around in a \
-                 cycle of {} ms: the loop cannot steer it at this frequency",
-                crate::number::Significant(
-                    libm::sqrt(spring_per_s2.max(0.0)) / (2.0 * core::f64::consts::PI)
-                ),
-                crate::number::Significant(period_s * 1e3)
-            ),
-        }
-    }
 }
 
 /// The cycle-rate loop's state.
@@ -501,7 +321,7 @@ impl CycleLoop {
         self.at_rest = true;
     }
 
-    /// Scales the levels by a factor that rises to `peak` and falls back to 1, [`EXCITE_STEP`]
+    /// Scales the levels by a factor that rises to `peak` and falls back to 1, 0.025
     /// a cycle, once the slide is fed forward in full: what the feedforward leaves then shows
     /// at two levels, so that the disturbance estimate tells the part that grows with the
     /// levels (a gain's error) from the part that does not, before a soft start raises them.
