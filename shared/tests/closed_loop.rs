@@ -605,7 +605,7 @@ fn an_excitation_rises_to_its_peak_and_back_and_the_plan_ahead_runs_at_its_scale
     }
     let peak = factors.iter().copied().fold(0.0, f64::max);
     assert!((peak - 1.5).abs() < 1e-12, "{factors:?}");
-    assert_eq!(factors.len(), 40, "{factors:?}");
+    assert_eq!(factors.len(), 20, "{factors:?}");
     assert_eq!(cycle_loop.plan(&segments).unwrap().mean_m, base.mean_m);
 }
 

@@ -321,7 +321,7 @@ impl CycleLoop {
         self.at_rest = true;
     }
 
-    /// Scales the levels by a factor that rises to `peak` and falls back to 1, 0.025
+    /// Scales the levels by a factor that rises to `peak` and falls back to 1, 0.05
     /// a cycle, once the slide is fed forward in full: what the feedforward leaves then shows
     /// at two levels, so that the disturbance estimate tells the part that grows with the
     /// levels (a gain's error) from the part that does not, before a soft start raises them.

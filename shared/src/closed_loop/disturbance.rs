@@ -45,13 +45,12 @@ impl Disturbance {
         }
     }
 
-    /// Forgets the gain error for a drive fed forward anew (its gains changed): `ε` back to
-    /// its prior, the constant part as it was.
+    /// Forgets the gain error for a drive fed forward anew (its gains changed): `ε` back to 0,
+    /// both parts' spreads back to their priors (the constant part took up the old gain error
+    /// at the levels held, and moves with `ε` when the levels move).
     pub fn forget_gain(&mut self) {
         self.theta[1] = 0.0;
-        self.covariance[0][1] = 0.0;
-        self.covariance[1][0] = 0.0;
-        self.covariance[1][1] = PRIOR[1] * PRIOR[1];
+        self.covariance = [[PRIOR[0] * PRIOR[0], 0.0], [0.0, PRIOR[1] * PRIOR[1]]];
     }
 
     /// The displacement `d` it adds to a cycle of `shape`, in m.

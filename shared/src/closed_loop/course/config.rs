@@ -52,7 +52,7 @@ impl CourseConfig {
     /// needs that much), trim the stroke by ±20 % and gives up 4 mm from centre; levels in steps
     /// of `level_step_mps2`; no feed compensation ([`CourseConfig::with_feed`]), taken 1 s
     /// after it is asked for where there is one (the firmware needs up to 0.7 s under QEMU);
-    /// the held levels excited to 1.5 times the probe's and back (40 cycles).
+    /// the held levels excited to 1.5 times the probe's and back (20 cycles).
     pub fn new(resolution_m: f64, level_step_mps2: f64) -> Self {
         CourseConfig {
             settle_segments: 2 * crate::closed_loop::settle::PAIRS,

@@ -4,7 +4,7 @@
 /// The feed's amplitude moves by at most this a cycle toward a new one.
 const FEED_STEP: f64 = 0.005;
 /// The excitation's factor on the levels moves by this a cycle ([`CycleLoop::excite`](super::CycleLoop::excite)).
-pub(super) const EXCITE_STEP: f64 = 0.025;
+pub(super) const EXCITE_STEP: f64 = 0.05;
 
 /// The factor on the levels and on the planned motion: the feed's amplitude and an excitation,
 /// each on its way to where it is going, a step a cycle.
