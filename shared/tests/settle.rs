@@ -74,7 +74,7 @@ proptest! {
         let (found_offset, found_half_difference) = settle.drive();
         prop_assert!((found_offset - offset / mean).abs() < 0.15, "offset {found_offset}");
         prop_assert!(
-            (found_half_difference - (plus - minus) / 2.0 / mean).abs() < 3e-3,
+            (found_half_difference - (plus - minus) / 2.0 / mean).abs() < 2e-3,
             "ε {found_half_difference}"
         );
         prop_assert_eq!(settle.spring_per_s2(), 0.0);

@@ -121,19 +121,32 @@ impl Fit {
         if self.count == 0 {
             return None;
         }
+        let one_level = self.levels.is_none_or(|(first, last)| first == last);
+        let sprung = self.solve_without(one_level, None)?;
+        if sprung.2 >= SPRING_FLOOR_PER_S2 {
+            return Some(sprung);
+        }
+        // A spring taken for none is left out: what it took up of the offset and the gains'
+        // difference goes back to them.
+        self.solve_without(one_level, Some(TERMS - 1))
+            .map(|(offset, slope, _)| (offset, slope, 0.0))
+    }
+
+    /// The fit without the slope where one level was measured, and without the term `left_out`.
+    fn solve_without(&self, one_level: bool, left_out: Option<usize>) -> Option<(f64, f64, f64)> {
         let mut a = self.normal;
         let mut b = self.right;
         for (k, ridge) in RIDGE.iter().enumerate() {
             a[k + 2][k + 2] += ridge;
         }
-        if self.levels.is_none_or(|(first, last)| first == last) {
-            // One level: no slope.
+        let terms = [one_level.then_some(1), left_out];
+        for term in terms.into_iter().flatten() {
             for k in 0..TERMS {
-                a[1][k] = 0.0;
-                a[k][1] = 0.0;
+                a[term][k] = 0.0;
+                a[k][term] = 0.0;
             }
-            a[1][1] = 1.0;
-            b[1] = 0.0;
+            a[term][term] = 1.0;
+            b[term] = 0.0;
         }
         let x = solve(&mut a, &mut b)?;
         let gain = 1.0 + x[2];
@@ -238,13 +251,7 @@ impl Settle {
     /// A centring spring's `κ = k/M` found so far (0 where none shows): its pull on the plate
     /// at `X` is `−κ·X`, and [`Settle::drive`]'s offset is the one at `X = 0`.
     pub fn spring_per_s2(&self) -> f64 {
-        self.fit.drive().map_or(0.0, |(_, _, spring)| {
-            if spring >= SPRING_FLOOR_PER_S2 {
-                spring
-            } else {
-                0.0
-            }
-        })
+        self.fit.drive().map_or(0.0, |(_, _, spring)| spring)
     }
 
     /// What the held pairs before the dither measured acting on the plate, once they have: the
