@@ -5,9 +5,12 @@ use crate::closed_loop::identify::{
     identify_given, GainPrior, Identified, IdentifyError, IdentifyLimits, Latch,
 };
 
-/// How well the settle's dither reads the gains' half difference
-/// (`shared/tests/settle.rs`).
-const SETTLED_GAIN_SPREAD: f64 = 2e-3;
+/// The spread the probe's fit gives the settle's reading of the gains' half difference: the
+/// dither reads it within 0.2 % on every drive of the envelope (`shared/tests/settle.rs`),
+/// mostly far closer. Weighed as a reading to 0.05 %, the plant family holds the most plants
+/// (as many within 1 % at 0.1 %, 2 % fewer at 0.2 %) and `realistic.toml`'s soft start strays
+/// least.
+const SETTLED_GAIN_SPREAD: f64 = 5e-4;
 use crate::closed_loop::shape::CommandSegment;
 
 use super::measure::PositionSample;
