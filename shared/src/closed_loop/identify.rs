@@ -156,6 +156,10 @@ pub fn identify_given(
             fitted = refit;
         }
     }
+    // A spring the friction's new signs no longer show is none: the slide's fit at that lag.
+    if model == Model::Sprung && -fitted.0[UNKNOWNS - 1] < SPRING_MIN_PER_S2 {
+        fitted = fit(&problem, lag_s, Model::Slide).ok_or(IdentifyError::Singular)?;
+    }
     let (theta, squares) = fitted;
     let [_, _, offset_mps2, gain_positive, gain_negative, friction, viscous, spring] = theta;
     let identified = Identified {
