@@ -341,12 +341,9 @@ fn the_settles_gain_difference_holds_the_gains_the_probe_confounds_with_friction
         })
         .collect();
     let plate = Plate {
-        gains: (1.02, 0.98),
-        offset_mps2: 1.0,
-        lag_s: 1.0 / (2.0 * std::f64::consts::PI * 1000.0),
         coulomb_mps2: 2.0,
         viscous_per_s: 5.0,
-        spring_per_s2: 0.0,
+        ..DRIVE
     };
     let resolution_m = 1e-6;
     let latches: Vec<Latch> = plate
