@@ -70,6 +70,10 @@ impl Identified {
 /// holds it as the disturbance it is.
 const SPRING_MIN_PER_S2: f64 = 100.0;
 
+/// A spring is taken where the fit with it leaves less than this share of the residual sum of
+/// squares of the fit without it.
+const SPRING_SHOWN: f64 = 0.8;
+
 /// Fits the probe's model to `latches` (at most [`MAX_LATCHES`], the first at the probe's start)
 /// and checks it against `limits`.
 pub fn identify(
@@ -132,8 +136,11 @@ pub fn identify_given(
             gains,
         };
         let (lag_s, fitted) = best_lag(&problem, Model::Slide)?;
-        let (sprung, _) = fit(&problem, lag_s, Model::Sprung).ok_or(IdentifyError::Singular)?;
-        if -sprung[UNKNOWNS - 1] >= SPRING_MIN_PER_S2 {
+        let (sprung, sprung_squares) =
+            fit(&problem, lag_s, Model::Sprung).ok_or(IdentifyError::Singular)?;
+        // A spring is searched for at its own lag only where it explains the positions: the
+        // search is as long as the slide's, and a spurious one bends the gains.
+        if -sprung[UNKNOWNS - 1] >= SPRING_MIN_PER_S2 && sprung_squares < SPRING_SHOWN * fitted.1 {
             let (lag_s, fitted) = best_lag(&problem, Model::Sprung)?;
             (lag_s, fitted, Model::Sprung)
         } else {
