@@ -299,14 +299,16 @@ fn an_ideal_drive_is_settled_probed_identified_centred_and_released() {
     assert_eq!(steps[..settle], vec![0; settle]);
     assert_eq!(steps[settle..], rise);
     assert_eq!(indices(&records, |r| r.decision.identify), [probe + 4]);
-    // Handed over at once, the drive is taken at the first boundary 5 s (250 cycles) after the
-    // probe's; the probe is there until then.
+    // Handed over at once, the drive is taken at the first boundary the hold (8 s, 400 cycles)
+    // after the probe's; the probe is there until then.
+    let hold = hold_cycles(&rig);
+    assert_eq!(hold, 400);
     assert_eq!(
         indices(&records, |r| r.probe),
-        (probe + 4..probe + 4 + 250).collect::<Vec<_>>()
+        (probe + 4..probe + 4 + hold).collect::<Vec<_>>()
     );
     let centring = indices(&records, |r| r.stage == Centring);
-    assert_eq!(centring.first(), Some(&(probe + 4 + 250)));
+    assert_eq!(centring.first(), Some(&(probe + 4 + hold)));
     let releases = indices(&records, |r| r.decision.release);
     assert_eq!(releases.len(), 1);
     let release = releases[0];
@@ -448,10 +450,15 @@ fn a_position_that_is_not_a_number_or_far_away_fails_the_course() {
     assert_trims_nothing(&mut rig);
 }
 
-/// The boundaries of the identification's hold (5 s, 250 cycles, from the probe's end), each
-/// still identifying, up to the error at its end.
+/// The cycles of 50 Hz in the identification's hold.
+fn hold_cycles(rig: &Rig) -> usize {
+    (rig.course.config().identify_hold_s * 50.0).round() as usize
+}
+
+/// The boundaries of the identification's hold (from the probe's end), each still
+/// identifying, up to the error at its end.
 fn hold_until_stopped(rig: &mut Rig) -> CourseError {
-    for _ in 1..250 {
+    for _ in 1..hold_cycles(rig) {
         rig.boundary().unwrap();
         assert_eq!(rig.course.stage(), Stage::Identifying);
     }
@@ -483,7 +490,7 @@ fn an_identification_later_than_the_hold_fails_the_course() {
     while !rig.boundary().unwrap().identify {}
     assert_eq!(
         hold_until_stopped(&mut rig),
-        CourseError::IdentifyLate { hold_s: 5.0 }
+        CourseError::IdentifyLate { hold_s: 8.0 }
     );
     assert_trims_nothing(&mut rig);
 }
