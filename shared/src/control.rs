@@ -13,15 +13,21 @@
 //! * `recipe save` writes only while the feeder is stopped (`ERR 60`); a failed write is `ERR 62`.
 //! * `recipe load` applies the slot like a `set`; an empty or unusable slot is `ERR 63` or
 //!   `ERR 64` and changes nothing.
+//! * `config set` edits a copy of the configuration the board runs, each value checked on its
+//!   own (`ERR 65`); a key that changes what the output does only while stopped (`ERR 60`).
+//!   `config save` checks the copy as a whole and stores it, only while stopped; the board runs
+//!   it from its next start (`restart`, only while stopped). A board that keeps no
+//!   configuration answers `ERR 66`.
 //!
 //! The [`Snapshot`] the transport passes in lags the requests it has just queued by up to a few
 //! cycles. The controller therefore remembers its last `start`, `stop` or `reset` until
 //! [`SETTLE_CYCLES`] cycles have begun: a `recipe save` right after `start` is refused, and a
 //! `start` right after `reset` is accepted.
 
+use crate::configuration::{record as config_record, BoardFacts, ConfigError, Configuration};
 use crate::error::Error;
 use crate::plan::TickPlan;
-use crate::protocol::{Command, Reply, ReplyError, Status};
+use crate::protocol::{Command, ConfigCommand, Reply, ReplyError, Status};
 use crate::recipe::{self, RecipeSlot, RecordError, RECIPE_SLOTS, RECORD_LEN};
 use crate::scheduler::Phase;
 use crate::settings::{Applied, Machine, Settings};
@@ -43,6 +49,22 @@ pub trait RecipeStore {
 
     /// Replaces the record in `slot`, leaving the other slots as they are.
     fn write(&mut self, slot: RecipeSlot, record: &[u8; RECORD_LEN]) -> Result<(), Self::Error>;
+}
+
+/// Persistent storage of the machine's configuration record
+/// ([`crate::configuration::record`]).
+pub trait ConfigurationStore {
+    /// Why the record could not be written.
+    type WriteError;
+
+    /// The stored record; erased storage reads as all `0xFF`.
+    fn read_configuration(&mut self) -> [u8; config_record::RECORD_LEN];
+
+    /// Replaces the stored record.
+    fn write_configuration(
+        &mut self,
+        record: &[u8; config_record::RECORD_LEN],
+    ) -> Result<(), Self::WriteError>;
 }
 
 /// The feeder as the control loop last published it.
@@ -73,6 +95,8 @@ pub enum Action {
     Stop,
     /// Acknowledge the latched fault.
     Reset,
+    /// Restart the board (the output is stopped).
+    Restart,
     /// Run this validated waveform, already planned on the machine's clock, and ramp length
     /// from the next cycle boundary.
     Configure {
@@ -111,6 +135,18 @@ enum Issued {
     Reset,
 }
 
+/// The configuration of a board that keeps one.
+#[derive(Debug, Clone, Copy)]
+struct Configured {
+    board: BoardFacts,
+    /// The image's compiled defaults.
+    defaults: Configuration,
+    /// What the board runs, from its start.
+    running: Configuration,
+    /// What `config set` has made of it.
+    edited: Configuration,
+}
+
 /// Executes commands; see the module documentation.
 #[derive(Debug, Clone)]
 pub struct Controller {
@@ -118,15 +154,46 @@ pub struct Controller {
     applied: Applied,
     /// The last motion request and the snapshot's cycle count when it was issued.
     issued: Option<(Issued, u64)>,
+    configured: Option<Configured>,
 }
 
 impl Controller {
-    /// A controller for `machine` starting from `settings`, which must be valid on it.
+    /// A controller for `machine` starting from `settings`, which must be valid on it, on a board
+    /// that keeps no configuration.
     pub fn new(machine: Machine, settings: Settings) -> Result<Self, Error> {
         Ok(Controller {
             machine,
             applied: settings.validate(&machine)?,
             issued: None,
+            configured: None,
+        })
+    }
+
+    /// A controller for `board` running `configuration` (which must hold on it), starting from
+    /// its start-up settings; `defaults` are the image's compiled ones, for `config defaults`.
+    pub fn configured(
+        board: BoardFacts,
+        defaults: Configuration,
+        configuration: Configuration,
+    ) -> Result<Self, ConfigError> {
+        configuration.check(&board)?;
+        let machine = configuration.machine(&board);
+        let applied = configuration.startup.validate(&machine).map_err(|error| {
+            ConfigError::new(
+                crate::configuration::Key::startup(&configuration.startup),
+                crate::configuration::Problem::Startup(error),
+            )
+        })?;
+        Ok(Controller {
+            machine,
+            applied,
+            issued: None,
+            configured: Some(Configured {
+                board,
+                defaults,
+                running: configuration,
+                edited: configuration,
+            }),
         })
     }
 
@@ -141,7 +208,7 @@ impl Controller {
     }
 
     /// Answers one line from the [`crate::LineAssembler`]: a refused line gets its `ERR`.
-    pub fn handle<S: RecipeStore>(
+    pub fn handle<S: RecipeStore + ConfigurationStore>(
         &mut self,
         line: Result<Command, ReplyError>,
         snapshot: &Snapshot,
@@ -154,7 +221,7 @@ impl Controller {
     }
 
     /// Executes `command` given the feeder's `snapshot`.
-    pub fn execute<S: RecipeStore>(
+    pub fn execute<S: RecipeStore + ConfigurationStore>(
         &mut self,
         command: Command,
         snapshot: &Snapshot,
@@ -206,7 +273,26 @@ impl Controller {
                 Outcome::reply(Reply::recipe_list(&entries))
             }
             Command::Help => Outcome::reply(Reply::help()),
+            Command::Restart if !self.stopped(snapshot) => Outcome::error(ReplyError::NotStopped),
+            Command::Restart => Outcome {
+                reply: Reply::ok(format_args!("restarting")),
+                action: Action::Restart,
+            },
+            Command::Config(command) => {
+                let stopped = self.stopped(snapshot);
+                match self.configured.as_mut() {
+                    Some(configured) => Outcome::reply(configured.execute(command, stopped, store)),
+                    None => Outcome::error(ReplyError::NoConfiguration),
+                }
+            }
         }
+    }
+
+    /// The configuration the board runs, where it keeps one.
+    pub fn configuration(&self) -> Option<&Configuration> {
+        self.configured
+            .as_ref()
+            .map(|configured| &configured.running)
     }
 
     /// What `recipe list` shows for `slot`: the stored settings if they are usable here.
@@ -275,6 +361,43 @@ impl Controller {
             cycles: snapshot.cycles,
             closed_loop: snapshot.closed_loop,
             track: snapshot.track,
+        }
+    }
+}
+
+impl Configured {
+    /// One `config` command; `stopped` as [`Controller::stopped`] says.
+    fn execute<S: ConfigurationStore>(
+        &mut self,
+        command: ConfigCommand,
+        stopped: bool,
+        store: &mut S,
+    ) -> Reply {
+        match command {
+            ConfigCommand::List => Reply::config_list(&self.edited),
+            ConfigCommand::Get(key) => Reply::config_value(key, &self.edited),
+            ConfigCommand::Set(key, _) if key.changes_output() && !stopped => {
+                Reply::error(&ReplyError::NotStopped)
+            }
+            ConfigCommand::Set(key, value) => match key.set(&self.edited, value) {
+                Ok(edited) => {
+                    self.edited = edited;
+                    Reply::config_set(key, &self.edited)
+                }
+                Err(error) => Reply::error(&ReplyError::ConfigRefused(error)),
+            },
+            ConfigCommand::Save if !stopped => Reply::error(&ReplyError::NotStopped),
+            ConfigCommand::Save => match self.edited.check(&self.board) {
+                Err(error) => Reply::error(&ReplyError::ConfigRefused(error)),
+                Ok(()) => match store.write_configuration(&config_record::encode(&self.edited)) {
+                    Ok(()) => Reply::config_saved(self.edited != self.running),
+                    Err(_) => Reply::error(&ReplyError::StorageFailed),
+                },
+            },
+            ConfigCommand::Defaults => {
+                self.edited = self.defaults;
+                Reply::config_defaults()
+            }
         }
     }
 }

@@ -13,6 +13,7 @@
 #![warn(missing_debug_implementations)]
 
 pub mod closed_loop;
+pub mod configuration;
 pub mod control;
 pub mod drive;
 pub mod error;
@@ -31,14 +32,14 @@ pub mod supervisor;
 pub mod testing;
 pub mod waveform;
 
-pub use control::{Action, Controller, Outcome, RecipeStore, Snapshot};
+pub use control::{Action, ConfigurationStore, Controller, Outcome, RecipeStore, Snapshot};
 pub use drive::{
     DacCalibration, DacLevels, Direction, DriveError, PwmCalibration, PwmCommand, PwmLevels,
 };
 pub use error::{Error, Quantity};
 pub use model::{Friction, Regime, SteadyState};
 pub use plan::{CycleTicks, TickClock, TickPlan};
-pub use protocol::{Command, LineAssembler, Param, Reply, ReplyError, Status};
+pub use protocol::{Command, ConfigCommand, LineAssembler, Param, Reply, ReplyError, Status};
 pub use recipe::{RecipeSlot, RecordError};
 pub use scenario::{ScenarioError, ScenarioSetting};
 pub use scheduler::{Amplitude, Phase, Scheduler, Segment};

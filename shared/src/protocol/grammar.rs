@@ -5,6 +5,7 @@
 //! (`50 Hz`), that must be the documented one. A decimal comma (`0,6`) is refused as such.
 
 use super::refusal::ReplyError;
+use crate::configuration::{Key, KeyValue, ValueKind};
 use crate::number::{parse_length, split_decimal, LengthUnit};
 use crate::recipe::{RecipeSlot, RECIPE_SLOTS};
 use crate::settings::Setting;
@@ -31,8 +32,28 @@ pub enum Command {
     RecipeList,
     /// `reset`: clear a latched fault.
     Reset,
+    /// `config …`: the machine's configuration on the board.
+    Config(ConfigCommand),
+    /// `restart`: restart the board, which then runs the saved configuration.
+    Restart,
     /// `help`: the command summary.
     Help,
+}
+
+/// What `config` does.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ConfigCommand {
+    /// `config list`: every key with its value.
+    List,
+    /// `config get <key>`: one key.
+    Get(Key),
+    /// `config set <key> <value>`: change one key, checked on its own, not saved yet.
+    Set(Key, KeyValue),
+    /// `config save`: check the whole configuration and store it on the board.
+    Save,
+    /// `config defaults`: back to the compiled defaults, not saved yet.
+    Defaults,
 }
 
 /// A parameter that `get` reports and `set` changes.
@@ -142,6 +163,23 @@ pub fn parse(line: &str) -> Result<Command, ReplyError> {
             let param = param(words.next())?;
             Command::Set(setting(param, &mut words)?)
         }
+        Keyword::Config => {
+            let action = words.next().ok_or(ReplyError::MissingArgument {
+                what: "list, get, set, save or defaults",
+            })?;
+            Command::Config(
+                match lookup(action, &CONFIG_ACTIONS).ok_or(ReplyError::UnknownCommand)? {
+                    ConfigAction::List => ConfigCommand::List,
+                    ConfigAction::Get => ConfigCommand::Get(key(words.next())?),
+                    ConfigAction::Set => {
+                        let key = key(words.next())?;
+                        ConfigCommand::Set(key, key_value(key, &mut words)?)
+                    }
+                    ConfigAction::Save => ConfigCommand::Save,
+                    ConfigAction::Defaults => ConfigCommand::Defaults,
+                },
+            )
+        }
         Keyword::Recipe => {
             let action = words.next().ok_or(ReplyError::MissingArgument {
                 what: "save, load or list",
@@ -165,9 +203,10 @@ enum Keyword {
     Get,
     Set,
     Recipe,
+    Config,
 }
 
-const COMMANDS: [(&str, Keyword); 9] = [
+const COMMANDS: [(&str, Keyword); 11] = [
     ("start", Keyword::Ready(Command::Start)),
     ("stop", Keyword::Ready(Command::Stop)),
     ("status", Keyword::Ready(Command::Status)),
@@ -175,6 +214,8 @@ const COMMANDS: [(&str, Keyword); 9] = [
     ("set", Keyword::Set),
     ("recipe", Keyword::Recipe),
     ("reset", Keyword::Ready(Command::Reset)),
+    ("config", Keyword::Config),
+    ("restart", Keyword::Ready(Command::Restart)),
     ("help", Keyword::Ready(Command::Help)),
     ("?", Keyword::Ready(Command::Help)),
 ];
@@ -190,6 +231,23 @@ const RECIPE_ACTIONS: [(&str, RecipeAction); 3] = [
     ("save", RecipeAction::Save),
     ("load", RecipeAction::Load),
     ("list", RecipeAction::List),
+];
+
+#[derive(Clone, Copy)]
+enum ConfigAction {
+    List,
+    Get,
+    Set,
+    Save,
+    Defaults,
+}
+
+const CONFIG_ACTIONS: [(&str, ConfigAction); 5] = [
+    ("list", ConfigAction::List),
+    ("get", ConfigAction::Get),
+    ("set", ConfigAction::Set),
+    ("save", ConfigAction::Save),
+    ("defaults", ConfigAction::Defaults),
 ];
 
 fn lookup<T: Copy>(word: &str, table: &[(&str, T)]) -> Option<T> {
@@ -222,6 +280,48 @@ fn setting<'a>(
         Param::Feed => Setting::FeedMmps(number(value, words)?),
         Param::Ramp => Setting::RampCycles(whole(value, words, u16::MAX)?),
     })
+}
+
+fn key(word: Option<&str>) -> Result<Key, ReplyError> {
+    let word = word.ok_or(ReplyError::MissingArgument {
+        what: "a configuration key; config list shows them",
+    })?;
+    Key::from_keyword(word).ok_or(ReplyError::UnknownKey)
+}
+
+/// The value after `config set <key>`, typed as the key's kind.
+fn key_value<'a>(
+    key: Key,
+    words: &mut impl Iterator<Item = &'a str>,
+) -> Result<KeyValue, ReplyError> {
+    match key.kind() {
+        ValueKind::Number { units } => Ok(KeyValue::Number(number(
+            Value {
+                what: key.what(),
+                units,
+            },
+            words,
+        )?)),
+        ValueKind::Whole { max } => {
+            let value = Value {
+                what: key.what(),
+                units: &["counts", "cycles"],
+            };
+            Ok(KeyValue::Number(f64::from(whole(value, words, max)?)))
+        }
+        ValueKind::Switch { off, on } => {
+            let word = words
+                .next()
+                .ok_or(ReplyError::MissingArgument { what: key.what() })?;
+            if word.eq_ignore_ascii_case(off) {
+                Ok(KeyValue::Switch(false))
+            } else if word.eq_ignore_ascii_case(on) {
+                Ok(KeyValue::Switch(true))
+            } else {
+                Err(ReplyError::NotAChoice { what: key.what() })
+            }
+        }
+    }
 }
 
 fn slot<'a>(words: &mut impl Iterator<Item = &'a str>) -> Result<RecipeSlot, ReplyError> {

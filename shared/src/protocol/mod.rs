@@ -17,7 +17,7 @@ mod refusal;
 mod reply;
 
 pub use framing::LineAssembler;
-pub use grammar::{parse, Command, Param};
+pub use grammar::{parse, Command, ConfigCommand, Param};
 pub use limits::{MAX_LINE_BYTES, REPLY_CAPACITY};
 pub use refusal::ReplyError;
 pub use reply::{Reply, Status};

@@ -3,6 +3,7 @@
 use core::fmt;
 
 use super::limits::MAX_LINE_BYTES;
+use crate::configuration::ConfigError;
 use crate::error::Error;
 use crate::recipe::{RecipeSlot, RecordError};
 
@@ -22,6 +23,8 @@ pub enum ReplyError {
     UnexpectedArgument,
     /// 23: `get` or `set` names no parameter.
     UnknownParameter,
+    /// 23: `config get` or `config set` names no configuration key.
+    UnknownKey,
     /// 24: a word that should be a number is not one.
     BadNumber { what: &'static str },
     /// 24: a word that should be a number has a decimal comma (`0,6`).
@@ -30,6 +33,8 @@ pub enum ReplyError {
     NotFinite,
     /// 26: the unit after the number is not the documented one.
     WrongUnit { what: &'static str },
+    /// 29: the word after a switch's key is neither of its two words.
+    NotAChoice { what: &'static str },
     /// 27: a count or slot number has a fractional part.
     NotWholeNumber { what: &'static str },
     /// 28: a count or slot number lies outside `min..=max`.
@@ -40,6 +45,10 @@ pub enum ReplyError {
     },
     /// 40–58: the new parameters were refused by validation (one code per [`Error`] variant).
     Rejected(Error),
+    /// 65: a configuration value, or the configuration as a whole, was refused.
+    ConfigRefused(ConfigError),
+    /// 66: the board keeps no configuration.
+    NoConfiguration,
     /// 60: the command needs the feeder to be stopped.
     NotStopped,
     /// 61: a fault is latched; `reset` clears it.
@@ -62,12 +71,15 @@ impl ReplyError {
             ReplyError::UnknownCommand => 20,
             ReplyError::MissingArgument { .. } => 21,
             ReplyError::UnexpectedArgument => 22,
-            ReplyError::UnknownParameter => 23,
+            ReplyError::UnknownParameter | ReplyError::UnknownKey => 23,
             ReplyError::BadNumber { .. } | ReplyError::DecimalComma { .. } => 24,
             ReplyError::NotFinite => 25,
             ReplyError::WrongUnit { .. } => 26,
             ReplyError::NotWholeNumber { .. } => 27,
             ReplyError::OutOfRange { .. } => 28,
+            ReplyError::NotAChoice { .. } => 29,
+            ReplyError::ConfigRefused(_) => 65,
+            ReplyError::NoConfiguration => 66,
             ReplyError::Rejected(error) => rejected_code(error),
             ReplyError::NotStopped => 60,
             ReplyError::FaultLatched => 61,
@@ -129,6 +141,12 @@ impl fmt::Display for ReplyError {
             ReplyError::UnknownParameter => {
                 f.write_str("unknown parameter; use freq, duty, stroke, accel, feed or ramp")
             }
+            ReplyError::UnknownKey => {
+                f.write_str("unknown configuration key; config list shows them")
+            }
+            ReplyError::NotAChoice { what } => write!(f, "expected {}", what),
+            ReplyError::ConfigRefused(error) => write!(f, "{}; nothing changed", error),
+            ReplyError::NoConfiguration => f.write_str("this board keeps no configuration"),
             ReplyError::BadNumber { what } => write!(f, "not a number: expected {}", what),
             ReplyError::DecimalComma { what } => write!(
                 f,
@@ -151,7 +169,7 @@ impl fmt::Display for ReplyError {
                 f.write_str("a fault is latched; check status, then send reset")
             }
             ReplyError::StorageFailed => {
-                f.write_str("the recipe could not be written to flash; nothing changed")
+                f.write_str("the flash could not be written; nothing changed")
             }
             ReplyError::RecipeUnusable { slot, issue } => {
                 write!(f, "recipe {} not loaded: {}; nothing changed", slot, issue)

@@ -8,7 +8,8 @@ use super::grammar::Param;
 use super::limits::REPLY_CAPACITY;
 use super::refusal::ReplyError;
 use crate::closed_loop::{LoopReport, TrackReport};
-use crate::number::Fixed;
+use crate::configuration::{Configuration, Key, KeyValue, ValueKind};
+use crate::number::{Fixed, Significant};
 use crate::recipe::{RecipeSlot, RecordError, RECIPE_SLOTS};
 use crate::scheduler::Phase;
 use crate::settings::{Applied, Settings};
@@ -98,7 +99,9 @@ const fn fixed(param: Param, value: f64) -> Fixed {
 
 const HELP: &str = "commands: start | stop | status | get freq|duty|stroke|accel|feed|ramp | \
     set freq <Hz> | set duty <0.5..1> | set stroke <mm> | set accel <m/s2> | set feed <mm/s> | \
-    set ramp <cycles> | recipe save <0-7> | recipe load <0-7> | recipe list | reset | help";
+    set ramp <cycles> | recipe save <0-7> | recipe load <0-7> | recipe list | reset | \
+    config list | config get <key> | config set <key> <value> | config save | config defaults | \
+    restart | help";
 
 /// One reply line: `OK …` or `ERR <code> <explanation>`, printable ASCII, no terminator.
 ///
@@ -272,6 +275,51 @@ impl Reply {
         reply
     }
 
+    /// The reply to `config list`: `OK config <key>=<value> …`, every key the configuration
+    /// holds, in [`Key::ALL`]'s order.
+    pub fn config_list(configuration: &Configuration) -> Self {
+        let mut reply = Self::start("OK config");
+        for key in Key::ALL {
+            write_key(&mut reply, key, configuration);
+        }
+        reply
+    }
+
+    /// The reply to `config get <key>`: `OK <key>=<value>` (`none` for the start-up drive's key
+    /// the start-up settings do not hold).
+    pub fn config_value(key: Key, configuration: &Configuration) -> Self {
+        let mut reply = Self::start("OK");
+        if key.get(configuration).is_none() {
+            let _ = write!(reply, " {}=none", key.keyword());
+        }
+        write_key(&mut reply, key, configuration);
+        reply
+    }
+
+    /// The reply to an accepted `config set`: the key's new value, not saved yet.
+    pub fn config_set(key: Key, configuration: &Configuration) -> Self {
+        let mut reply = Self::config_value(key, configuration);
+        let _ = reply.write_str(" (not saved)");
+        reply
+    }
+
+    /// The reply to `config save`; `restart_applies` when the board runs another configuration.
+    pub fn config_saved(restart_applies: bool) -> Self {
+        Self::ok(format_args!(
+            "config saved{}",
+            if restart_applies {
+                "; restart to run it"
+            } else {
+                ""
+            }
+        ))
+    }
+
+    /// The reply to `config defaults`.
+    pub fn config_defaults() -> Self {
+        Self::ok(format_args!("config defaults (not saved)"))
+    }
+
     pub fn as_str(&self) -> &str {
         self.text.as_str()
     }
@@ -280,6 +328,28 @@ impl Reply {
     pub fn is_ok(&self) -> bool {
         self.text.starts_with("OK")
     }
+}
+
+/// ` <key>=<value>` if `configuration` holds the key.
+fn write_key(reply: &mut Reply, key: Key, configuration: &Configuration) {
+    let _ = match (key.get(configuration), key.kind()) {
+        (Some(KeyValue::Number(value)), _) => {
+            write!(reply, " {}={}", key.keyword(), Significant(value))
+        }
+        (
+            Some(KeyValue::Switch(on)),
+            ValueKind::Switch {
+                off: off_word,
+                on: on_word,
+            },
+        ) => write!(
+            reply,
+            " {}={}",
+            key.keyword(),
+            if on { on_word } else { off_word }
+        ),
+        _ => Ok(()),
+    };
 }
 
 impl fmt::Write for Reply {

@@ -5,15 +5,17 @@
 mod common;
 
 mod commands;
+mod configuration;
 mod recipes;
 mod rules;
 mod sequences;
 
+use feeder_shared::configuration::record as config_record;
 use feeder_shared::protocol;
 use feeder_shared::recipe::{RECIPE_SLOTS, RECORD_LEN};
 use feeder_shared::{
-    Action, Controller, Fault, Friction, Limits, Machine, Outcome, Phase, RecipeSlot, RecipeStore,
-    RunState, Settings, Snapshot, TickClock, WaveformSpec,
+    Action, ConfigurationStore, Controller, Fault, Friction, Limits, Machine, Outcome, Phase,
+    RecipeSlot, RecipeStore, RunState, Settings, Snapshot, TickClock, WaveformSpec,
 };
 
 /// The machine these tests validate on: 50–100 Hz, 200 m/s², 5 mm, μ = 0.3, a 1 MHz clock.
@@ -31,10 +33,11 @@ fn machine() -> Machine {
     }
 }
 
-/// Recipe records in RAM; `fail` makes every write fail.
-#[derive(Clone, PartialEq)]
+/// Recipe and configuration records in RAM; `fail` makes every write fail.
+#[derive(Debug, Clone, PartialEq)]
 struct Memory {
     records: [[u8; RECORD_LEN]; RECIPE_SLOTS],
+    configuration: [u8; config_record::RECORD_LEN],
     fail: bool,
 }
 
@@ -45,6 +48,7 @@ impl Memory {
     fn erased() -> Self {
         Memory {
             records: [[0xff; RECORD_LEN]; RECIPE_SLOTS],
+            configuration: [0xff; config_record::RECORD_LEN],
             fail: false,
         }
     }
@@ -62,6 +66,25 @@ impl RecipeStore for Memory {
             return Err(WriteFailed);
         }
         self.records[slot.index()] = *record;
+        Ok(())
+    }
+}
+
+impl ConfigurationStore for Memory {
+    type WriteError = WriteFailed;
+
+    fn read_configuration(&mut self) -> [u8; config_record::RECORD_LEN] {
+        self.configuration
+    }
+
+    fn write_configuration(
+        &mut self,
+        record: &[u8; config_record::RECORD_LEN],
+    ) -> Result<(), WriteFailed> {
+        if self.fail {
+            return Err(WriteFailed);
+        }
+        self.configuration = *record;
         Ok(())
     }
 }

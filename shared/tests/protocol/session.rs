@@ -72,6 +72,7 @@ impl Controller {
                     Err(issue) => Reply::error(&ReplyError::RecipeUnusable { slot, issue }),
                 }
             }
+            Command::Config(_) | Command::Restart => Reply::error(&ReplyError::NoConfiguration),
             Command::RecipeList => {
                 let entries: [_; RECIPE_SLOTS] = std::array::from_fn(|index| {
                     recipe::decode(&self.flash[index], RecipeSlot::new(index as u8).unwrap())
