@@ -128,3 +128,67 @@ fn check_event_stream(log: &[String]) {
         "expected a plan per accepted change, saw {plans}"
     );
 }
+
+/// The configuration saved on the board is what it runs after a restart and after the emulation
+/// starts again with the same flash; a corrupt record is refused by name and the board runs the
+/// compiled defaults.
+#[test]
+#[ignore = "needs the QEMU firmware; run by cargo xtask test"]
+fn a_saved_configuration_survives_a_restart_and_a_power_cycle() {
+    let flash = tempfile::tempdir().expect("a directory for the board's flash");
+    let mut emulator = Emulator::launch_in(&console_image(), Vec::new(), flash.path());
+    let mut console = emulator.connect();
+    console.expect("config get start_freq_hz", "OK start_freq_hz=50");
+    console.expect(
+        "config set start_freq_hz 60",
+        "OK start_freq_hz=60 (not saved)",
+    );
+    console.expect(
+        "config save",
+        "ERR 65 start_stroke_mm: the start-up settings are refused: stroke 0.0025 m exceeds",
+    );
+    console.expect(
+        "config set start_freq_hz 55",
+        "OK start_freq_hz=55 (not saved)",
+    );
+    console.expect("config set dac_zero 2050", "OK dac_zero=2050 (not saved)");
+    console.expect("config save", "OK config saved; restart to run it");
+    console.expect("get freq", "OK freq_hz=50");
+    console.expect("restart", "OK restarting");
+    drop(console);
+    let mut console = emulator.connect();
+    console.expect("get freq", "OK freq_hz=55");
+    console.expect("config get dac_zero", "OK dac_zero=2050");
+    drop(console);
+    let log = emulator.shut_down();
+    assert!(
+        log.iter()
+            .any(|line| line.contains("configuration: the one saved on the board")),
+        "{}",
+        log.join("\n")
+    );
+
+    let mut emulator = Emulator::launch_in(&console_image(), Vec::new(), flash.path());
+    let mut console = emulator.connect();
+    console.expect("get freq", "OK freq_hz=55");
+    console.expect("config save", "OK config saved");
+    drop(console);
+    emulator.shut_down();
+
+    let file = flash.path().join("feeder-flash.bin");
+    let mut bytes = std::fs::read(&file).expect("the flash file");
+    bytes[20] ^= 0x01;
+    std::fs::write(&file, &bytes).expect("the flash file is written");
+    let mut emulator = Emulator::launch_in(&console_image(), Vec::new(), flash.path());
+    let mut console = emulator.connect();
+    console.expect("get freq", "OK freq_hz=50");
+    drop(console);
+    let log = emulator.shut_down();
+    assert!(
+        log.iter().any(|line| line.contains(
+            "configuration: as compiled, the saved one is not used: corrupt record: CRC"
+        )),
+        "{}",
+        log.join("\n")
+    );
+}

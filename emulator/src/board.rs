@@ -24,14 +24,21 @@ pub struct Board {
 impl Board {
     /// Starts `elf` under QEMU with the scenario words and UART0 on `serial`, and `defmt-print`
     /// on QEMU's standard output; the decoded log goes to `decoded` (with [`Stdio::piped`], take
-    /// it with [`Board::decoded_log`]).
+    /// it with [`Board::decoded_log`]). QEMU runs in `dir`, where the console image keeps its
+    /// flash file (`feeder-flash.bin`): a board started again in the same directory finds what
+    /// the last one saved.
     pub fn start<S: AsRef<str>>(
         elf: &Path,
         scenario: &[S],
         serial: Serial,
         decoded: Stdio,
+        dir: &Path,
     ) -> Result<Self, LaunchError> {
-        Self::spawn(command(elf, scenario, serial), elf, decoded)
+        // QEMU runs elsewhere: the image's path must not depend on the working directory.
+        let elf = std::path::absolute(elf).map_err(LaunchError::Image)?;
+        let mut emulator = command(&elf, scenario, serial);
+        emulator.current_dir(dir);
+        Self::spawn(emulator, &elf, decoded)
     }
 
     /// Starts the `cosim` image `elf` as [`Board::start`] does, in lockstep with `plant`: QEMU
@@ -45,7 +52,7 @@ impl Board {
         plant: P,
     ) -> Result<(Self, PlantThread<P>), LaunchError> {
         // QEMU runs elsewhere: the image's path must not depend on the working directory.
-        let elf = std::path::absolute(elf).map_err(LaunchError::Plant)?;
+        let elf = std::path::absolute(elf).map_err(LaunchError::Image)?;
         let link = PlantThread::start(plant).map_err(LaunchError::Plant)?;
         let mut emulator = command(&elf, scenario, serial);
         emulator.current_dir(link.dir());
@@ -148,7 +155,13 @@ pub fn run_to_end<S: AsRef<str>>(
     scenario: &[S],
     limit: Duration,
 ) -> Result<Run, LaunchError> {
-    let board = Board::start(elf, scenario, Serial::None, Stdio::piped())?;
+    let board = Board::start(
+        elf,
+        scenario,
+        Serial::None,
+        Stdio::piped(),
+        &std::env::temp_dir(),
+    )?;
     run_board(board, limit)
 }
 

@@ -25,6 +25,8 @@ pub enum LaunchError {
     Timeout { limit: Duration },
     /// The plant link's FIFOs could not be made, or the link failed on the host's side.
     Plant(io::Error),
+    /// The firmware image's path could not be made absolute.
+    Image(io::Error),
 }
 
 impl fmt::Display for LaunchError {
@@ -37,6 +39,9 @@ impl fmt::Display for LaunchError {
             }
             LaunchError::Log(source) => write!(f, "cannot read the decoded log: {source}"),
             LaunchError::Plant(source) => write!(f, "the plant link failed: {source}"),
+            LaunchError::Image(source) => {
+                write!(f, "cannot resolve the firmware image's path: {source}")
+            }
             LaunchError::Timeout { limit } => {
                 write!(
                     f,
@@ -53,7 +58,8 @@ impl std::error::Error for LaunchError {
             LaunchError::Start { source, .. }
             | LaunchError::Wait { source, .. }
             | LaunchError::Log(source)
-            | LaunchError::Plant(source) => Some(source),
+            | LaunchError::Plant(source)
+            | LaunchError::Image(source) => Some(source),
             LaunchError::NoOutput { .. } | LaunchError::Timeout { .. } => None,
         }
     }

@@ -1,62 +1,38 @@
 //! Default parameters of the feeder, in one place. Units are in the names.
 
-use feeder_shared::drive::MACHINE_LIMITS;
-use feeder_shared::{DacCalibration, Limits, Settings, WaveformSpec};
+use feeder_shared::configuration::{Configuration, OutputKind};
 
-/// The operator's settings at power-up: shared's defaults ([`Settings::DEFAULT`]), which a console
-/// `set` or `recipe load` replaces.
-pub const SETTINGS: Settings = Settings::DEFAULT;
-
-/// Waveform at power-up, from [`SETTINGS`].
-pub const WAVEFORM: WaveformSpec = SETTINGS.spec();
-
-/// Cycles over which soft start and soft stop ramp the amplitude at power-up, from [`SETTINGS`].
-pub const RAMP_CYCLES: u16 = SETTINGS.ramp_cycles;
-
-/// What this machine can do ([`MACHINE_LIMITS`], which the host simulator holds its runs to
-/// too); every waveform is validated against it.
-pub const LIMITS: Limits = MACHINE_LIMITS;
-
-/// Coulomb friction between the plate and the parts (`Friction::CONFIGURED`, μ = 0.3): the
-/// feed-rate model behind `status` and `set feed` on the console, and the closed loop's
-/// compensation of the feed.
-pub const FRICTION: feeder_shared::Friction = feeder_shared::Friction::CONFIGURED;
-
-/// Track control (`ports::PartSensor`): the barrier blocked for 0.5 s without a break means the
-/// track is full and the feeder pauses; clear for 1 s, the track has room and it feeds again.
-pub const TRACK: feeder_shared::closed_loop::TrackConfig =
-    feeder_shared::closed_loop::TrackConfig {
-        full_after_s: 0.5,
-        empty_after_s: 1.0,
-    };
-
-/// Calibration of the analog driver input (see [`DacCalibration::DEFAULT`]).
-pub const DAC: DacCalibration = DacCalibration::DEFAULT;
-
-// No level the machine's limits allow leaves the DAC's linear range.
-const _: () = assert!(LIMITS.max_accel_mps2 <= DAC.linear_limit_mps2());
-
-/// In a build with the encoder, where the closed loop runs, the peak acceleration the DAC's linear
-/// range reaches: every waveform must leave the loop its room below it
-/// (`Machine::loop_linear_mps2`).
-pub const LOOP_LINEAR_MPS2: Option<f64> = if cfg!(feature = "encoder") {
-    Some(DAC.linear_limit_mps2())
-} else {
-    None
+/// The compiled defaults of every per-machine setting: shared's
+/// ([`Configuration::DEFAULT`]), with the closed loop on where the image has the encoder. The
+/// board runs the configuration saved on it instead (`crate::configured`), which the console's
+/// `config` commands edit; `config defaults` comes back to these.
+pub const CONFIGURATION: Configuration = Configuration {
+    closed_loop: cfg!(feature = "encoder"),
+    ..Configuration::DEFAULT
 };
 
-/// Calibration of the PWM driver input (see `PwmCalibration::DEFAULT`).
-#[cfg(feature = "output-pwm")]
-pub const PWM: feeder_shared::PwmCalibration = feeder_shared::PwmCalibration::DEFAULT;
+/// The output stage this image drives.
+pub const OUTPUT: OutputKind = if cfg!(feature = "output-pwm") {
+    OutputKind::Pwm
+} else {
+    OutputKind::Dac
+};
+
+// No level the default limits allow leaves the default output's linear range.
+const _: () = assert!(
+    CONFIGURATION.limits.max_accel_mps2 <= CONFIGURATION.linear_limit_mps2(OUTPUT)
+);
 
 /// PWM carrier frequency; it is also the tick clock of the segments in PWM mode.
 #[cfg(feature = "output-pwm")]
 pub const PWM_FREQUENCY_HZ: u32 = 20_000;
 
 /// The longest the control loop may go without a beat before the monitor stops feeding the
-/// watchdog: twice the longest segment it waits for, an idle period at the lowest frequency
-/// (rounded up to whole monitor periods).
-pub const CONTROL_PROGRESS_WINDOW_US: u64 = (2.0e6 / LIMITS.min_frequency_hz) as u64;
+/// watchdog on a machine whose lowest frequency is `min_frequency_hz`: twice the longest segment
+/// it waits for, an idle period at that frequency (rounded up to whole monitor periods).
+pub fn control_progress_window_us(min_frequency_hz: f64) -> u64 {
+    (2.0e6 / min_frequency_hz) as u64
+}
 
 /// How often the control loop beats while parked (invalid settings): well within the window.
 pub const PARK_HEARTBEAT_MS: u64 = 10;

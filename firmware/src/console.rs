@@ -10,30 +10,36 @@
 use defmt::{error, info, warn};
 use embedded_io_async::{Read, Write};
 use feeder_shared::{
-    Action, Controller, LineAssembler, Machine, RecipeStore, Snapshot, SupervisorEvent, TickClock,
+    Action, ConfigurationStore, Controller, LineAssembler, RecipeStore, Snapshot, SupervisorEvent,
+    TickClock,
 };
 
 use crate::app::regulate::probe_step;
-use crate::config;
 use crate::mailbox::{ReadyPlan, NEXT_PLAN, REQUESTS};
-use crate::status;
+use crate::{config, configured, status};
 
 /// Bytes taken from the port per read.
 const READ_CHUNK_BYTES: usize = 32;
 
-/// Serves the console on `port` for good; `clock` is the output's tick clock, on which every new
-/// waveform must be representable. Returns only if the power-up settings are refused.
-pub async fn serve<P: Read + Write, S: RecipeStore>(mut port: P, mut recipes: S, clock: TickClock) {
-    let machine = Machine {
-        limits: config::LIMITS,
-        friction: config::FRICTION,
-        clock,
-        loop_linear_mps2: config::LOOP_LINEAR_MPS2,
-    };
-    let mut controller = match Controller::new(machine, config::SETTINGS) {
+/// Serves the console on `port` for good, with the configuration and the recipes in `store`;
+/// `clock` is the output's tick clock, on which every new waveform must be representable.
+/// Returns only if the configuration the board runs is refused.
+pub async fn serve<P: Read + Write, S: RecipeStore + ConfigurationStore>(
+    mut port: P,
+    mut store: S,
+    clock: TickClock,
+) {
+    let mut controller = match Controller::configured(
+        configured::facts(clock),
+        config::CONFIGURATION,
+        configured::get(),
+    ) {
         Ok(controller) => controller,
         Err(err) => {
-            error!("console disabled: power-up settings refused: {}", err);
+            error!(
+                "console disabled: the configuration is refused: {}",
+                defmt::Display2Format(&err)
+            );
             return;
         }
     };
@@ -53,12 +59,13 @@ pub async fn serve<P: Read + Write, S: RecipeStore>(mut port: P, mut recipes: S,
             let Some(line) = assembler.push(byte) else {
                 continue;
             };
-            let outcome = controller.handle(line, &snapshot(), &mut recipes);
+            let outcome = controller.handle(line, &snapshot(), &mut store);
             match outcome.action {
                 Action::None => {}
                 Action::Start => REQUESTS.send(SupervisorEvent::StartRequested).await,
                 Action::Stop => REQUESTS.send(SupervisorEvent::StopRequested).await,
                 Action::Reset => REQUESTS.send(SupervisorEvent::ResetRequested).await,
+                Action::Restart => {}
                 Action::Configure {
                     spec,
                     plan,
@@ -75,6 +82,12 @@ pub async fn serve<P: Read + Write, S: RecipeStore>(mut port: P, mut recipes: S,
             let sent = port.write_all(outcome.reply.as_str().as_bytes()).await;
             if sent.is_err() || port.write_all(b"\r\n").await.is_err() {
                 warn!("console: transmit error, reply lost");
+            }
+            if outcome.action == Action::Restart {
+                // The reply is out first: the operator sees it before the board goes.
+                let _ = port.flush().await;
+                info!("restart: the board restarts with its saved configuration");
+                cortex_m::peripheral::SCB::sys_reset();
             }
         }
     }

@@ -12,7 +12,7 @@ use feeder_shared::settings::plan_waveform;
 use feeder_shared::{Error, SupervisorEvent, TickClock, TickPlan, WaveformSpec};
 
 use crate::app::regulate::probe_step;
-use crate::config;
+use crate::configured;
 
 /// Operator requests, taken in order at the control loop's next edge: the supervisor's operator
 /// events (`ButtonPressed`, `StartRequested`, `StopRequested`, `ResetRequested`).
@@ -36,12 +36,13 @@ pub struct ReadyPlan {
 }
 
 impl ReadyPlan {
-    /// Validates `spec` against the machine's limits and, in a build with the encoder (where the
-    /// closed loop runs), against the room the loop keeps in the DAC's linear range; plans it
-    /// on the output's `clock`.
+    /// Validates `spec` against the configured machine's limits and, where the closed loop
+    /// runs, against the room the loop keeps in the output's linear range; plans it on the
+    /// output's `clock`.
     pub fn new(clock: TickClock, spec: &WaveformSpec, ramp_cycles: u16) -> Result<Self, Error> {
+        let machine = configured::machine(clock);
         let (waveform, plan) =
-            plan_waveform(*spec, &config::LIMITS, config::LOOP_LINEAR_MPS2, clock)?;
+            plan_waveform(*spec, &machine.limits, machine.loop_linear_mps2, clock)?;
         info!(
             "plan: {=f64} Hz ({=u32} ticks of {=u32} Hz), d = {=f64}, a_max = {=f64} m/s², \
              x_max = {=f64} m, drift bound {=f64} m",

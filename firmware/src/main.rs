@@ -10,6 +10,7 @@
 mod app;
 mod board;
 mod config;
+mod configured;
 #[cfg(feature = "console")]
 mod console;
 mod fault;

@@ -1,12 +1,10 @@
 //! The output stage as the application sees it: a timer that starts each segment in hardware,
 //! with the next segment preloaded by software while the current one plays.
 
+use feeder_shared::configuration::Configuration;
 #[cfg(any(feature = "board-qemu", not(feature = "output-pwm")))]
-use feeder_shared::DacLevels;
+use feeder_shared::{DacCalibration, DacLevels};
 use feeder_shared::{DriveError, Segment, TickClock};
-
-#[cfg(any(feature = "board-qemu", not(feature = "output-pwm")))]
-use crate::config;
 
 /// A segment could not be prepared before its edge: the output timing is lost.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
@@ -56,11 +54,12 @@ impl<T: Copy> TrimmedLevels<T> {
     }
 }
 
-/// The DAC codes of a stage that drives [`config::DAC`]: the plan's levels at the peak
-/// acceleration set last and the closed loop's trimmed cycle, for the DAC stage and the
-/// emulated one alike.
+/// The DAC codes of a stage that drives a DAC: the plan's levels at the peak acceleration set
+/// last and the closed loop's trimmed cycle, for the DAC stage and the emulated one alike.
 #[cfg(any(feature = "board-qemu", not(feature = "output-pwm")))]
 pub struct DacCodes {
+    /// The driver input's calibration.
+    calibration: DacCalibration,
     /// The codes of the plan's levels; `None` (a refused acceleration): zero.
     levels: Option<DacLevels>,
     /// The codes of the cycle the closed loop trimmed last.
@@ -69,28 +68,43 @@ pub struct DacCodes {
 
 #[cfg(any(feature = "board-qemu", not(feature = "output-pwm")))]
 impl DacCodes {
-    /// One DAC count, in m/s² (see [`SegmentOutput::level_step_mps2`]).
-    pub const LEVEL_STEP_MPS2: f64 = 1.0 / config::DAC.counts_per_mps2;
-
     /// No levels yet: zero until [`DacCodes::set_peak_accel`].
-    pub const fn new() -> Self {
+    pub const fn new(calibration: DacCalibration) -> Self {
         Self {
+            calibration,
             levels: None,
             trimmed: None,
         }
     }
 
+    /// One DAC count, in m/s² (see [`SegmentOutput::level_step_mps2`]).
+    pub fn level_step_mps2(&self) -> f64 {
+        1.0 / self.calibration.counts_per_mps2
+    }
+
+    /// The code of zero acceleration.
+    pub const fn zero_code(&self) -> u16 {
+        self.calibration.zero_code
+    }
+
+    /// See [`SegmentOutput::calibrate`]: no levels until the next
+    /// [`DacCodes::set_peak_accel`].
+    pub fn calibrate(&mut self, calibration: DacCalibration) {
+        *self = Self::new(calibration);
+    }
+
     /// See [`SegmentOutput::set_peak_accel`].
     pub fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
         self.levels = None;
-        self.levels = Some(config::DAC.levels(peak_accel_mps2)?);
+        self.levels = Some(self.calibration.levels(peak_accel_mps2)?);
         Ok(())
     }
 
     /// See [`SegmentOutput::trim`].
     pub fn trim(&mut self, trimmed: &TrimmedCycle) -> Result<(), DriveError> {
+        let calibration = self.calibration;
         self.trimmed = Some(TrimmedLevels::convert(trimmed, |accel_mps2| {
-            config::DAC.code(accel_mps2)
+            calibration.code(accel_mps2)
         })?);
         Ok(())
     }
@@ -103,7 +117,7 @@ impl DacCodes {
                 .of(segment)
                 .unwrap_or_else(|| levels.code(segment.level, segment.amplitude)),
             (None, Some(levels)) => levels.code(segment.level, segment.amplitude),
-            (_, None) => config::DAC.zero_code,
+            (_, None) => self.calibration.zero_code,
         }
     }
 }
@@ -119,6 +133,11 @@ pub trait SegmentOutput {
 
     /// The smallest step of a level (one DAC count, one PWM count), in m/s².
     fn level_step_mps2(&self) -> f64;
+
+    /// Takes the driver input's calibration from `configuration`, once at power-up before
+    /// anything plays: the output goes to its zero, and the safe state's store of the command
+    /// writes that zero from now on.
+    fn calibrate(&mut self, configuration: &Configuration);
 
     /// Recomputes the output levels for plans with this peak acceleration. Segments already
     /// playing or preloaded keep their values. On error the stage outputs zero until a valid

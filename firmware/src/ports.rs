@@ -3,10 +3,13 @@
 //! A board names the types of its parts in one [`Parts`] implementation and hands the parts over
 //! as a [`Board`]; the fault handlers make its safe state from its table of [`RegisterWrite`]s.
 
+use core::sync::atomic::{AtomicU32, Ordering};
+
 use embassy_executor::SendSpawner;
 use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_hal_async::digital::Wait;
 use feeder_shared::closed_loop::PositionSample;
+use feeder_shared::configuration::Configuration;
 use feeder_shared::TickClock;
 
 use crate::output::SegmentOutput;
@@ -63,6 +66,11 @@ pub trait Watchdog {
 
 /// An operator besides the button: a serial console or a script.
 pub trait Operator {
+    /// The configuration the board runs, for an output timed by `clock`: the one saved in the
+    /// operator's store ([`crate::configured::at_power_up`]), or the compiled defaults where it
+    /// keeps none. Called once at power-up, before anything plays.
+    fn load_configuration(&mut self, clock: TickClock) -> Configuration;
+
     /// Spawns the operator's task on `spawner`; it plans every waveform on the output's `clock`.
     fn spawn(self, spawner: SendSpawner, clock: TickClock);
 }
@@ -72,8 +80,6 @@ pub trait Operator {
 pub trait PositionSensor: Send {
     /// False for a board without a sensor: the closed loop is not run at all.
     const PRESENT: bool;
-    /// Metres per count.
-    const RESOLUTION_M: f64;
     /// Moves the positions sampled up to and including `tick` (the output's actual tick, a
     /// cycle start the output has begun) into `out`, oldest first, the one at `tick` last, and
     /// returns how many; those that do not fit are dropped, the oldest first.
@@ -89,7 +95,6 @@ pub struct NoSensor;
 
 impl PositionSensor for NoSensor {
     const PRESENT: bool = false;
-    const RESOLUTION_M: f64 = 0.0;
 
     fn take_until(&mut self, _tick: u64, _out: &mut [PositionSample]) -> usize {
         0
@@ -117,11 +122,34 @@ impl PartSensor for NoPartSensor {
 }
 
 /// One 32-bit store of a board's safe state, made by the HardFault entry before it touches the
-/// stack (see `crate::fault`).
+/// stack (see `crate::fault`). The value of the store that zeroes the command is the configured
+/// zero code, set once at power-up ([`RegisterWrite::set`]) before any task runs.
 #[repr(C)]
 pub struct RegisterWrite {
     pub address: u32,
-    pub value: u32,
+    value: AtomicU32,
+}
+
+impl RegisterWrite {
+    pub const fn new(address: u32, value: u32) -> Self {
+        Self {
+            address,
+            value: AtomicU32::new(value),
+        }
+    }
+
+    /// Stores `value` from now on.
+    #[cfg_attr(
+        all(feature = "board-g474", feature = "output-pwm"),
+        expect(dead_code, reason = "the PWM stage's zero is no duty: nothing to set")
+    )]
+    pub fn set(&self, value: u32) {
+        self.value.store(value, Ordering::Relaxed)
+    }
+
+    pub fn value(&self) -> u32 {
+        self.value.load(Ordering::Relaxed)
+    }
 }
 
 /// Makes `writes` in their order and waits until they are done.
@@ -129,7 +157,7 @@ pub fn write_all(writes: &[RegisterWrite]) {
     for write in writes {
         // SAFETY: a board's safe-state table holds its output registers and the values that
         // stop them.
-        unsafe { core::ptr::write_volatile(write.address as *mut u32, write.value) }
+        unsafe { core::ptr::write_volatile(write.address as *mut u32, write.value()) }
     }
     cortex_m::asm::dsb();
 }

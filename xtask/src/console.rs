@@ -33,6 +33,15 @@ fn log_path() -> PathBuf {
     root().join("target").join("console-run.log")
 }
 
+/// Where the emulated board keeps its flash file (`feeder-flash.bin`: the saved configuration
+/// and recipes), from one session to the next, as a board keeps its flash.
+fn board_dir() -> Result<PathBuf> {
+    let dir = root().join("target").join("emulated-board");
+    std::fs::create_dir_all(&dir)
+        .map_err(|error| format!("cannot create {}: {error}", dir.display()))?;
+    Ok(dir)
+}
+
 /// Builds and runs everything, hands the terminal to `feeder-ctl`, then checks the log.
 pub fn console() -> Result {
     tools::ensure_linker()?;
@@ -80,8 +89,14 @@ impl Feeder {
         let port = free_port()?;
         let file = File::create(log)
             .map_err(|error| format!("cannot create {}: {error}", log.display()))?;
-        let board = Board::start(elf, &[] as &[&str], Serial::Tcp { port }, Stdio::from(file))
-            .map_err(|error| error.to_string())?;
+        let board = Board::start(
+            elf,
+            &[] as &[&str],
+            Serial::Tcp { port },
+            Stdio::from(file),
+            &board_dir()?,
+        )
+        .map_err(|error| error.to_string())?;
         let mut feeder = Feeder { board, port };
         feeder.wait_for_port()?;
         Ok(feeder)

@@ -97,8 +97,14 @@ pub fn run(args: &RunArgs) -> Result {
             .arg(root().join("target").join("hil-run.svg"));
     }
     hil.args(&args.hil_flags).stdin(Stdio::piped());
-    let mut board = Board::start(&elf, &args.scenario, Serial::None, Stdio::piped())
-        .map_err(|error| error.to_string())?;
+    let mut board = Board::start(
+        &elf,
+        &args.scenario,
+        Serial::None,
+        Stdio::piped(),
+        &root().join("target"),
+    )
+    .map_err(|error| error.to_string())?;
     let log = board.decoded_log().map_err(|error| error.to_string())?;
     eprintln!("xtask: running {}", shown(&hil));
     let mut hil = hil

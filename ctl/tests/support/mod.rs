@@ -46,21 +46,39 @@ pub struct Emulator<S> {
     board: Board,
     log_thread: Option<JoinHandle<S>>,
     port: u16,
+    /// The board's own flash, erased at launch, where it was not given one.
+    _flash: Option<tempfile::TempDir>,
 }
 
 impl<S: LogSink> Emulator<S> {
-    /// Starts `elf` under QEMU with its serial port on a free loopback port and its decoded log
-    /// going to `sink`.
+    /// Starts `elf` under QEMU with its serial port on a free loopback port, its decoded log
+    /// going to `sink` and an erased flash of its own.
     pub fn launch(elf: &Path, sink: S) -> Self {
+        let flash = tempfile::tempdir().expect("a directory for the board's flash");
+        let mut emulator = Self::launch_in(elf, sink, flash.path());
+        emulator._flash = Some(flash);
+        emulator
+    }
+
+    /// Starts `elf` as [`Self::launch`] does, with the flash file in `dir`: what an earlier
+    /// board saved there is still there.
+    pub fn launch_in(elf: &Path, sink: S, dir: &Path) -> Self {
         let port = free_port();
-        let mut board = Board::start(elf, &[] as &[&str], Serial::Tcp { port }, Stdio::piped())
-            .unwrap_or_else(|error| panic!("the emulated board starts: {error}"));
+        let mut board = Board::start(
+            elf,
+            &[] as &[&str],
+            Serial::Tcp { port },
+            Stdio::piped(),
+            dir,
+        )
+        .unwrap_or_else(|error| panic!("the emulated board starts: {error}"));
         let decoded = board.decoded_log().expect("the decoded log is piped");
         let log_thread = thread::spawn(move || forward_lines(decoded, sink));
         Emulator {
             board,
             log_thread: Some(log_thread),
             port,
+            _flash: None,
         }
     }
 

@@ -16,16 +16,12 @@ use feeder_shared::{
 use super::monitor::{cycles, COST, HEARTBEAT};
 use super::regulate::{self, Boundary, Ruling, BOUNDARY, RULING};
 use crate::board;
-use crate::config;
+use crate::{config, configured};
 use crate::mailbox::{ReadyPlan, NEXT_PLAN, REQUESTS};
 use crate::output::{SegmentOutput, TrimmedCycle};
 use crate::ports::{Parts, PositionSensor};
 use crate::status::{self, Status};
 use crate::trace;
-
-/// The board has a position sensor: the control loop runs the closed loop's course
-/// (`super::regulate`). Known at compile time, so a board without one carries none of it.
-const CLOSED_LOOP: bool = <<board::Hardware as Parts>::Sensor as PositionSensor>::PRESENT;
 
 /// Runs the scheduler into the output stage and applies the supervisor's decisions.
 pub struct ControlLoop<O, E> {
@@ -44,6 +40,9 @@ pub struct ControlLoop<O, E> {
     loop_stopped: bool,
     /// The segment playing belongs to an idle period.
     idle: bool,
+    /// The closed loop's course runs (`super::regulate`): the board has a position sensor and
+    /// the configuration wants the loop.
+    closed_loop: bool,
 }
 
 impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
@@ -58,6 +57,8 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             trims: CycleTrims::NONE,
             loop_stopped: false,
             idle: true,
+            closed_loop: configured::get()
+                .loop_runs(<<board::Hardware as Parts>::Sensor as PositionSensor>::PRESENT),
         }
     }
 
@@ -72,8 +73,8 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
 
     /// The configured waveform planned on the output's clock, or `None` if it is refused.
     fn plan(&mut self) -> Option<TickPlan> {
-        let plan = match ReadyPlan::new(self.output.clock(), &config::WAVEFORM, config::RAMP_CYCLES)
-        {
+        let startup = configured::get().startup;
+        let plan = match ReadyPlan::new(self.output.clock(), &startup.spec(), startup.ramp_cycles) {
             Ok(ready) => ready.plan,
             Err(err) => {
                 error!("waveform refused: {}", err);
@@ -84,7 +85,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             error!("output calibration refused: {}", err);
             return None;
         }
-        trace::plan(0, &config::WAVEFORM, plan.clock_hz, config::RAMP_CYCLES);
+        trace::plan(0, &startup.spec(), plan.clock_hz, startup.ramp_cycles);
         Some(plan)
     }
 
@@ -101,11 +102,12 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
 
     /// One preload per edge; the status is published after it, while the segment plays.
     async fn run_plan(mut self, plan: TickPlan) -> ! {
-        let mut scheduler = Scheduler::new(plan, config::RAMP_CYCLES);
-        if CLOSED_LOOP {
+        let ramp_cycles = configured::get().startup.ramp_cycles;
+        let mut scheduler = Scheduler::new(plan, ramp_cycles);
+        if self.closed_loop {
             // The course settles the plate before every start from rest, then probes and
             // centres on held cycles.
-            scheduler.hold_step(regulate::probe_step(config::RAMP_CYCLES));
+            scheduler.hold_step(regulate::probe_step(ramp_cycles));
             scheduler.settle_before_start(regulate::settle_segments());
         }
         let mut queued = self.resync(&mut scheduler);
@@ -145,7 +147,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     /// the closed loop's fault stops the feeder at its end. Once the course has stopped, every
     /// start ends so after one cycle at the plan's levels, until a reset of the board.
     fn trim(&mut self, segment: &Segment, scheduler: &mut Scheduler) {
-        if !CLOSED_LOOP || !segment.starts_cycle() {
+        if !self.closed_loop || !segment.starts_cycle() {
             return;
         }
         let trims = match self.trims.for_cycle(segment, self.idle) {
@@ -248,7 +250,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
                 self.idle = idle;
                 self.apply_driver();
             }
-            if CLOSED_LOOP {
+            if self.closed_loop {
                 BOUNDARY.signal(Boundary {
                     begun: *playing,
                     ahead: scheduler.clone(),
@@ -256,7 +258,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
                 });
             }
         }
-        if CLOSED_LOOP {
+        if self.closed_loop {
             self.take_ruling(scheduler);
         }
         if playing.phase != self.phase {
@@ -276,7 +278,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         match scheduler.set_plan(ready.plan) {
             Ok(()) => {
                 scheduler.set_ramp_cycles(ready.ramp_cycles);
-                if CLOSED_LOOP && scheduler.held_step().is_some() {
+                if self.closed_loop && scheduler.held_step().is_some() {
                     // The course's hold for the new ramp length, as a course made for it holds.
                     scheduler.hold_step(ready.hold_step);
                 }

@@ -10,7 +10,7 @@ mod track;
 use defmt::unwrap;
 use embassy_executor::SendSpawner;
 
-use crate::board;
+use crate::{board, configured};
 use crate::output::SegmentOutput;
 use crate::ports::{Board, Operator, PartSensor, Parts, PositionSensor};
 use control::ControlLoop;
@@ -38,7 +38,7 @@ pub fn start(spawner: SendSpawner, board: Board<board::Hardware>) {
     if Barrier::PRESENT {
         spawner.spawn(unwrap!(track::track_task(board.part_sensor)));
     }
-    if Sensor::PRESENT {
+    if configured::get().loop_runs(Sensor::PRESENT) {
         spawner.spawn(unwrap!(regulate::regulate_task(
             board.sensor,
             level_step_mps2

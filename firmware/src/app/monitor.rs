@@ -8,7 +8,7 @@ use embassy_executor::SendSpawner;
 use embassy_time::{Duration, Ticker};
 
 use crate::board;
-use crate::config;
+use crate::{config, configured};
 use crate::ports::{Parts, Watchdog};
 
 /// The board's watchdog.
@@ -49,12 +49,15 @@ pub fn spawn(spawner: SendSpawner, control_spawner: SendSpawner, watchdog: Board
 ///
 /// The control loop beats at every segment start, so it may go a whole segment without one: the
 /// monitor stops feeding (and warns, once) only when it has not beaten for
-/// [`config::CONTROL_PROGRESS_WINDOW_US`]. Where the monitor runs above thread mode (see
+/// [`config::control_progress_window_us`] at the configured lowest frequency. Where the monitor runs above thread mode (see
 /// [`spawn`]), thread mode beats for it too.
 #[embassy_executor::task]
 async fn monitor_task(mut watchdog: BoardWatchdog) {
     let mut ticker = Ticker::every(Duration::from_micros(MONITOR_PERIOD_US));
-    let mut control = Progress::new(&HEARTBEAT, config::CONTROL_PROGRESS_WINDOW_US);
+    let mut control = Progress::new(
+        &HEARTBEAT,
+        config::control_progress_window_us(configured::get().limits.min_frequency_hz),
+    );
     let mut thread_mode = WATCHES_THREAD_MODE
         .then(|| Progress::new(&THREAD_HEARTBEAT, config::THREAD_PROGRESS_WINDOW_US));
     let mut periods = 0u32;

@@ -21,7 +21,7 @@ use feeder_shared::closed_loop::{
 use feeder_shared::{Scheduler, Segment};
 
 use crate::ports::PositionSensor;
-use crate::{config, status};
+use crate::{config, configured, status};
 
 /// The positions one boundary takes at most: a cycle at the lowest frequency sampled every
 /// 0.25 ms, with room to spare; older ones are dropped.
@@ -80,13 +80,14 @@ pub fn settle_segments() -> u16 {
 }
 
 /// The course for an output whose levels move in steps of `level_step_mps2`, with the feed
-/// compensated for the configured part within the DAC's linear range.
+/// compensated for the configured part within the output's linear range.
 fn course_config(level_step_mps2: f64) -> CourseConfig {
-    let config = CourseConfig::new(<Sensor as PositionSensor>::RESOLUTION_M, level_step_mps2);
-    match config::LOOP_LINEAR_MPS2 {
-        Some(linear_mps2) => config.with_feed(config::FRICTION.accel_mps2(), linear_mps2),
-        None => config,
-    }
+    let configuration = configured::get();
+    let config = CourseConfig::new(configuration.encoder.resolution_m, level_step_mps2);
+    config.with_feed(
+        configuration.friction().accel_mps2(),
+        configuration.linear_limit_mps2(config::OUTPUT),
+    )
 }
 
 type Sensor = <crate::board::Hardware as crate::ports::Parts>::Sensor;
@@ -95,7 +96,8 @@ type Sensor = <crate::board::Hardware as crate::ports::Parts>::Sensor;
 /// `level_step_mps2`.
 #[embassy_executor::task]
 pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
-    let mut course = Course::new(course_config(level_step_mps2), config::RAMP_CYCLES.max(1));
+    let ramp_cycles = configured::get().startup.ramp_cycles;
+    let mut course = Course::new(course_config(level_step_mps2), ramp_cycles.max(1));
     let mut samples = [PositionSample {
         tick: 0,
         position_m: 0.0,

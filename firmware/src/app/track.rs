@@ -10,14 +10,14 @@ use feeder_shared::SupervisorEvent;
 
 use crate::mailbox::REQUESTS;
 use crate::ports::PartSensor;
-use crate::{config, status};
+use crate::{configured, status};
 
 type Barrier = <crate::board::Hardware as crate::ports::Parts>::PartSensor;
 
 /// Reads the barrier at each change, and again when a state change falls due without one.
 #[embassy_executor::task]
 pub async fn track_task(mut barrier: Barrier) {
-    let mut track = Track::new(config::TRACK);
+    let mut track = Track::new(configured::get().track);
     let mut blocked = false;
     status::publish_track(track.report());
     loop {

@@ -171,7 +171,7 @@ impl Key {
                 " Hz",
                 "the lowest frequency in Hz",
                 HZ,
-                (1.0, 1000.0),
+                (10.0, 500.0),
                 true,
             ),
             Key::MaxFrequency => number(
@@ -179,7 +179,7 @@ impl Key {
                 " Hz",
                 "the highest frequency in Hz",
                 HZ,
-                (1.0, 1000.0),
+                (10.0, 500.0),
                 true,
             ),
             Key::MaxAccel => number(
@@ -239,7 +239,7 @@ impl Key {
                 " Hz",
                 "the start-up frequency in Hz",
                 HZ,
-                (1.0, 1000.0),
+                (10.0, 500.0),
                 false,
             ),
             Key::StartDuty => number(

@@ -121,9 +121,10 @@ impl Configuration {
         }
     }
 
-    /// The closed loop runs on `board`: it has an encoder and the configuration wants it.
-    pub const fn loop_runs(&self, board: &BoardFacts) -> bool {
-        board.encoder && self.closed_loop
+    /// The closed loop runs on a board with (`encoder`) or without an encoder: it needs one and
+    /// the configuration must want it.
+    pub const fn loop_runs(&self, encoder: bool) -> bool {
+        encoder && self.closed_loop
     }
 
     /// The peak acceleration the output's linear range reaches, m/s².
@@ -140,7 +141,7 @@ impl Configuration {
             limits: self.limits,
             friction: self.friction(),
             clock: board.clock,
-            loop_linear_mps2: if self.loop_runs(board) {
+            loop_linear_mps2: if self.loop_runs(board.encoder) {
                 Some(self.linear_limit_mps2(board.output))
             } else {
                 None

@@ -1,17 +1,18 @@
 //! The operator's serial console on LPUART1 (ST-LINK virtual COM port, 115200 8N1), with the
-//! recipes in flash (`--features console`).
+//! configuration and the recipes in flash (`--features console`).
 
 use defmt::{error, unwrap};
 use embassy_executor::SendSpawner;
 use embassy_stm32::flash::Flash;
+use feeder_shared::configuration::Configuration;
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
 use embassy_stm32::peripherals::{FLASH, LPUART1, PA2, PA3};
 use embassy_stm32::usart::{self, BufferedUart};
 use embassy_stm32::{bind_interrupts, Peri};
 use feeder_shared::TickClock;
 
-use super::recipes::FlashRecipes;
-use crate::ports;
+use super::flash_store::FlashStore;
+use crate::{configured, ports};
 
 bind_interrupts!(struct Irqs {
     LPUART1 => usart::BufferedInterruptHandler<LPUART1>;
@@ -22,12 +23,12 @@ const TX_BUFFER_BYTES: usize = 336;
 /// Bytes the console's receiver buffers while a reply is being composed.
 const RX_BUFFER_BYTES: usize = 128;
 
-/// The console's peripherals, handed to [`console_task`].
+/// The console's peripherals and the flash, handed to [`console_task`].
 pub struct Operator {
     lpuart: Peri<'static, LPUART1>,
     tx: Peri<'static, PA2>,
     rx: Peri<'static, PA3>,
-    flash: Peri<'static, FLASH>,
+    store: FlashStore,
 }
 
 impl Operator {
@@ -41,12 +42,16 @@ impl Operator {
             lpuart,
             tx,
             rx,
-            flash,
+            store: FlashStore::new(Flash::new_blocking(flash)),
         }
     }
 }
 
 impl ports::Operator for Operator {
+    fn load_configuration(&mut self, clock: TickClock) -> Configuration {
+        configured::at_power_up(&mut self.store, clock)
+    }
+
     fn spawn(self, spawner: SendSpawner, clock: TickClock) {
         spawner.spawn(unwrap!(console_task(self, clock)));
     }
@@ -77,6 +82,5 @@ async fn console_task(console: Operator, clock: TickClock) {
             return;
         }
     };
-    let recipes = FlashRecipes::new(Flash::new_blocking(console.flash));
-    crate::console::serve(port, recipes, clock).await
+    crate::console::serve(port, console.store, clock).await
 }

@@ -5,6 +5,7 @@ use embassy_stm32::mode::Blocking;
 use embassy_stm32::peripherals::{DAC1, PA4, PA8, PA9, TIM1, TIM2, TIM3};
 use embassy_stm32::timer::low_level::{Timer, TriggerSource};
 use embassy_stm32::{bind_interrupts, pac, triggers, Peri};
+use feeder_shared::configuration::Configuration;
 use feeder_shared::{DriveError, Segment, TickClock};
 
 use super::segment_timer::{SegmentTimer, UpdateInterrupt, CR1_STOPPED, EGR_UPDATE, MIN_SEGMENT_S};
@@ -48,25 +49,20 @@ impl DacStage {
     /// well. The trigger stays on: clearing TEN with a plain store would have to repeat every
     /// other bit of DAC_CR. Then TIM2 stops, with its update interrupt off. TIM1, which this image
     /// does not clock, is not stored to.
+    #[allow(
+        clippy::declare_interior_mutable_const,
+        reason = "copied once into the board's static table, whose zero code power-up sets"
+    )]
     pub const SAFE_STATE_WRITES: [RegisterWrite; 5] = [
         DRIVER_DISABLE,
-        RegisterWrite {
-            address: DAC1_DHR12R1,
-            value: config::DAC.zero_code as u32,
-        },
-        RegisterWrite {
-            address: TIM2_EGR,
-            value: EGR_UPDATE,
-        },
-        RegisterWrite {
-            address: TIM2_CR1,
-            value: CR1_STOPPED,
-        },
-        RegisterWrite {
-            address: TIM2_DIER,
-            value: 0,
-        },
+        RegisterWrite::new(DAC1_DHR12R1, config::CONFIGURATION.dac.zero_code as u32),
+        RegisterWrite::new(TIM2_EGR, EGR_UPDATE),
+        RegisterWrite::new(TIM2_CR1, CR1_STOPPED),
+        RegisterWrite::new(TIM2_DIER, 0),
     ];
+
+    /// The store of [`Self::SAFE_STATE_WRITES`] that writes the zero code.
+    const ZERO_CODE_WRITE: usize = 1;
 
     /// Takes the peripherals of both stages, so that the board builds either the same way; this
     /// one leaves TIM1, PA8 and PA9 in their reset state.
@@ -81,7 +77,7 @@ impl DacStage {
     ) -> Self {
         let mut dac = DacChannel::new_blocking(dac, pin);
         // Untriggered, the zero code reaches the pin at once.
-        dac.set(Value::Bit12Right(config::DAC.zero_code));
+        dac.set(Value::Bit12Right(config::CONFIGURATION.dac.zero_code));
         let trigger = <triggers::TIM2_TRGO as ChannelTrigger<DAC1>>::signal(&triggers::TIM2_TRGO);
         // The trigger selection can change only while the channel is disabled; the HAL has no
         // call for it on a blocking channel.
@@ -97,7 +93,7 @@ impl DacStage {
         Self {
             dac,
             timer: SegmentTimer::new(timer, edge_counter, TriggerSource::ITR1, Irqs),
-            codes: DacCodes::new(),
+            codes: DacCodes::new(config::CONFIGURATION.dac),
             queued_slack_ticks: None,
             playing_slack_ticks: None,
         }
@@ -110,7 +106,15 @@ impl SegmentOutput for DacStage {
     }
 
     fn level_step_mps2(&self) -> f64 {
-        DacCodes::LEVEL_STEP_MPS2
+        self.codes.level_step_mps2()
+    }
+
+    fn calibrate(&mut self, configuration: &Configuration) {
+        self.codes.calibrate(configuration.dac);
+        let zero_code = self.codes.zero_code();
+        super::SAFE_STATE_WRITES[Self::ZERO_CODE_WRITE].set(u32::from(zero_code));
+        self.dac.set(Value::Bit12Right(zero_code));
+        self.timer.forced_update();
     }
 
     fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
@@ -164,7 +168,7 @@ impl SegmentOutput for DacStage {
 
     fn halt(&mut self) {
         self.timer.stop();
-        self.dac.set(Value::Bit12Right(config::DAC.zero_code));
+        self.dac.set(Value::Bit12Right(self.codes.zero_code()));
         self.timer.forced_update();
     }
 

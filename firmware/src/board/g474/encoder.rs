@@ -3,7 +3,8 @@
 //!
 //! Assumed encoder: a linear scale with A/B square-wave outputs (3.3 V, or 5 V through a level
 //! shifter: PB6 and PB7 are 5 V tolerant) and a 4 µm signal period, counted on all four edges:
-//! [`RESOLUTION_M`] = 1 µm per count. The count is zero where the plate rests at power-up. TIM4's
+//! 1 µm per count, the configuration's default (`encoder_um`, and `encoder_dir` for an encoder
+//! that counts down when the plate moves forward). The count is zero where the plate rests at power-up. TIM4's
 //! 16-bit count is extended to `i32` by unwrapping, which holds as long as two readings in a row
 //! are less than 32 768 counts (32.8 mm, far beyond the plate's stroke) apart.
 //!
@@ -39,12 +40,10 @@ use embassy_stm32::Peri;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use feeder_shared::closed_loop::PositionSample;
+use feeder_shared::configuration::EncoderSetup;
 use feeder_shared::{Segment, TickClock};
 
 use crate::ports::PositionSensor;
-
-/// Metres per count: 1 µm (a 4 µm signal period counted on all four edges).
-pub const RESOLUTION_M: f64 = 1e-6;
 
 /// The interval between two samples.
 pub const SAMPLE_PERIOD_S: f64 = 250e-6;
@@ -202,11 +201,15 @@ pub struct Encoder {
     /// The last count read and its unwrapped value.
     last_count: u16,
     position_counts: i32,
+    /// How the counts become positions.
+    setup: EncoderSetup,
 }
 
 impl Encoder {
     /// Starts the encoder count and sets up the sampling for an output whose segment timer is
-    /// `S` and whose clock is `clock`; the samples start at the output's first restart.
+    /// `S` and whose clock is `clock`; the samples start at the output's first restart, and
+    /// count as `setup` says.
+    #[allow(clippy::too_many_arguments)]
     pub fn new<S: BasicInstance>(
         tim: Peri<'static, TIM4>,
         a: Peri<'static, PB6>,
@@ -215,6 +218,7 @@ impl Encoder {
         sample_dma: Peri<'static, DMA1_CH1>,
         capture_dma: Peri<'static, DMA1_CH2>,
         clock: TickClock,
+        setup: EncoderSetup,
     ) -> Self
     where
         DMA1_CH2: UpDma<S>,
@@ -269,6 +273,7 @@ impl Encoder {
             last_sample: 0,
             last_count,
             position_counts: 0,
+            setup,
         }
     }
 
@@ -278,7 +283,7 @@ impl Encoder {
             .position_counts
             .wrapping_add(i32::from(count.wrapping_sub(self.last_count) as i16));
         self.last_count = count;
-        (f64::from(self.position_counts) + 0.5) * RESOLUTION_M
+        self.setup.position_m(self.position_counts)
     }
 }
 
@@ -294,7 +299,6 @@ struct View {
 
 impl PositionSensor for Encoder {
     const PRESENT: bool = true;
-    const RESOLUTION_M: f64 = RESOLUTION_M;
 
     fn take_until(&mut self, tick: u64, out: &mut [PositionSample]) -> usize {
         let Some(view) = TIMELINE.lock(|timeline| {

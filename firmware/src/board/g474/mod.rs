@@ -16,7 +16,7 @@
 //! | encoder B (TIM4 CH2)        | PB7  | CN7 pin 21    |
 //!
 //! The operator's console runs on LPUART1 (115200 8N1), which the NUCLEO routes to the ST-LINK's
-//! virtual COM port; recipes live in flash ([`recipes`]).
+//! virtual COM port; the configuration and the recipes live in flash ([`flash_store`]).
 //!
 //! With `--features encoder` the closed loop runs on a quadrature encoder on TIM4, sampled by DMA
 //! on TIM6 and on the segment timer's update (`encoder`); TIM6 and DMA1 channels 1 and 2 are then
@@ -40,6 +40,7 @@ mod dac;
 mod drill;
 #[cfg(feature = "encoder")]
 mod encoder;
+mod flash_store;
 mod light_barrier;
 #[cfg(feature = "console")]
 #[path = "console.rs"]
@@ -50,8 +51,6 @@ mod operator;
 mod pins;
 #[cfg(feature = "output-pwm")]
 mod pwm;
-#[cfg(feature = "console")]
-mod recipes;
 mod segment_timer;
 mod setup;
 mod watchdog;

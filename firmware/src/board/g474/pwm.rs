@@ -10,7 +10,10 @@ use embassy_stm32::timer::low_level::{OutputCompareMode, Timer, TriggerSource};
 use embassy_stm32::timer::simple_pwm::PwmPin;
 use embassy_stm32::timer::{Ch1, Ch2, Channel};
 use embassy_stm32::{bind_interrupts, pac, Peri};
-use feeder_shared::{Direction, DriveError, PwmCommand, PwmLevels, Segment, TickClock};
+use feeder_shared::configuration::Configuration;
+use feeder_shared::{
+    Direction, DriveError, PwmCalibration, PwmCommand, PwmLevels, Segment, TickClock,
+};
 
 use super::segment_timer::{SegmentTimer, UpdateInterrupt, CR1_STOPPED, MIN_SEGMENT_S};
 use super::pins::DRIVER_DISABLE;
@@ -50,6 +53,8 @@ pub struct PwmStage {
     /// Timer counts per carrier period (100 % duty).
     period_counts: u16,
     clock: TickClock,
+    /// The driver input's calibration.
+    calibration: PwmCalibration,
     levels: Option<PwmLevels>,
     /// The closed loop's levels of the cycle it trimmed last.
     trimmed: Option<TrimmedLevels<PwmCommand>>,
@@ -65,20 +70,15 @@ impl PwmStage {
     /// The driver enable goes low first, then TIM1's main output goes off, which drives PA8 and
     /// PA9 low at once; then TIM1 stops, with its update interrupt off. TIM2 and the DAC, which
     /// this image does not clock, are not stored to.
+    #[allow(
+        clippy::declare_interior_mutable_const,
+        reason = "copied once into the board's static table"
+    )]
     pub const SAFE_STATE_WRITES: [RegisterWrite; 4] = [
         DRIVER_DISABLE,
-        RegisterWrite {
-            address: TIM1_BDTR,
-            value: BDTR_OUTPUT_OFF,
-        },
-        RegisterWrite {
-            address: TIM1_CR1,
-            value: CR1_STOPPED,
-        },
-        RegisterWrite {
-            address: TIM1_DIER,
-            value: 0,
-        },
+        RegisterWrite::new(TIM1_BDTR, BDTR_OUTPUT_OFF),
+        RegisterWrite::new(TIM1_CR1, CR1_STOPPED),
+        RegisterWrite::new(TIM1_DIER, 0),
     ];
 
     /// Takes the peripherals of both stages, so that the board builds either the same way; this
@@ -132,6 +132,7 @@ impl PwmStage {
             clock: TickClock::new(carrier_hz)
                 .with_max_segment_ticks(1 << 16)
                 .with_min_segment_s(MIN_SEGMENT_S),
+            calibration: config::CONFIGURATION.pwm,
             levels: None,
             trimmed: None,
         }
@@ -183,19 +184,26 @@ impl SegmentOutput for PwmStage {
     }
 
     fn level_step_mps2(&self) -> f64 {
-        config::PWM.full_duty_accel_mps2 / f64::from(self.period_counts)
+        self.calibration.full_duty_accel_mps2 / f64::from(self.period_counts)
+    }
+
+    /// The PWM output's zero is no duty: only the calibration's scale changes.
+    fn calibrate(&mut self, configuration: &Configuration) {
+        self.calibration = configuration.pwm;
+        self.levels = None;
+        self.trimmed = None;
     }
 
     fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
         self.levels = None;
-        self.levels = Some(config::PWM.levels(peak_accel_mps2, self.period_counts)?);
+        self.levels = Some(self.calibration.levels(peak_accel_mps2, self.period_counts)?);
         Ok(())
     }
 
     fn trim(&mut self, trimmed: &TrimmedCycle) -> Result<(), DriveError> {
-        let period_counts = self.period_counts;
+        let (period_counts, calibration) = (self.period_counts, self.calibration);
         self.trimmed = Some(TrimmedLevels::convert(trimmed, |accel_mps2| {
-            config::PWM.command(accel_mps2, period_counts)
+            calibration.command(accel_mps2, period_counts)
         })?);
         Ok(())
     }

@@ -12,9 +12,8 @@ use super::light_barrier::LightBarrier;
 use super::pins::clocks;
 use super::watchdog::OutputWatchdog;
 use super::{operator, Hardware, Stage};
-#[cfg(feature = "encoder")]
 use crate::output::SegmentOutput;
-use crate::ports::Board;
+use crate::ports::{Board, Operator};
 
 static CONTROL_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 
@@ -69,7 +68,10 @@ pub fn init(thread_spawner: SendSpawner) -> (SendSpawner, Board<Hardware>) {
     let led = gpio::Output::new(p.PA5, Level::Low, Speed::Low);
     let button = ExtiInput::new(p.PC13, p.EXTI13, Pull::Down, Irqs);
     let part_sensor = LightBarrier(ExtiInput::new(p.PB10, p.EXTI10, Pull::Up, Irqs));
-    let output = Stage::new(p.DAC1, p.PA4, p.TIM2, p.TIM1, p.PA8, p.PA9, p.TIM3);
+    let mut output = Stage::new(p.DAC1, p.PA4, p.TIM2, p.TIM1, p.PA8, p.PA9, p.TIM3);
+    let mut operator = operator::Operator::new(p.LPUART1, p.PA2, p.PA3, p.FLASH);
+    let configuration = operator.load_configuration(output.clock());
+    output.calibrate(&configuration);
     freeze_on_halt();
     #[cfg(feature = "encoder")]
     let sensor = super::encoder::Encoder::new::<super::SegmentTimerPeri>(
@@ -80,6 +82,7 @@ pub fn init(thread_spawner: SendSpawner) -> (SendSpawner, Board<Hardware>) {
         p.DMA1_CH1,
         p.DMA1_CH2,
         output.clock(),
+        configuration.encoder,
     );
     #[cfg(not(feature = "encoder"))]
     let sensor = crate::ports::NoSensor;
@@ -104,7 +107,7 @@ pub fn init(thread_spawner: SendSpawner) -> (SendSpawner, Board<Hardware>) {
         led,
         button,
         watchdog,
-        operator: operator::Operator::new(p.LPUART1, p.PA2, p.PA3, p.FLASH),
+        operator,
         sensor,
         part_sensor,
         after_watchdog_reset,

@@ -1,18 +1,17 @@
-//! The operator's serial console on UART0 (`--features console`), with recipes kept in RAM: the
-//! feeder waits, stopped, for commands, and thread mode has nothing to do.
-
-use core::convert::Infallible;
+//! The operator's serial console on UART0 (`--features console`), with the configuration and
+//! the recipes in the flash file (`file_store`): the feeder waits, stopped, for commands, and
+//! thread mode has nothing to do.
 
 use defmt::unwrap;
 use embassy_executor::SendSpawner;
-use feeder_shared::recipe::{RECIPE_SLOTS, RECORD_LEN};
-use feeder_shared::{RecipeSlot, RecipeStore, TickClock};
+use feeder_shared::configuration::Configuration;
+use feeder_shared::TickClock;
 
 use super::exit::sleep_forever;
+use super::file_store::FileStore;
 use super::uart::Uart;
-use crate::ports;
+use crate::{configured, ports};
 
-/// The console's end of UART0.
 /// The console's image has no part sensor: no track control.
 pub type PartSensor = ports::NoPartSensor;
 
@@ -21,17 +20,28 @@ pub fn part_sensor() -> PartSensor {
     ports::NoPartSensor
 }
 
-pub struct Operator(Uart);
+/// The console's end of UART0 and the board's flash.
+pub struct Operator {
+    port: Uart,
+    store: FileStore,
+}
 
 impl Operator {
     pub fn new() -> Self {
-        Self(Uart::new())
+        Self {
+            port: Uart::new(),
+            store: FileStore::open(),
+        }
     }
 }
 
 impl ports::Operator for Operator {
+    fn load_configuration(&mut self, clock: TickClock) -> Configuration {
+        configured::at_power_up(&mut self.store, clock)
+    }
+
     fn spawn(self, spawner: SendSpawner, clock: TickClock) {
-        spawner.spawn(unwrap!(console_task(self.0, clock)));
+        spawner.spawn(unwrap!(console_task(self, clock)));
     }
 }
 
@@ -40,39 +50,8 @@ pub fn idle() -> ! {
     sleep_forever()
 }
 
-/// The operator's console on UART0, with recipes in RAM.
+/// The operator's console on UART0, with the flash file.
 #[embassy_executor::task]
-async fn console_task(port: Uart, clock: TickClock) {
-    crate::console::serve(port, RamRecipes::new(), clock).await
-}
-
-/// Recipe records in RAM: erased at every start of the emulation.
-struct RamRecipes {
-    records: [[u8; RECORD_LEN]; RECIPE_SLOTS],
-}
-
-impl RamRecipes {
-    fn new() -> Self {
-        Self {
-            records: [[0xff; RECORD_LEN]; RECIPE_SLOTS],
-        }
-    }
-}
-
-impl RecipeStore for RamRecipes {
-    type Error = Infallible;
-
-    fn read(&mut self, slot: RecipeSlot) -> [u8; RECORD_LEN] {
-        self.records
-            .get(slot.index())
-            .copied()
-            .unwrap_or([0xff; RECORD_LEN])
-    }
-
-    fn write(&mut self, slot: RecipeSlot, record: &[u8; RECORD_LEN]) -> Result<(), Infallible> {
-        if let Some(stored) = self.records.get_mut(slot.index()) {
-            *stored = *record;
-        }
-        Ok(())
-    }
+async fn console_task(operator: Operator, clock: TickClock) {
+    crate::console::serve(operator.port, operator.store, clock).await
 }

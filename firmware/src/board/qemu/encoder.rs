@@ -4,6 +4,7 @@
 //! (`plant_link`'s wire format, with the two kinds defined here).
 
 use feeder_shared::closed_loop::PositionSample;
+use feeder_shared::configuration::EncoderSetup;
 
 use super::plant_link::{self, LinkError, Message, PlantLink};
 use crate::ports::PositionSensor;
@@ -16,41 +17,45 @@ const KIND_STREAM: u32 = 4;
 /// The encoder is sampled at every multiple of this many output ticks (0.25 ms).
 pub const ENCODER_SAMPLE_TICKS: u64 = 250;
 
-/// The encoder's resolution: the plant file's encoder must count the same (the host refuses
-/// another).
-pub const ENCODER_RESOLUTION_M: f64 = 1e-6;
-
-/// The plate's encoder on the host, read through the link.
-pub struct PlantEncoder;
+/// The plate's encoder on the host, read through the link, counting as the configuration says
+/// (the plant file's encoder must have the configured resolution: the host refuses another).
+pub struct PlantEncoder {
+    setup: EncoderSetup,
+}
 
 impl PlantEncoder {
     /// Tells the host how the encoder is sampled; the link must be open.
-    pub fn attach() -> Self {
+    pub fn attach(setup: EncoderSetup) -> Self {
         plant_link::with(|link| {
             link.send(
                 &Message {
                     tick: ENCODER_SAMPLE_TICKS,
                     kind: KIND_CONFIG,
-                    value: (ENCODER_RESOLUTION_M * 1e9) as i32,
+                    value: (setup.resolution_m * 1e9 + 0.5) as i32,
                 }
                 .encode(),
             )
         });
-        PlantEncoder
+        PlantEncoder { setup }
     }
 }
 
 impl PositionSensor for PlantEncoder {
     const PRESENT: bool = true;
-    const RESOLUTION_M: f64 = ENCODER_RESOLUTION_M;
 
     fn take_until(&mut self, tick: u64, out: &mut [PositionSample]) -> usize {
-        plant_link::with(|link| stream(link, tick, out))
+        let setup = self.setup;
+        plant_link::with(|link| stream(link, tick, out, &setup))
     }
 }
 
 /// Takes the samples up to `tick` into `out` (see [`PositionSensor::take_until`]).
-fn stream(link: &mut PlantLink, tick: u64, out: &mut [PositionSample]) -> Result<usize, LinkError> {
+fn stream(
+    link: &mut PlantLink,
+    tick: u64,
+    out: &mut [PositionSample],
+    setup: &EncoderSetup,
+) -> Result<usize, LinkError> {
     link.send(
         &Message {
             tick,
@@ -74,15 +79,10 @@ fn stream(link: &mut PlantLink, tick: u64, out: &mut [PositionSample]) -> Result
         if index + out.len() >= total {
             out[kept] = PositionSample {
                 tick: sample.tick,
-                position_m: position_m(sample.count),
+                position_m: setup.position_m(sample.count),
             };
             kept += 1;
         }
     }
     Ok(kept)
-}
-
-/// The position of a count: the middle of it.
-fn position_m(count: i32) -> f64 {
-    (f64::from(count) + 0.5) * ENCODER_RESOLUTION_M
 }

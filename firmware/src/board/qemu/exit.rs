@@ -9,7 +9,7 @@ use critical_section::Mutex;
 use embassy_time::Instant;
 
 use super::{register_read, DRIVER_ENABLE, OUTPUT_CODE};
-use crate::config;
+use crate::configured;
 use crate::trace;
 
 /// Set once the run ends with a failure, so that a fault while reporting only exits.
@@ -38,7 +38,7 @@ pub fn after_fault() -> ! {
             .as_ticks()
             .saturating_sub(critical_section::with(|cs| TIMELINE_TICKS.borrow(cs).get()));
         let code = register_read(OUTPUT_CODE as usize);
-        if code == u32::from(config::DAC.zero_code) {
+        if code == u32::from(configured::get().dac.zero_code) {
             trace::zero(actual_tick);
         } else {
             defmt::error!("the output holds code {=u32} at the end", code);

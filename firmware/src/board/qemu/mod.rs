@@ -36,6 +36,8 @@ mod edge_work;
 #[cfg(feature = "encoder")]
 mod encoder;
 mod exit;
+#[cfg(feature = "console")]
+mod file_store;
 #[cfg(not(feature = "console"))]
 #[path = "script/mod.rs"]
 mod operator;
@@ -84,7 +86,7 @@ type Sensor = ports::NoSensor;
 /// The sensor, attached once the board is up (and the plant link open).
 #[cfg(feature = "encoder")]
 fn attach_sensor() -> Sensor {
-    encoder::PlantEncoder::attach()
+    encoder::PlantEncoder::attach(crate::configured::get().encoder)
 }
 #[cfg(not(feature = "encoder"))]
 fn attach_sensor() -> Sensor {
@@ -99,22 +101,16 @@ const OUTPUT_RUN: u32 = 0x0100_0004;
 /// The driver enable: 1 enabled, 0 disabled.
 const DRIVER_ENABLE: u32 = 0x0100_0008;
 
-/// The fault stores (see `crate::fault`): the zero code on the output, the stage's timer
-/// stopped, the driver disabled.
+/// The fault stores (see `crate::fault`): the zero code on the output (the configured one from
+/// power-up, [`ZERO_CODE_WRITE`]), the stage's timer stopped, the driver disabled.
 pub static SAFE_STATE_WRITES: [RegisterWrite; 3] = [
-    RegisterWrite {
-        address: OUTPUT_CODE,
-        value: config::DAC.zero_code as u32,
-    },
-    RegisterWrite {
-        address: OUTPUT_RUN,
-        value: 0,
-    },
-    RegisterWrite {
-        address: DRIVER_ENABLE,
-        value: 0,
-    },
+    RegisterWrite::new(OUTPUT_CODE, config::CONFIGURATION.dac.zero_code as u32),
+    RegisterWrite::new(OUTPUT_RUN, 0),
+    RegisterWrite::new(DRIVER_ENABLE, 0),
 ];
+
+/// The store of [`SAFE_STATE_WRITES`] that writes the zero code.
+const ZERO_CODE_WRITE: usize = 0;
 
 /// Brings the emulated board up with the output at zero and the driver disabled, hands it to
 /// `app`, which spawns its tasks on the executors, and leaves thread mode to the operator.

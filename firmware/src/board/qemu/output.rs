@@ -3,11 +3,12 @@
 
 use embassy_time::{Instant, Timer};
 use feeder_shared::scenario::{qemu_clock, QEMU_TICK_HZ};
+use feeder_shared::configuration::Configuration;
 use feeder_shared::{DriveError, Segment, TickClock};
 
 use super::edge_work::{overrun_if_provoked, record_edge_work};
 use super::time_driver::{self, CYCLES_PER_TICK};
-use super::{exit, register_read, register_write, OUTPUT_CODE, OUTPUT_RUN};
+use super::{exit, register_read, register_write, OUTPUT_CODE, OUTPUT_RUN, SAFE_STATE_WRITES};
 use crate::config;
 use crate::output::{DacCodes, EdgeMissed, SegmentOutput, SegmentStart, TrimmedCycle};
 use crate::trace;
@@ -60,7 +61,7 @@ impl ReportingOutput {
             timeline_ticks: u64::MAX,
             playing: None,
             queued: None,
-            codes: DacCodes::new(),
+            codes: DacCodes::new(config::CONFIGURATION.dac),
             edge_cycles: None,
             replay: None,
         }
@@ -110,7 +111,14 @@ impl SegmentOutput for ReportingOutput {
     }
 
     fn level_step_mps2(&self) -> f64 {
-        DacCodes::LEVEL_STEP_MPS2
+        self.codes.level_step_mps2()
+    }
+
+    fn calibrate(&mut self, configuration: &Configuration) {
+        self.codes.calibrate(configuration.dac);
+        let zero_code = u32::from(self.codes.zero_code());
+        SAFE_STATE_WRITES[super::ZERO_CODE_WRITE].set(zero_code);
+        register_write(OUTPUT_CODE as usize, zero_code);
     }
 
     fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
@@ -188,7 +196,7 @@ impl SegmentOutput for ReportingOutput {
     }
 
     fn halt(&mut self) {
-        register_write(OUTPUT_CODE as usize, u32::from(config::DAC.zero_code));
+        register_write(OUTPUT_CODE as usize, u32::from(self.codes.zero_code()));
         register_write(OUTPUT_RUN as usize, 0);
         let now_ticks = Instant::now().as_ticks();
         self.queued = None;

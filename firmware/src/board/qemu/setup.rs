@@ -12,7 +12,8 @@ use super::{
     OUTPUT_RUN,
 };
 use crate::config;
-use crate::ports::Board;
+use crate::output::SegmentOutput;
+use crate::ports::{Board, Operator};
 
 /// Priority of the executor that runs every task but the control loop.
 pub const TASK_PRIORITY: u8 = 0x80;
@@ -27,7 +28,10 @@ pub static BACKGROUND_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 /// loop, and the board.
 pub fn init() -> (SendSpawner, Board<Hardware>) {
     guard_below_ram();
-    register_write(OUTPUT_CODE as usize, u32::from(config::DAC.zero_code));
+    register_write(
+        OUTPUT_CODE as usize,
+        u32::from(config::CONFIGURATION.dac.zero_code),
+    );
     register_write(OUTPUT_RUN as usize, 0);
     register_write(DRIVER_ENABLE as usize, 0);
     time_driver::init();
@@ -44,13 +48,17 @@ pub fn init() -> (SendSpawner, Board<Hardware>) {
     let background_spawner = BACKGROUND_EXECUTOR.start(Irq::BackgroundExecutor);
     #[cfg(feature = "cosim")]
     super::plant_link::open_or_end();
+    let mut output = ReportingOutput::new();
+    let mut operator = operator::Operator::new();
+    let configuration = operator.load_configuration(output.clock());
+    output.calibrate(&configuration);
     let board = Board {
-        output: ReportingOutput::new(),
+        output,
         driver_enable: EnableRegister::new(),
         led: EmulatedPin,
         button: NoButton,
         watchdog: NoWatchdog,
-        operator: operator::Operator::new(),
+        operator,
         sensor: super::attach_sensor(),
         part_sensor: operator::part_sensor(),
         // QEMU starts fresh every run.

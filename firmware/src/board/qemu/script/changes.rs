@@ -10,7 +10,7 @@ use embassy_time::Timer;
 use feeder_shared::{Drive, SupervisorEvent, TickClock, WaveformSpec};
 
 use super::{cycle, offer, request};
-use crate::config;
+use crate::configured;
 use crate::mailbox::ReadyPlan;
 
 /// Drawn values reach this fraction past each end of the machine's range.
@@ -100,7 +100,7 @@ impl RandomChanges {
 
     /// Draws one setting and offers its plan to the control loop if the machine accepts it.
     fn set(&mut self) {
-        let limits = config::LIMITS;
+        let limits = configured::get().limits;
         let mut spec = self.spec;
         match self.random.below(3) {
             0 => spec.duty = self.random.around(0.5, 1.0),

@@ -47,6 +47,7 @@ use embassy_sync::signal::Signal;
 use embassy_time::{Instant, Timer};
 #[cfg(feature = "encoder")]
 use feeder_shared::closed_loop::Stage;
+use feeder_shared::configuration::Configuration;
 use feeder_shared::scenario::Scenario;
 use feeder_shared::{RunState, SupervisorEvent, TickClock, WaveformSpec};
 
@@ -55,7 +56,7 @@ use super::exit::{self, after_fault, sleep_forever};
 use super::time_driver::{self, CYCLES_PER_TICK};
 use crate::mailbox::{ReadyPlan, NEXT_PLAN, REQUESTS};
 use crate::status;
-use crate::{config, ports, stack_overflow, trace};
+use crate::{config, configured, ports, stack_overflow, trace};
 use changes::RandomChanges;
 
 /// How often the operator looks at the cycle count.
@@ -170,6 +171,11 @@ impl Operator {
 }
 
 impl ports::Operator for Operator {
+    /// The scripted image keeps no flash: its runs are the compiled defaults'.
+    fn load_configuration(&mut self, _: TickClock) -> Configuration {
+        config::CONFIGURATION
+    }
+
     fn spawn(self, spawner: SendSpawner, clock: TickClock) {
         spawner.spawn(unwrap!(operator_task(clock, spawner)));
     }
@@ -286,7 +292,7 @@ async fn operator_task(clock: TickClock, spawner: SendSpawner) {
             after_fault();
         }
     };
-    if let Err(refusal) = scenario.check(clock, config::LOOP_LINEAR_MPS2) {
+    if let Err(refusal) = scenario.check(clock, configured::machine(clock).loop_linear_mps2) {
         defmt::error!("scenario: {}", Display2Format(&refusal));
         after_fault();
     }
