@@ -3,20 +3,26 @@
 //!
 //! ```text
 //! feeder-ctl (--port PATH [--baud N] | --tcp HOST:PORT) [--timeout-ms N] [COMMAND WORDS…]
+//! feeder-ctl … export FILE
+//! feeder-ctl … import FILE [--save]
 //! ```
 //!
 //! With command words, sends them as one line, prints the reply and exits with 0 for `OK`, 1 for
 //! `ERR`. Without, reads commands from standard input (with a prompt on a terminal) and prints
-//! each reply. Exit code 2: bad arguments or a connection or timeout error.
+//! each reply. `export` and `import` move the board's configuration to and from a file
+//! (`config_file`). Exit code 2: bad arguments or a connection or timeout error.
 
+mod config_file;
 mod console;
 
 use std::io::{self, BufRead, IsTerminal, Write};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
 use clap::error::ErrorKind;
-use clap::{ArgGroup, CommandFactory, Parser};
+use clap::{ArgGroup, CommandFactory, Parser, Subcommand};
+use config_file::TransferError;
 use console::{Console, Target};
 
 /// Baud rate of the serial port when `--baud` is not given (the firmware's LPUART1 setting).
@@ -31,9 +37,16 @@ const MAX_TIMEOUT_MS: u32 = 3_600_000;
     name = "feeder-ctl",
     version,
     allow_negative_numbers = true,
-    group(ArgGroup::new("target").required(true).args(["port", "tcp"]))
+    group(ArgGroup::new("target").required(true).args(["port", "tcp"])),
+    disable_help_subcommand = true,
+    override_usage = "feeder-ctl [OPTIONS] <--port <PATH>|--tcp <HOST:PORT>> [COMMAND]...\n       \
+                      feeder-ctl [OPTIONS] <--port <PATH>|--tcp <HOST:PORT>> <TOOL> [ARGS]...",
+    subcommand_value_name = "TOOL",
+    subcommand_help_heading = "Tools"
 )]
 struct Options {
+    #[command(subcommand)]
+    tool: Option<Tool>,
     /// Serial port, e.g. /dev/ttyACM0 (the NUCLEO's ST-LINK virtual COM port).
     #[arg(long, value_name = "PATH")]
     port: Option<String>,
@@ -57,6 +70,29 @@ struct Options {
         value_name = "COMMAND"
     )]
     command: Vec<String>,
+}
+
+/// Work done by the tool rather than one console line.
+#[derive(Subcommand)]
+enum Tool {
+    /// Writes the board's configuration (`config list`, unsaved changes included) to FILE, one
+    /// key=value per line.
+    Export {
+        /// The configuration file to write.
+        #[arg(value_name = "FILE")]
+        file: PathBuf,
+    },
+    /// Sends every key=value line of FILE as `config set`; a refusal sets every key back and
+    /// exits with 1.
+    Import {
+        /// The configuration file to read.
+        #[arg(value_name = "FILE")]
+        file: PathBuf,
+        /// Saves the configuration on the board afterwards (`config save`); it runs from the
+        /// board's next start.
+        #[arg(long)]
+        save: bool,
+    },
 }
 
 impl Options {
@@ -121,7 +157,9 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
-    let result = if options.command.is_empty() {
+    let result = if let Some(tool) = &options.tool {
+        return run_tool(tool, &mut console, &target);
+    } else if options.command.is_empty() {
         interactive(&mut console).map(|()| true)
     } else {
         console.command(&options.command.join(" ")).map(|reply| {
@@ -132,6 +170,33 @@ fn main() -> ExitCode {
     match result {
         Ok(true) => ExitCode::SUCCESS,
         Ok(false) => ExitCode::FAILURE,
+        Err(error) => {
+            eprintln!("feeder-ctl: {error}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+/// Runs `tool` on `console`: exit code 0 when done, 1 when the board refused, 2 when the link or
+/// the file failed.
+fn run_tool(tool: &Tool, console: &mut Console, target: &Target) -> ExitCode {
+    let outcome = match tool {
+        Tool::Export { file } => config_file::export(console, file, &target.to_string())
+            .map(|keys| format!("feeder-ctl: {keys} keys written to {}", file.display())),
+        Tool::Import { file, save } => config_file::import(console, file, *save).map(|last| {
+            println!("{last}");
+            format!("feeder-ctl: {} imported", file.display())
+        }),
+    };
+    match outcome {
+        Ok(done) => {
+            eprintln!("{done}");
+            ExitCode::SUCCESS
+        }
+        Err(error @ TransferError::Refused { .. }) => {
+            eprintln!("feeder-ctl: {error}");
+            ExitCode::FAILURE
+        }
         Err(error) => {
             eprintln!("feeder-ctl: {error}");
             ExitCode::from(2)

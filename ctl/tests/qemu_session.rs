@@ -192,3 +192,67 @@ fn a_saved_configuration_survives_a_restart_and_a_power_cycle() {
         log.join("\n")
     );
 }
+
+/// `feeder-ctl export` writes what `config list` shows; `import --save` sets and saves a file's
+/// keys; a file the board refuses changes nothing.
+#[test]
+#[ignore = "needs the QEMU firmware; run by cargo xtask test"]
+fn a_configuration_file_goes_out_and_comes_back() {
+    let dir = tempfile::tempdir().expect("a directory for the files");
+    let mut emulator = Emulator::launch(&console_image(), Vec::new());
+    let mut console = emulator.connect();
+    let before = console.expect("config list", "OK config dac_zero=2048 ");
+    drop(console);
+    let ctl = |words: &[&str]| {
+        let output = std::process::Command::new(env!("CARGO_BIN_EXE_feeder-ctl"))
+            .arg("--tcp")
+            .arg(emulator.address())
+            .args(words)
+            .output()
+            .expect("feeder-ctl runs");
+        (
+            output.status.code(),
+            String::from_utf8_lossy(&output.stdout).into_owned(),
+            String::from_utf8_lossy(&output.stderr).into_owned(),
+        )
+    };
+    let file = dir.path().join("feeder.conf");
+    let path = file.to_str().expect("a UTF-8 path");
+    let (code, _, stderr) = ctl(&["export", path]);
+    assert_eq!(code, Some(0), "{stderr}");
+    let text = std::fs::read_to_string(&file).expect("the exported file");
+    let listed: Vec<String> = before
+        .trim_start_matches("OK config ")
+        .split(' ')
+        .map(str::to_string)
+        .collect();
+    let exported: Vec<String> = text
+        .lines()
+        .filter(|line| !line.starts_with('#'))
+        .map(str::to_string)
+        .collect();
+    assert_eq!(exported, listed);
+
+    let edited = text
+        .replace("dac_zero=2048", "dac_zero=2052")
+        .replace("start_duty=0.586", "start_duty=0.6");
+    std::fs::write(&file, edited).expect("the edited file");
+    let (code, stdout, stderr) = ctl(&["import", path, "--save"]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert_eq!(stdout.trim(), "OK config saved; restart to run it");
+
+    let bad = dir.path().join("bad.conf");
+    std::fs::write(&bad, "dac_zero=2000\npart_mu=5\n").expect("the bad file");
+    let (code, _, stderr) = ctl(&["import", bad.to_str().expect("a UTF-8 path")]);
+    assert_eq!(code, Some(1), "{stderr}");
+    assert!(
+        stderr.contains("the board refused config set part_mu 5: ERR 65 part_mu: 5 lies outside")
+            && stderr.contains("every key is back as it was"),
+        "{stderr}"
+    );
+    let mut console = emulator.connect();
+    let after = console.expect("config list", "OK config dac_zero=2052 ");
+    assert!(after.contains(" start_duty=0.6 "), "{after}");
+    drop(console);
+    emulator.shut_down();
+}

@@ -1,5 +1,5 @@
-//! Arbitrary bytes through the line assembler, the parser, `set` validation and every reply
-//! formatter, with a status whose closed-loop stage and drive and track state are drawn from the
+//! Arbitrary bytes through the line assembler, the parser, `set` and `config set` validation and
+//! every reply formatter, with a status whose closed-loop stage and drive and track state are drawn from the
 //! input's first bytes: nothing panics, and every reply is one printable-ASCII `OK`/`ERR <code>`
 //! line.
 #![no_main]
@@ -7,11 +7,13 @@
 use feeder_shared::closed_loop::{
     FeedCompensation, Identified, LoopReport, Stage, TrackReport, TrackState,
 };
+use feeder_shared::configuration::{BoardFacts, Configuration, OutputKind};
 use feeder_shared::protocol::REPLY_CAPACITY;
 use feeder_shared::recipe::{self, RECIPE_SLOTS, RECORD_LEN};
 use feeder_shared::testing;
 use feeder_shared::{
-    Command, LineAssembler, Machine, Phase, RecipeSlot, Reply, ReplyError, Settings, Status,
+    Command, ConfigCommand, LineAssembler, Machine, Phase, RecipeSlot, Reply, ReplyError, Settings,
+    Status,
 };
 use libfuzzer_sys::arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
@@ -103,6 +105,12 @@ fuzz_target!(|input: &[u8]| {
     let mut settings = Settings::DEFAULT;
     let mut applied = settings.validate(&machine).expect("defaults are valid");
     let mut flash = [[0xff_u8; RECORD_LEN]; RECIPE_SLOTS];
+    let board = BoardFacts {
+        clock: machine.clock,
+        output: OutputKind::Dac,
+        encoder: true,
+    };
+    let mut configuration = Configuration::DEFAULT;
     let mut assembler = LineAssembler::new();
     for &byte in input {
         let Some(request) = assembler.push(byte) else {
@@ -153,6 +161,25 @@ fuzz_target!(|input: &[u8]| {
                 Reply::recipe_list(&entries)
             }
             Ok(Command::Help) => Reply::help(),
+            Ok(Command::Config(command)) => match command {
+                ConfigCommand::List => Reply::config_list(&configuration),
+                ConfigCommand::Get(key) => Reply::config_value(key, &configuration),
+                ConfigCommand::Set(key, value) => match key.set(&configuration, value) {
+                    Ok(edited) => {
+                        configuration = edited;
+                        Reply::config_set(key, &configuration)
+                    }
+                    Err(error) => Reply::error(&ReplyError::ConfigRefused(error)),
+                },
+                ConfigCommand::Save => match configuration.check(&board) {
+                    Ok(()) => Reply::config_saved(true),
+                    Err(error) => Reply::error(&ReplyError::ConfigRefused(error)),
+                },
+                ConfigCommand::Defaults => {
+                    configuration = Configuration::DEFAULT;
+                    Reply::config_defaults()
+                }
+            },
             Ok(_) => Reply::status(&status),
         };
         check(&reply);

@@ -1,6 +1,6 @@
 //! `cargo xtask console`: live control of the emulated feeder in one command. The QEMU console
-//! image runs with its serial port on a free loopback TCP port and its decoded log captured to
-//! `target/console-run.log`; the operator gets the `feeder-ctl` prompt on the terminal, and when
+//! image runs with its serial port on a free loopback TCP port, its decoded log captured to
+//! `target/console-run.log` and its flash in `target/emulated-board/`; the operator gets the `feeder-ctl` prompt on the terminal, and when
 //! they leave it, the plate is brought to rest (a soft stop), QEMU is stopped and `host-sim hil`
 //! checks what happened.
 
@@ -57,10 +57,11 @@ pub fn console() -> Result {
     let operator = {
         let mut feeder = Feeder::start(&elf, &log)?;
         eprintln!(
-            "xtask: the feeder runs under QEMU, its console on {} and its log in {}; \
-             `help` lists the commands, `quit`, `exit` or Ctrl-D leave and check the run",
+            "xtask: the feeder runs under QEMU, its console on {}, its log in {} and its flash \
+             in {}; `help` lists the commands, `quit`, `exit` or Ctrl-D leave and check the run",
             address(feeder.port),
-            log.display()
+            log.display(),
+            board_dir()?.join("feeder-flash.bin").display()
         );
         let operator = operate(feeder.port).and_then(|()| bring_to_rest(feeder.port));
         feeder.stop()?;

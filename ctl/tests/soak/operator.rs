@@ -19,7 +19,7 @@ const MAX_ACCEL_MPS2: f64 = MACHINE_LIMITS.max_accel_mps2;
 const MAX_RAMP_CYCLES: i64 = 65_535;
 
 /// Every error code of `shared/PROTOCOL.md`.
-const ERROR_CODES: [std::ops::RangeInclusive<u16>; 4] = [10..=11, 20..=28, 40..=58, 60..=64];
+const ERROR_CODES: [std::ops::RangeInclusive<u16>; 4] = [10..=11, 20..=29, 40..=58, 60..=66];
 /// The codes of a refused `set` whose value parsed: validation (40–58).
 const VALIDATION_CODES: std::ops::RangeInclusive<u16> = 40..=58;
 /// The codes of a `recipe load` that loads nothing: an empty slot, an unusable record.
@@ -336,9 +336,10 @@ enum Kind {
     Garbage,
     Overlong,
     Blank,
+    Config,
 }
 
-const KINDS: [Kind; 12] = [
+const KINDS: [Kind; 13] = [
     Kind::Set,
     Kind::Get,
     Kind::Start,
@@ -351,11 +352,12 @@ const KINDS: [Kind; 12] = [
     Kind::Garbage,
     Kind::Overlong,
     Kind::Blank,
+    Kind::Config,
 ];
 
 /// Weights of [`KINDS`] while moving and while stopped.
-const MOVING_WEIGHTS: [u32; 12] = [40, 8, 2, 3, 10, 5, 1, 1, 6, 3, 2, 2];
-const STOPPED_WEIGHTS: [u32; 12] = [40, 8, 30, 2, 10, 8, 1, 1, 6, 3, 2, 2];
+const MOVING_WEIGHTS: [u32; 13] = [40, 8, 2, 3, 10, 5, 1, 1, 6, 3, 2, 2, 3];
+const STOPPED_WEIGHTS: [u32; 13] = [40, 8, 30, 2, 10, 8, 1, 1, 6, 3, 2, 2, 3];
 
 impl Operator {
     pub fn new(seed: u64) -> Self {
@@ -430,6 +432,35 @@ impl Operator {
             Kind::Garbage => self.garbage(),
             Kind::Overlong => self.overlong(),
             Kind::Blank => self.blank(),
+            Kind::Config => self.config(),
+        }
+    }
+
+    /// `config` lines whose answer does not depend on the motion: reads, a start-up key, values
+    /// past a key's range, a switch's wrong word, an unknown key.
+    fn config(&mut self) -> Line {
+        match self.rng.below(6) {
+            0 => self.command(&["config", "list"], Expect::Ok("config dac_zero=".into())),
+            1 => {
+                let key = *self
+                    .rng
+                    .pick(&["dac_zero", "encoder_dir", "part_mu", "start_freq_hz"]);
+                self.command(&["config", "get", key], Expect::Ok(format!("{key}=")))
+            }
+            2 => {
+                let cycles = self.rng.below(u64::from(u16::MAX) + 1).to_string();
+                let expect = Expect::Ok(format!("start_ramp={cycles} (not saved)"));
+                self.command(&["config", "set", "start_ramp", &cycles], expect)
+            }
+            3 => {
+                let value = *self.rng.pick(&["0", "2.5", "1e9", "-1"]);
+                self.command(&["config", "set", "part_mu", value], Expect::Err(Some(65)))
+            }
+            4 => self.command(
+                &["config", "set", "closed_loop", "maybe"],
+                Expect::Err(Some(29)),
+            ),
+            _ => self.command(&["config", "get", "gain"], Expect::Err(Some(23))),
         }
     }
 

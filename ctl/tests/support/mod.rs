@@ -82,6 +82,11 @@ impl<S: LogSink> Emulator<S> {
         }
     }
 
+    /// The serial console's address, as `feeder-ctl --tcp` takes it.
+    pub fn address(&self) -> String {
+        format!("127.0.0.1:{}", self.port)
+    }
+
     /// Connects to the serial console as soon as QEMU has opened the port.
     pub fn connect(&mut self) -> Console {
         let deadline = Instant::now() + PORT_OPEN_TIMEOUT;
