@@ -19,9 +19,8 @@ pub const OUTPUT: OutputKind = if cfg!(feature = "output-pwm") {
 };
 
 // No level the default limits allow leaves the default output's linear range.
-const _: () = assert!(
-    CONFIGURATION.limits.max_accel_mps2 <= CONFIGURATION.linear_limit_mps2(OUTPUT)
-);
+const _: () =
+    assert!(CONFIGURATION.limits.max_accel_mps2 <= CONFIGURATION.linear_limit_mps2(OUTPUT));
 
 /// PWM carrier frequency; it is also the tick clock of the segments in PWM mode.
 #[cfg(feature = "output-pwm")]

@@ -5,7 +5,7 @@
 
 use core::cell::Cell;
 
-use defmt::{info, warn, Display2Format};
+use defmt::{info, warn};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use feeder_shared::configuration::record::{self, LoadError};
@@ -45,7 +45,7 @@ pub fn at_power_up<S: ConfigurationStore>(store: &mut S, clock: TickClock) -> Co
         Err(error) => {
             warn!(
                 "configuration: as compiled, the saved one is not used: {}",
-                Display2Format(&error)
+                error
             );
             config::CONFIGURATION
         }

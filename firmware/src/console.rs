@@ -8,7 +8,10 @@
 //! transmitter only ever delays the console.
 
 use defmt::{error, info, warn};
+use embassy_futures::select::{select, Either};
+use embassy_time::{Instant, Timer};
 use embedded_io_async::{Read, Write};
+use feeder_shared::telemetry::{Pacer, MAX_LINE_BYTES};
 use feeder_shared::{
     Action, ConfigurationStore, Controller, LineAssembler, RecipeStore, Snapshot, SupervisorEvent,
     TickClock,
@@ -20,6 +23,12 @@ use crate::{config, configured, status};
 
 /// Bytes taken from the port per read.
 const READ_CHUNK_BYTES: usize = 32;
+
+/// The console link's rate: LPUART1's on the board, the same budget under QEMU.
+const LINK_BAUD: u32 = 115_200;
+
+/// How often the console looks for a new cycle to report while telemetry is on.
+const TELEMETRY_POLL_MS: u64 = 5;
 
 /// Serves the console on `port` for good, with the configuration and the recipes in `store`;
 /// `clock` is the output's tick clock, on which every new waveform must be representable.
@@ -46,8 +55,24 @@ pub async fn serve<P: Read + Write, S: RecipeStore + ConfigurationStore>(
     info!("console ready");
     let mut assembler = LineAssembler::new();
     let mut chunk = [0u8; READ_CHUNK_BYTES];
+    let mut telemetry = Telemetry::off();
     loop {
-        let received = match port.read(&mut chunk).await {
+        let read = match telemetry.on {
+            true => match select(
+                port.read(&mut chunk),
+                Timer::after_millis(TELEMETRY_POLL_MS),
+            )
+            .await
+            {
+                Either::First(read) => read,
+                Either::Second(()) => {
+                    telemetry.send(&mut port).await;
+                    continue;
+                }
+            },
+            false => port.read(&mut chunk).await,
+        };
+        let received = match read {
             Ok(received) => received,
             Err(_) => {
                 warn!("console: receive error, partial line dropped");
@@ -66,6 +91,7 @@ pub async fn serve<P: Read + Write, S: RecipeStore + ConfigurationStore>(
                 Action::Stop => REQUESTS.send(SupervisorEvent::StopRequested).await,
                 Action::Reset => REQUESTS.send(SupervisorEvent::ResetRequested).await,
                 Action::Restart => {}
+                Action::Telemetry(on) => telemetry = Telemetry { on, ..telemetry },
                 Action::Configure {
                     spec,
                     plan,
@@ -89,6 +115,43 @@ pub async fn serve<P: Read + Write, S: RecipeStore + ConfigurationStore>(
                 info!("restart: the board restarts with its saved configuration");
                 cortex_m::peripheral::SCB::sys_reset();
             }
+        }
+    }
+}
+
+/// Telemetry on the link: on or off, the pacing of its lines and the cycle reported last.
+#[derive(Clone, Copy)]
+struct Telemetry {
+    on: bool,
+    pacer: Pacer,
+    last_cycle: Option<u64>,
+}
+
+impl Telemetry {
+    fn off() -> Self {
+        Self {
+            on: false,
+            pacer: Pacer::new(LINK_BAUD),
+            last_cycle: None,
+        }
+    }
+
+    /// Writes the record of the cycle begun last, if it is new and the link has room.
+    async fn send<P: Write>(&mut self, port: &mut P) {
+        let now = Instant::now();
+        let status = status::get();
+        if self.last_cycle == Some(status.cycle) || !self.pacer.ready(now.as_micros()) {
+            return;
+        }
+        let record = crate::telemetry::record(now.as_millis());
+        let mut line = heapless::String::<{ MAX_LINE_BYTES + 2 }>::new();
+        if record.write_line(&mut line).is_err() || line.push_str("\r\n").is_err() {
+            return;
+        }
+        self.last_cycle = Some(record.cycle);
+        self.pacer.sent(now.as_micros(), line.len());
+        if port.write_all(line.as_bytes()).await.is_err() {
+            warn!("console: transmit error, telemetry line lost");
         }
     }
 }

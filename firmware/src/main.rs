@@ -21,6 +21,8 @@ mod ports;
 #[cfg(any(feature = "board-g474", not(feature = "console")))]
 mod stack_overflow;
 mod status;
+#[cfg(feature = "console")]
+mod telemetry;
 mod trace;
 
 #[cortex_m_rt::entry]

@@ -19,6 +19,9 @@ pub struct Status {
     pub phase: Phase,
     /// The cycle (or idle period) begun last, counted from power-up.
     pub cycle: u64,
+    /// The least preload slack over the cycle before it, in output ticks, where the stage reads
+    /// it.
+    pub least_slack_ticks: Option<u32>,
 }
 
 impl Status {
@@ -28,6 +31,7 @@ impl Status {
         led: Led::Off,
         phase: Phase::Stopped,
         cycle: 0,
+        least_slack_ticks: None,
     };
 }
 

@@ -97,6 +97,8 @@ pub enum Action {
     Reset,
     /// Restart the board (the output is stopped).
     Restart,
+    /// Stream telemetry on the link (`true`) or stop.
+    Telemetry(bool),
     /// Run this validated waveform, already planned on the machine's clock, and ramp length
     /// from the next cycle boundary.
     Configure {
@@ -277,6 +279,10 @@ impl Controller {
             Command::Restart => Outcome {
                 reply: Reply::ok(format_args!("restarting")),
                 action: Action::Restart,
+            },
+            Command::Telemetry(on) => Outcome {
+                reply: Reply::ok(format_args!("telemetry {}", if on { "on" } else { "off" })),
+                action: Action::Telemetry(on),
             },
             Command::Config(command) => {
                 let stopped = self.stopped(snapshot);

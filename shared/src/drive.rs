@@ -8,6 +8,7 @@
 //! rounding half up. `+a` and `−a` use the same magnitude, so the two are exactly
 //! symmetric about zero and the command carries no DC acceleration bias.
 
+use crate::number::Significant;
 use crate::scheduler::Amplitude;
 use crate::waveform::{Level, Limits};
 use core::fmt;
@@ -68,14 +69,14 @@ impl fmt::Display for DriveError {
                 write!(
                     f,
                     "output scale {} must be a finite number greater than zero",
-                    value
+                    Significant(value)
                 )
             }
             DriveError::InvalidAccel { accel_mps2 } => {
                 write!(
                     f,
                     "peak acceleration {} m/s² must be finite and non-negative",
-                    accel_mps2
+                    Significant(accel_mps2)
                 )
             }
             DriveError::ZeroOutOfRange {
@@ -99,7 +100,10 @@ impl fmt::Display for DriveError {
                     f,
                     "peak acceleration {} m/s² needs DAC codes outside the output's linear range, \
                      codes {} to {}: this calibration reaches at most {} m/s²",
-                    accel_mps2, min_code, max_code, linear_limit_mps2
+                    Significant(accel_mps2),
+                    min_code,
+                    max_code,
+                    Significant(linear_limit_mps2)
                 )
             }
             DriveError::AmplitudeOutOfRange {
@@ -111,7 +115,9 @@ impl fmt::Display for DriveError {
                     f,
                     "peak acceleration {} m/s² needs a duty of {} counts but the PWM period has \
                      {} counts",
-                    accel_mps2, amplitude_counts, headroom_counts
+                    Significant(accel_mps2),
+                    Significant(amplitude_counts),
+                    headroom_counts
                 )
             }
             DriveError::EmptyPwmPeriod => write!(f, "the PWM period must be at least one count"),

@@ -28,6 +28,7 @@ pub mod scheduler;
 pub mod segment;
 pub mod settings;
 pub mod supervisor;
+pub mod telemetry;
 #[cfg(feature = "testing")]
 pub mod testing;
 pub mod waveform;

@@ -41,6 +41,18 @@ pub enum Phase {
     Stopping,
 }
 
+impl Phase {
+    /// The phase's word in replies and telemetry.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Phase::Stopped => "stopped",
+            Phase::Starting => "starting",
+            Phase::Running => "running",
+            Phase::Stopping => "stopping",
+        }
+    }
+}
+
 /// One segment of output: hold `level` at `amplitude` for `ticks`, from `start_tick`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

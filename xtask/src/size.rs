@@ -15,15 +15,16 @@ pub struct Budget {
     pub ram_bytes: u64,
 }
 
-/// The board firmware without the serial console.
+/// The board firmware without the serial console, which reads and checks the configuration
+/// saved in flash at power-up.
 const DEFAULT_BUDGET: Budget = Budget {
-    flash_bytes: 32 * 1024,
+    flash_bytes: 48 * 1024,
     ram_bytes: 16 * 1024,
 };
-/// With the serial console (`console` feature): command parsing, validation on the target and
-/// the recipe flash driver.
+/// With the serial console (`console` feature): command parsing, validation on the target, the
+/// configuration's keys and the flash driver for it and the recipes, and the telemetry stream.
 const CONSOLE_BUDGET: Budget = Budget {
-    flash_bytes: 64 * 1024,
+    flash_bytes: 96 * 1024,
     ram_bytes: 16 * 1024,
 };
 

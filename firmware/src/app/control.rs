@@ -16,12 +16,12 @@ use feeder_shared::{
 use super::monitor::{cycles, COST, HEARTBEAT};
 use super::regulate::{self, Boundary, Ruling, BOUNDARY, RULING};
 use crate::board;
-use crate::{config, configured};
 use crate::mailbox::{ReadyPlan, NEXT_PLAN, REQUESTS};
 use crate::output::{SegmentOutput, TrimmedCycle};
 use crate::ports::{Parts, PositionSensor};
 use crate::status::{self, Status};
 use crate::trace;
+use crate::{config, configured};
 
 /// Runs the scheduler into the output stage and applies the supervisor's decisions.
 pub struct ControlLoop<O, E> {
@@ -40,9 +40,11 @@ pub struct ControlLoop<O, E> {
     loop_stopped: bool,
     /// The segment playing belongs to an idle period.
     idle: bool,
-    /// The closed loop's course runs (`super::regulate`): the board has a position sensor and
-    /// the configuration wants the loop.
-    closed_loop: bool,
+    /// The configuration wants the closed loop (see [`Self::closed_loop`]).
+    loop_configured: bool,
+    /// The least preload slack so far in the cycle playing, and over the one before it.
+    cycle_slack_ticks: Option<u32>,
+    least_slack_ticks: Option<u32>,
 }
 
 impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
@@ -57,8 +59,9 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             trims: CycleTrims::NONE,
             loop_stopped: false,
             idle: true,
-            closed_loop: configured::get()
-                .loop_runs(<<board::Hardware as Parts>::Sensor as PositionSensor>::PRESENT),
+            loop_configured: configured::get().closed_loop,
+            cycle_slack_ticks: None,
+            least_slack_ticks: None,
         }
     }
 
@@ -104,7 +107,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     async fn run_plan(mut self, plan: TickPlan) -> ! {
         let ramp_cycles = configured::get().startup.ramp_cycles;
         let mut scheduler = Scheduler::new(plan, ramp_cycles);
-        if self.closed_loop {
+        if self.closed_loop() {
             // The course settles the plate before every start from rest, then probes and
             // centres on held cycles.
             scheduler.hold_step(regulate::probe_step(ramp_cycles));
@@ -130,6 +133,13 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         }
     }
 
+    /// The closed loop's course runs (`super::regulate`): the board has a position sensor
+    /// (known at compile time, so a board without one carries none of it) and the configuration
+    /// wants the loop.
+    fn closed_loop(&self) -> bool {
+        <<board::Hardware as Parts>::Sensor as PositionSensor>::PRESENT && self.loop_configured
+    }
+
     /// Preloads `segment`, switching the output levels first when it starts a new plan.
     fn prepare(&mut self, segment: &Segment) -> Result<(), Fault> {
         if segment.plan_applied {
@@ -147,7 +157,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     /// the closed loop's fault stops the feeder at its end. Once the course has stopped, every
     /// start ends so after one cycle at the plan's levels, until a reset of the board.
     fn trim(&mut self, segment: &Segment, scheduler: &mut Scheduler) {
-        if !self.closed_loop || !segment.starts_cycle() {
+        if !self.closed_loop() || !segment.starts_cycle() {
             return;
         }
         let trims = match self.trims.for_cycle(segment, self.idle) {
@@ -239,8 +249,10 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     /// decides the next cycle, the plan's first, on that plan.
     fn begin(&mut self, playing: &Segment, scheduler: &mut Scheduler) {
         HEARTBEAT.fetch_add(1, Ordering::Relaxed);
-        trace::segment(playing, self.output.started(playing));
+        let started = self.output.started(playing);
+        trace::segment(playing, started);
         if playing.starts_cycle() {
+            self.least_slack_ticks = self.cycle_slack_ticks.take();
             if let Some(ready) = NEXT_PLAN.lock(Cell::take) {
                 self.adopt(&ready, scheduler);
             }
@@ -250,15 +262,21 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
                 self.idle = idle;
                 self.apply_driver();
             }
-            if self.closed_loop {
+            if self.closed_loop() {
                 BOUNDARY.signal(Boundary {
                     begun: *playing,
                     ahead: scheduler.clone(),
-                    start_tick: self.output.started(playing).tick,
+                    start_tick: started.tick,
                 });
             }
         }
-        if self.closed_loop {
+        if let Some(slack) = started.slack_ticks {
+            self.cycle_slack_ticks = Some(
+                self.cycle_slack_ticks
+                    .map_or(slack, |least| least.min(slack)),
+            );
+        }
+        if self.closed_loop() {
             self.take_ruling(scheduler);
         }
         if playing.phase != self.phase {
@@ -278,7 +296,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         match scheduler.set_plan(ready.plan) {
             Ok(()) => {
                 scheduler.set_ramp_cycles(ready.ramp_cycles);
-                if self.closed_loop && scheduler.held_step().is_some() {
+                if self.closed_loop() && scheduler.held_step().is_some() {
                     // The course's hold for the new ramp length, as a course made for it holds.
                     scheduler.hold_step(ready.hold_step);
                 }
@@ -363,6 +381,7 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
             led: self.supervisor.led(),
             phase: self.phase,
             cycle: self.cycle,
+            least_slack_ticks: self.least_slack_ticks,
         };
         if status != self.published {
             status::publish(status);

@@ -10,9 +10,9 @@ mod track;
 use defmt::unwrap;
 use embassy_executor::SendSpawner;
 
-use crate::{board, configured};
 use crate::output::SegmentOutput;
 use crate::ports::{Board, Operator, PartSensor, Parts, PositionSensor};
+use crate::{board, configured};
 use control::ControlLoop;
 
 type Output = <board::Hardware as Parts>::Output;

@@ -8,8 +8,8 @@ use embassy_executor::SendSpawner;
 use embassy_time::{Duration, Ticker};
 
 use crate::board;
-use crate::{config, configured};
 use crate::ports::{Parts, Watchdog};
+use crate::{config, configured};
 
 /// The board's watchdog.
 type BoardWatchdog = <board::Hardware as Parts>::Watchdog;
@@ -189,5 +189,7 @@ impl EdgeCost {
             "edges: {=u32}, cycles per edge: mean {=u32} max {=u32}, CPU load {=u64} ppm",
             edges, mean_cycles, max_cycles, load_ppm
         );
+        #[cfg(feature = "console")]
+        crate::telemetry::publish_cost(max_cycles, load_ppm as f64 / 1e4);
     }
 }

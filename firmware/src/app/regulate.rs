@@ -9,11 +9,11 @@
 use core::cell::Cell;
 
 use defmt::{error, info, Display2Format};
+use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::mutex::Mutex as AsyncMutex;
 use embassy_sync::signal::Signal;
-use embassy_futures::select::{select, Either};
 use feeder_shared::closed_loop::{
     Course, CourseConfig, CourseError, Decision, FeedCompensation, FeedRequest, Identified,
     IdentifyError, PositionSample, Probe, Stage, Trims,
@@ -65,8 +65,7 @@ static IDENTIFIED: Signal<CriticalSectionRawMutex, Result<Identified, IdentifyEr
 
 /// The feed compensation the course asks for, handed to the background task, and its answer.
 static FEED_ASKED: Signal<CriticalSectionRawMutex, FeedRequest> = Signal::new();
-static FEED_FOUND: Signal<CriticalSectionRawMutex, (FeedRequest, FeedCompensation)> =
-    Signal::new();
+static FEED_FOUND: Signal<CriticalSectionRawMutex, (FeedRequest, FeedCompensation)> = Signal::new();
 
 /// The course's probe step for the scheduler's hold on a soft start of `ramp_cycles`: the
 /// control loop holds its scheduler there before the first start and with every new ramp length.
@@ -149,6 +148,12 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
                     feed_asked = Some(request);
                     FEED_ASKED.signal(request);
                 }
+                #[cfg(feature = "console")]
+                crate::telemetry::publish_loop(
+                    course.stage(),
+                    feeder_shared::telemetry::positions(&samples[..count]),
+                    Some(decision.trims),
+                );
                 let feedforward = course.feedforward();
                 RULING.lock(|ruling| {
                     ruling.set(Some(Ruling::Trim {

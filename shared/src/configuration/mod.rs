@@ -18,8 +18,9 @@ use crate::closed_loop::TrackConfig;
 use crate::drive::{DacCalibration, DriveError, PwmCalibration, MACHINE_LIMITS};
 use crate::error::Error;
 use crate::model::{Friction, STANDARD_GRAVITY_MPS2};
+use crate::number::Significant;
 use crate::plan::TickClock;
-use crate::settings::{Machine, Settings};
+use crate::settings::{plan_waveform, Machine, Settings};
 use crate::waveform::Limits;
 
 pub use keys::{Key, KeyValue, ValueKind};
@@ -236,12 +237,14 @@ impl fmt::Display for ConfigError {
             Problem::OutOfRange { value, min, max } => write!(
                 f,
                 "{} lies outside {} to {}{}",
-                value,
-                min,
-                max,
+                Significant(value),
+                Significant(min),
+                Significant(max),
                 self.key.unit_suffix()
             ),
-            Problem::NotWhole { value } => write!(f, "{} is not a whole number", value),
+            Problem::NotWhole { value } => {
+                write!(f, "{} is not a whole number", Significant(value))
+            }
             Problem::Drive(error) => write!(f, "{}", error),
             Problem::NotAbove { other } => {
                 write!(f, "must lie above {}", other.keyword())
@@ -250,7 +253,7 @@ impl fmt::Display for ConfigError {
                 f,
                 "the output's linear range reaches only {} m/s2: lower it or change the output's \
                  calibration",
-                linear_mps2
+                Significant(linear_mps2)
             ),
             Problem::NoEncoder => f.write_str("this board has no encoder: set closed_loop off"),
             Problem::Startup(error) => write!(f, "the start-up settings are refused: {}", error),

@@ -36,6 +36,8 @@ pub enum Command {
     Config(ConfigCommand),
     /// `restart`: restart the board, which then runs the saved configuration.
     Restart,
+    /// `telemetry on|off`: stream one record per cycle between the replies, or stop.
+    Telemetry(bool),
     /// `help`: the command summary.
     Help,
 }
@@ -180,6 +182,15 @@ pub fn parse(line: &str) -> Result<Command, ReplyError> {
                 },
             )
         }
+        Keyword::Telemetry => {
+            let word = words
+                .next()
+                .ok_or(ReplyError::MissingArgument { what: "on or off" })?;
+            match lookup(word, &[("on", true), ("off", false)]) {
+                Some(on) => Command::Telemetry(on),
+                None => return Err(ReplyError::NotAChoice { what: "on or off" }),
+            }
+        }
         Keyword::Recipe => {
             let action = words.next().ok_or(ReplyError::MissingArgument {
                 what: "save, load or list",
@@ -204,9 +215,10 @@ enum Keyword {
     Set,
     Recipe,
     Config,
+    Telemetry,
 }
 
-const COMMANDS: [(&str, Keyword); 11] = [
+const COMMANDS: [(&str, Keyword); 12] = [
     ("start", Keyword::Ready(Command::Start)),
     ("stop", Keyword::Ready(Command::Stop)),
     ("status", Keyword::Ready(Command::Status)),
@@ -216,6 +228,7 @@ const COMMANDS: [(&str, Keyword); 11] = [
     ("reset", Keyword::Ready(Command::Reset)),
     ("config", Keyword::Config),
     ("restart", Keyword::Ready(Command::Restart)),
+    ("telemetry", Keyword::Telemetry),
     ("help", Keyword::Ready(Command::Help)),
     ("?", Keyword::Ready(Command::Help)),
 ];

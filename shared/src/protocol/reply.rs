@@ -101,7 +101,7 @@ const HELP: &str = "commands: start | stop | status | get freq|duty|stroke|accel
     set freq <Hz> | set duty <0.5..1> | set stroke <mm> | set accel <m/s2> | set feed <mm/s> | \
     set ramp <cycles> | recipe save <0-7> | recipe load <0-7> | recipe list | reset | \
     config list | config get <key> | config set <key> <value> | config save | config defaults | \
-    restart | help";
+    restart | telemetry on|off | help";
 
 /// One reply line: `OK …` or `ERR <code> <explanation>`, printable ASCII, no terminator.
 ///
@@ -147,12 +147,9 @@ impl Reply {
     /// gain_neg=… offset_mps2=…]] [track=… parts_per_min=…] fault=…`, the closed loop's and the
     /// track's fields on a board that has them.
     pub fn status<F: fmt::Display>(status: &Status<F>) -> Self {
-        let state = match (&status.fault, status.phase) {
-            (Some(_), _) => "fault",
-            (None, Phase::Stopped) => "stopped",
-            (None, Phase::Starting) => "starting",
-            (None, Phase::Running) => "running",
-            (None, Phase::Stopping) => "stopping",
+        let state = match &status.fault {
+            Some(_) => "fault",
+            None => status.phase.name(),
         };
         let mut reply = Self::start("OK state=");
         let _ = reply.write_str(state);

@@ -73,6 +73,9 @@ impl Controller {
                 }
             }
             Command::Config(_) | Command::Restart => Reply::error(&ReplyError::NoConfiguration),
+            Command::Telemetry(on) => {
+                Reply::ok(format_args!("telemetry {}", if on { "on" } else { "off" }))
+            }
             Command::RecipeList => {
                 let entries: [_; RECIPE_SLOTS] = std::array::from_fn(|index| {
                     recipe::decode(&self.flash[index], RecipeSlot::new(index as u8).unwrap())

@@ -4,11 +4,11 @@
 use defmt::{error, unwrap};
 use embassy_executor::SendSpawner;
 use embassy_stm32::flash::Flash;
-use feeder_shared::configuration::Configuration;
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
 use embassy_stm32::peripherals::{FLASH, LPUART1, PA2, PA3};
 use embassy_stm32::usart::{self, BufferedUart};
 use embassy_stm32::{bind_interrupts, Peri};
+use feeder_shared::configuration::Configuration;
 use feeder_shared::TickClock;
 
 use super::flash_store::FlashStore;

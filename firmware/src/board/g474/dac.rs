@@ -8,8 +8,8 @@ use embassy_stm32::{bind_interrupts, pac, triggers, Peri};
 use feeder_shared::configuration::Configuration;
 use feeder_shared::{DriveError, Segment, TickClock};
 
-use super::segment_timer::{SegmentTimer, UpdateInterrupt, CR1_STOPPED, EGR_UPDATE, MIN_SEGMENT_S};
 use super::pins::DRIVER_DISABLE;
+use super::segment_timer::{SegmentTimer, UpdateInterrupt, CR1_STOPPED, EGR_UPDATE, MIN_SEGMENT_S};
 use crate::config;
 use crate::output::{DacCodes, EdgeMissed, SegmentOutput, SegmentStart, TrimmedCycle};
 use crate::ports::RegisterWrite;

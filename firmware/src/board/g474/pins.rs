@@ -19,7 +19,8 @@ const GPIOA_BSRR: u32 = 0x4800_0018;
     clippy::declare_interior_mutable_const,
     reason = "copied once into the stage's safe-state table"
 )]
-pub const DRIVER_DISABLE: RegisterWrite = RegisterWrite::new(GPIOA_BSRR, 1 << (16 + DRIVER_ENABLE_PIN));
+pub const DRIVER_DISABLE: RegisterWrite =
+    RegisterWrite::new(GPIOA_BSRR, 1 << (16 + DRIVER_ENABLE_PIN));
 
 // The raw value above means what its comment says, as the PAC decodes it.
 const _: () = assert!(pac::gpio::regs::Bsrr(1 << (16 + DRIVER_ENABLE_PIN)).br(DRIVER_ENABLE_PIN));

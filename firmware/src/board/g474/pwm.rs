@@ -15,8 +15,8 @@ use feeder_shared::{
     Direction, DriveError, PwmCalibration, PwmCommand, PwmLevels, Segment, TickClock,
 };
 
-use super::segment_timer::{SegmentTimer, UpdateInterrupt, CR1_STOPPED, MIN_SEGMENT_S};
 use super::pins::DRIVER_DISABLE;
+use super::segment_timer::{SegmentTimer, UpdateInterrupt, CR1_STOPPED, MIN_SEGMENT_S};
 use crate::config;
 use crate::output::{EdgeMissed, SegmentOutput, SegmentStart, TrimmedCycle, TrimmedLevels};
 use crate::ports::RegisterWrite;
@@ -196,7 +196,10 @@ impl SegmentOutput for PwmStage {
 
     fn set_peak_accel(&mut self, peak_accel_mps2: f64) -> Result<(), DriveError> {
         self.levels = None;
-        self.levels = Some(self.calibration.levels(peak_accel_mps2, self.period_counts)?);
+        self.levels = Some(
+            self.calibration
+                .levels(peak_accel_mps2, self.period_counts)?,
+        );
         Ok(())
     }
 

@@ -41,7 +41,10 @@ impl FileStore {
         let handle = open(RW_BINARY).or_else(|| open(RW_TRUNC_BINARY));
         let mut store = FileStore { handle };
         let Some(handle) = handle else {
-            warn!("flash file {=str} cannot be opened: nothing is kept", FILE_NAME);
+            warn!(
+                "flash file {=str} cannot be opened: nothing is kept",
+                FILE_NAME
+            );
             return store;
         };
         // SAFETY: SYS_FLEN takes the open handle.

@@ -2,8 +2,8 @@
 //! reported as an `EVT` line.
 
 use embassy_time::{Instant, Timer};
-use feeder_shared::scenario::{qemu_clock, QEMU_TICK_HZ};
 use feeder_shared::configuration::Configuration;
+use feeder_shared::scenario::{qemu_clock, QEMU_TICK_HZ};
 use feeder_shared::{DriveError, Segment, TickClock};
 
 use super::edge_work::{overrun_if_provoked, record_edge_work};

@@ -1,0 +1,173 @@
+use proptest::prelude::*;
+
+use super::*;
+
+fn full() -> Record {
+    Record {
+        stage: Some(Stage::Feeding),
+        mean_m: Some(1.2e-6),
+        peak_m: Some(1280.4e-6),
+        trim_positive: Some(1.0012),
+        trim_negative: Some(0.9987),
+        bias_mps2: Some(0.0123),
+        slack_ticks: Some(19938),
+        edge_work_cycles: Some(4236),
+        cpu_load_pct: Some(3.1),
+        track: Some(TrackState::Empty),
+        parts_per_minute: Some(12.0),
+        ..Record::new(1234, 24_680, Phase::Running, None)
+    }
+}
+
+fn line(record: &Record) -> heapless::String<MAX_LINE_BYTES> {
+    let mut text = heapless::String::new();
+    record.write_line(&mut text).expect("a line fits");
+    text
+}
+
+#[test]
+fn a_record_is_the_documented_line() {
+    assert_eq!(
+        line(&full()).as_str(),
+        "T 1234 24.68 running feeding 1.2 1280.4 1.0012 0.9987 0.0123 19938 4236 3.1 room 12 none"
+    );
+    assert_eq!(
+        line(&Record::new(
+            7,
+            140,
+            Phase::Stopped,
+            Some(Fault::EdgeMissed)
+        ))
+        .as_str(),
+        "T 7 0.14 stopped - - - - - - - - - - - edge-missed"
+    );
+}
+
+#[test]
+fn the_header_names_every_field_with_its_unit() {
+    assert_eq!(COLUMNS.len(), 15);
+    let mut row = heapless::String::<MAX_LINE_BYTES>::new();
+    full().write_fields(&mut row, ',').unwrap();
+    assert_eq!(row.split(',').count(), COLUMNS.len());
+    assert!(COLUMNS.iter().any(|c| c.name == "mean" && c.unit == "um"));
+}
+
+#[test]
+fn lines_that_are_no_record_name_their_column() {
+    assert_eq!(Record::parse_line("T x"), Err(ParseError { column: 0 }));
+    assert_eq!(
+        Record::parse_line("T 1 0.1 walking - - - - - - - - - - - none"),
+        Err(ParseError { column: 2 })
+    );
+    assert_eq!(
+        Record::parse_line("T 1 0.1 stopped - - - - - - - - - - - none extra"),
+        Err(ParseError {
+            column: COLUMNS.len()
+        })
+    );
+    assert_eq!(
+        Record::parse_line("T 1 0.1 stopped"),
+        Err(ParseError { column: 3 })
+    );
+}
+
+#[test]
+fn a_cycle_s_positions_give_their_mean_and_farthest_excursion() {
+    let samples = [-3e-6, 1e-6, 5e-6, -1e-6].map(|position_m| PositionSample {
+        tick: 0,
+        position_m,
+    });
+    let (mean_m, peak_m) = positions(&samples).unwrap();
+    assert!((mean_m - 0.5e-6).abs() < 1e-18, "{mean_m}");
+    assert_eq!(peak_m, 5e-6);
+    assert_eq!(positions(&[]), None);
+}
+
+#[test]
+fn the_pacer_keeps_telemetry_to_its_share_of_the_link() {
+    let mut pacer = Pacer::new(115_200);
+    assert!(pacer.ready(0));
+    pacer.sent(0, 80);
+    // 80 bytes at 115200 baud take 6944 µs; at half the link the next waits twice that.
+    assert!(!pacer.ready(13_888));
+    assert!(pacer.ready(13_889));
+    assert!((pacer.line_us(80) - 6944.4).abs() < 0.1);
+}
+
+fn records() -> impl Strategy<Value = Record> {
+    let stage = prop::option::of(prop::sample::select(STAGES.to_vec()));
+    let track = prop::option::of(prop::sample::select(TRACK_STATES.to_vec()));
+    let fault = prop::option::of(prop::sample::select(FAULTS.to_vec()));
+    let phase = prop::sample::select(PHASES.to_vec());
+    let number = |range: core::ops::Range<f64>| prop::option::of(range);
+    (
+        (any::<u64>(), 0u64..1u64 << 40, phase, stage, fault, track),
+        (
+            number(-5e-3..5e-3),
+            number(0.0..5e-3),
+            number(0.5..1.5),
+            number(0.5..1.5),
+        ),
+        (
+            number(-50.0..50.0),
+            prop::option::of(any::<u32>()),
+            prop::option::of(any::<u32>()),
+        ),
+        (number(0.0..100.0), number(0.0..1e4)),
+    )
+        .prop_map(
+            |(
+                (cycle, uptime_ms, phase, stage, fault, track),
+                (mean_m, peak_m, trim_positive, trim_negative),
+                (bias_mps2, slack_ticks, edge_work_cycles),
+                (cpu_load_pct, parts_per_minute),
+            )| Record {
+                cycle,
+                uptime_ms,
+                phase,
+                stage,
+                mean_m,
+                peak_m,
+                trim_positive,
+                trim_negative,
+                bias_mps2,
+                slack_ticks,
+                edge_work_cycles,
+                cpu_load_pct,
+                track,
+                parts_per_minute,
+                fault,
+            },
+        )
+}
+
+/// `value` rounded as its column writes it.
+fn rounded(value: Option<f64>, scale: f64, decimals: i32) -> Option<f64> {
+    let factor = 10f64.powi(decimals);
+    value.map(|v| (v * scale * factor).round() / factor / scale)
+}
+
+proptest! {
+    /// Every record fits its line and reads back as itself, to the decimals its columns keep.
+    #[test]
+    fn a_line_reads_back_as_its_record(record in records()) {
+        let text = line(&record);
+        prop_assert!(text.len() <= MAX_LINE_BYTES);
+        let read = Record::parse_line(&text).unwrap();
+        let close = |a: Option<f64>, b: Option<f64>| match (a, b) {
+            (Some(a), Some(b)) => (a - b).abs() <= 1e-9 * a.abs().max(1e-6),
+            (None, None) => true,
+            _ => false,
+        };
+        prop_assert_eq!(
+            (read.cycle, read.uptime_ms, read.phase, read.stage, read.track, read.fault),
+            (record.cycle, record.uptime_ms, record.phase, record.stage, record.track, record.fault)
+        );
+        prop_assert_eq!((read.slack_ticks, read.edge_work_cycles), (record.slack_ticks, record.edge_work_cycles));
+        prop_assert!(close(read.mean_m, rounded(record.mean_m, 1e6, 1)));
+        prop_assert!(close(read.peak_m, rounded(record.peak_m, 1e6, 1)));
+        prop_assert!(close(read.trim_positive, rounded(record.trim_positive, 1.0, 5)));
+        prop_assert!(close(read.bias_mps2, rounded(record.bias_mps2, 1.0, 4)));
+        prop_assert!(close(read.parts_per_minute, rounded(record.parts_per_minute, 1.0, 1)));
+    }
+}
