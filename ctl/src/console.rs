@@ -1,9 +1,13 @@
 //! The connection to the feeder's serial console, over a serial port or TCP: one command line
-//! out, one reply line back.
+//! out, one reply line back, and the telemetry lines the board streams between replies
+//! (`feeder_shared::telemetry`), kept in order until taken.
 
+use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 use std::net::TcpStream;
-use std::time::Duration;
+use std::time::{Duration, Instant};
+
+use feeder_shared::telemetry::{Record, MARKER};
 
 /// Longest reply line accepted, in bytes.
 const MAX_REPLY_BYTES: usize = 1024;
@@ -26,10 +30,36 @@ impl std::fmt::Display for Target<'_> {
 /// A connection to the console: one command line out, one reply line back.
 pub struct Console {
     link: Box<dyn Link>,
+    /// How long a reply may take.
+    timeout: Duration,
+    /// Telemetry records received and not taken yet.
+    telemetry: VecDeque<Record>,
+    /// Bytes of the line being received.
+    partial: Vec<u8>,
 }
 
-trait Link: Read + Write {}
-impl<T: Read + Write> Link for T {}
+trait Link: Read + Write {
+    /// Sets how long a read waits.
+    fn set_wait(&mut self, wait: Duration) -> io::Result<()>;
+}
+
+impl Link for TcpStream {
+    fn set_wait(&mut self, wait: Duration) -> io::Result<()> {
+        self.set_read_timeout(Some(wait.max(Duration::from_millis(1))))
+    }
+}
+
+impl Link for Box<dyn serialport::SerialPort> {
+    fn set_wait(&mut self, wait: Duration) -> io::Result<()> {
+        self.set_timeout(wait).map_err(io::Error::from)
+    }
+}
+
+/// A line from the board.
+enum Line {
+    Reply(String),
+    Telemetry,
+}
 
 impl Console {
     pub fn open(target: &Target, timeout: Duration) -> io::Result<Self> {
@@ -41,37 +71,92 @@ impl Console {
             }
             Target::Tcp(address) => {
                 let stream = TcpStream::connect(address)?;
-                stream.set_read_timeout(Some(timeout))?;
                 stream.set_nodelay(true)?;
                 Box::new(stream)
             }
         };
-        Ok(Console { link })
+        Ok(Console {
+            link,
+            timeout,
+            telemetry: VecDeque::new(),
+            partial: Vec::new(),
+        })
     }
 
-    /// Sends `line` and returns the reply line without its terminator.
+    /// Sends `line` and returns the reply line without its terminator; telemetry lines that
+    /// arrive before it are kept for [`Console::take_telemetry`].
     pub fn command(&mut self, line: &str) -> io::Result<String> {
         self.link.write_all(line.as_bytes())?;
         self.link.write_all(b"\r\n")?;
         self.link.flush()?;
-        self.reply()
+        let deadline = Instant::now() + self.timeout;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match self.line(left)? {
+                Some(Line::Reply(reply)) => return Ok(reply),
+                Some(Line::Telemetry) => {}
+                None if left.is_zero() => {
+                    return Err(io::Error::new(io::ErrorKind::TimedOut, "no reply in time"))
+                }
+                None => {}
+            }
+        }
     }
 
-    fn reply(&mut self) -> io::Result<String> {
-        let mut reply = Vec::new();
-        let mut byte = [0u8];
+    /// Reads what arrives within `wait`, keeping the telemetry; a reply line that arrives
+    /// unasked is an error.
+    pub fn listen(&mut self, wait: Duration) -> io::Result<()> {
+        let deadline = Instant::now() + wait;
         loop {
-            match self.link.read(&mut byte) {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match self.line(left)? {
+                Some(Line::Reply(reply)) => {
+                    return Err(io::Error::new(
+                        io::ErrorKind::InvalidData,
+                        format!("a reply nobody asked for: {reply}"),
+                    ))
+                }
+                Some(Line::Telemetry) => {}
+                None if left.is_zero() => return Ok(()),
+                None => {}
+            }
+        }
+    }
+
+    /// The telemetry records received so far, oldest first.
+    pub fn take_telemetry(&mut self) -> Vec<Record> {
+        self.telemetry.drain(..).collect()
+    }
+
+    /// The next line within `wait`, or `None`; a telemetry line goes to the records (a line
+    /// that does not read as one is an error).
+    fn line(&mut self, wait: Duration) -> io::Result<Option<Line>> {
+        self.link.set_wait(wait)?;
+        let mut bytes = [0u8; 256];
+        loop {
+            if let Some(end) = self.partial.iter().position(|&byte| byte == b'\n') {
+                let raw: Vec<u8> = self.partial.drain(..=end).collect();
+                let text = String::from_utf8_lossy(&raw);
+                let text = text.trim_end_matches(['\r', '\n']);
+                if let Some(fields) = text.strip_prefix(MARKER) {
+                    let record = Record::parse_line(fields).map_err(|error| {
+                        io::Error::new(io::ErrorKind::InvalidData, format!("{error}: {text:?}"))
+                    })?;
+                    self.telemetry.push_back(record);
+                    return Ok(Some(Line::Telemetry));
+                }
+                let mut reply = text.to_string();
+                reply.truncate(MAX_REPLY_BYTES);
+                return Ok(Some(Line::Reply(reply)));
+            }
+            match self.link.read(&mut bytes) {
                 Ok(0) => {
                     return Err(io::Error::new(
                         io::ErrorKind::UnexpectedEof,
                         "connection closed",
                     ))
                 }
-                Ok(_) if byte[0] == b'\n' => break,
-                Ok(_) if byte[0] == b'\r' => {}
-                Ok(_) if reply.len() < MAX_REPLY_BYTES => reply.push(byte[0]),
-                Ok(_) => {}
+                Ok(read) => self.partial.extend_from_slice(&bytes[..read]),
                 Err(error) if error.kind() == io::ErrorKind::Interrupted => {}
                 Err(error)
                     if matches!(
@@ -79,11 +164,10 @@ impl Console {
                         io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut
                     ) =>
                 {
-                    return Err(io::Error::new(io::ErrorKind::TimedOut, "no reply in time"))
+                    return Ok(None)
                 }
                 Err(error) => return Err(error),
             }
         }
-        Ok(String::from_utf8_lossy(&reply).into_owned())
     }
 }

@@ -5,15 +5,21 @@
 //! feeder-ctl (--port PATH [--baud N] | --tcp HOST:PORT) [--timeout-ms N] [COMMAND WORDS…]
 //! feeder-ctl … export FILE
 //! feeder-ctl … import FILE [--save]
+//! feeder-ctl … watch [--record FILE] [--seconds N]
+//! feeder-ctl … script FILE [--record FILE]
 //! ```
 //!
 //! With command words, sends them as one line, prints the reply and exits with 0 for `OK`, 1 for
 //! `ERR`. Without, reads commands from standard input (with a prompt on a terminal) and prints
 //! each reply. `export` and `import` move the board's configuration to and from a file
-//! (`config_file`). Exit code 2: bad arguments or a connection or timeout error.
+//! (`config_file`); `watch` shows and records the board's telemetry (`watch`); `script` runs a
+//! command script headless (`script`). Exit code 2: bad arguments or a connection or timeout error.
 
 mod config_file;
 mod console;
+mod recording;
+mod script;
+mod watch;
 
 use std::io::{self, BufRead, IsTerminal, Write};
 use std::path::PathBuf;
@@ -93,6 +99,35 @@ enum Tool {
         #[arg(long)]
         save: bool,
     },
+    /// Shows the board's telemetry live (position, trims, slack, parts per minute); q leaves.
+    Watch {
+        /// Records every record received to FILE as CSV, a header naming each column and unit.
+        #[arg(long, value_name = "FILE")]
+        record: Option<PathBuf>,
+        /// Headless: listens this many seconds, then writes the recording and ends.
+        #[arg(long, value_name = "N", value_parser = seconds)]
+        seconds: Option<f64>,
+    },
+    /// Runs a command script: console lines, one a line, and `wait SECONDS` lines (the board's
+    /// clock); every command and reply on standard output. Exit code 1 if a reply was ERR.
+    Script {
+        /// The script.
+        #[arg(value_name = "FILE")]
+        file: PathBuf,
+        /// Records the telemetry while the script runs to FILE as CSV.
+        #[arg(long, value_name = "FILE")]
+        record: Option<PathBuf>,
+    },
+}
+
+/// A number of seconds: finite, positive, at most a day.
+fn seconds(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(value) if value > 0.0 && value <= 86_400.0 => Ok(value),
+        _ => Err(format!(
+            "{text:?} is not a number of seconds from 0 to 86400"
+        )),
+    }
 }
 
 impl Options {
@@ -187,6 +222,36 @@ fn run_tool(tool: &Tool, console: &mut Console, target: &Target) -> ExitCode {
             println!("{last}");
             format!("feeder-ctl: {} imported", file.display())
         }),
+        Tool::Watch { record, seconds } => {
+            let watched = match seconds {
+                Some(seconds) => watch::headless(console, *seconds, record.as_deref()),
+                None => watch::live(console, record.as_deref(), target.to_string()),
+            };
+            return match watched {
+                Ok(records) => {
+                    eprintln!("feeder-ctl: {records} telemetry records");
+                    ExitCode::SUCCESS
+                }
+                Err(error) => {
+                    eprintln!("feeder-ctl: {error}");
+                    ExitCode::from(2)
+                }
+            };
+        }
+        Tool::Script { file, record } => {
+            let ran = std::fs::read_to_string(file)
+                .map_err(script::ScriptError::Io)
+                .and_then(|text| script::parse(&text))
+                .and_then(|steps| script::run(console, &steps, record.as_deref()));
+            return match ran {
+                Ok(true) => ExitCode::SUCCESS,
+                Ok(false) => ExitCode::FAILURE,
+                Err(error) => {
+                    eprintln!("feeder-ctl: {}: {error}", file.display());
+                    ExitCode::from(2)
+                }
+            };
+        }
     };
     match outcome {
         Ok(done) => {

@@ -29,6 +29,19 @@ pub struct Column {
     pub unit: &'static str,
 }
 
+impl Column {
+    /// Writes the column's name in a recording's header: the name, then `_` and the unit
+    /// (`mean_um`, `bias_mps2`).
+    pub fn write_header(&self, out: &mut impl Write) -> fmt::Result {
+        out.write_str(self.name)?;
+        if !self.unit.is_empty() {
+            out.write_char('_')?;
+            out.write_str(self.unit)?;
+        }
+        Ok(())
+    }
+}
+
 const fn column(name: &'static str, unit: &'static str) -> Column {
     Column { name, unit }
 }
@@ -43,12 +56,12 @@ pub const COLUMNS: [Column; 15] = [
     column("peak", "um"),
     column("trim_pos", ""),
     column("trim_neg", ""),
-    column("bias", "m/s2"),
+    column("bias", "mps2"),
     column("slack", "ticks"),
     column("edge_work", "cycles"),
-    column("cpu_load", "%"),
+    column("cpu_load", "pct"),
     column("track", ""),
-    column("parts", "1/min"),
+    column("parts", "per_min"),
     column("fault", ""),
 ];
 

@@ -63,6 +63,19 @@ pub fn bless() -> Result {
         )?;
     }
     exec(cargo_test("host-sim", "docs").env("TRYCMD", "overwrite"))?;
+    exec(
+        cargo()
+            .args([
+                "test",
+                "--locked",
+                "--package",
+                "feeder-ctl",
+                "--bin",
+                "feeder-ctl",
+            ])
+            .args(["--", "watch::view"])
+            .env("FEEDER_BLESS", "overwrite"),
+    )?;
     report(&before, &contents(&watched)?);
     Ok(())
 }

@@ -180,11 +180,14 @@ impl Configuration {
         if self.closed_loop && !board.encoder {
             return Err(ConfigError::new(Key::ClosedLoop, Problem::NoEncoder));
         }
-        self.startup
-            .validate(&self.machine(board))
-            .map_err(|error| {
-                ConfigError::new(Key::startup(&self.startup), Problem::Startup(error))
-            })?;
+        let machine = self.machine(board);
+        plan_waveform(
+            self.startup.spec(),
+            &machine.limits,
+            machine.loop_linear_mps2,
+            machine.clock,
+        )
+        .map_err(|error| ConfigError::new(Key::startup(&self.startup), Problem::Startup(error)))?;
         Ok(())
     }
 }

@@ -49,7 +49,18 @@ fn the_header_names_every_field_with_its_unit() {
     let mut row = heapless::String::<MAX_LINE_BYTES>::new();
     full().write_fields(&mut row, ',').unwrap();
     assert_eq!(row.split(',').count(), COLUMNS.len());
-    assert!(COLUMNS.iter().any(|c| c.name == "mean" && c.unit == "um"));
+    let mut header = heapless::String::<256>::new();
+    for (index, column) in COLUMNS.iter().enumerate() {
+        if index > 0 {
+            header.push(',').unwrap();
+        }
+        column.write_header(&mut header).unwrap();
+    }
+    assert_eq!(
+        header.as_str(),
+        "cycle,uptime_s,phase,loop,mean_um,peak_um,trim_pos,trim_neg,bias_mps2,slack_ticks,\
+         edge_work_cycles,cpu_load_pct,track,parts_per_min,fault"
+    );
 }
 
 #[test]
