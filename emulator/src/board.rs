@@ -11,6 +11,9 @@ use crate::command::{command, Serial};
 use crate::plant_link::{LinkCounts, Plant, PlantThread};
 use crate::{LaunchError, DECODER, QEMU};
 
+/// The board's flash file in QEMU's working directory (the console image's `file_store`).
+pub const FLASH_FILE: &str = "feeder-flash.bin";
+
 /// Pause between looks at whether a run has ended.
 const EXIT_POLL_INTERVAL: Duration = Duration::from_millis(20);
 
@@ -43,17 +46,25 @@ impl Board {
 
     /// Starts the `cosim` image `elf` as [`Board::start`] does, in lockstep with `plant`: QEMU
     /// runs in the directory of the link's FIFOs, which the returned thread serves `plant` on
-    /// (see [`crate::plant_link`]). Join the thread once the board has ended.
+    /// (see [`crate::plant_link`]). Join the thread once the board has ended. With `flash_dir`,
+    /// the board's flash file is the one in that directory (a console image keeps what it saves
+    /// there); without, it is the link directory's, gone with it.
     pub fn start_with_plant<S: AsRef<str>, P: Plant + Send + 'static>(
         elf: &Path,
         scenario: &[S],
         serial: Serial,
         decoded: Stdio,
         plant: P,
+        flash_dir: Option<&Path>,
     ) -> Result<(Self, PlantThread<P>), LaunchError> {
         // QEMU runs elsewhere: the image's path must not depend on the working directory.
         let elf = std::path::absolute(elf).map_err(LaunchError::Image)?;
         let link = PlantThread::start(plant).map_err(LaunchError::Plant)?;
+        if let Some(dir) = flash_dir {
+            let flash = std::path::absolute(dir.join(FLASH_FILE)).map_err(LaunchError::Image)?;
+            std::os::unix::fs::symlink(flash, link.dir().join(FLASH_FILE))
+                .map_err(LaunchError::Plant)?;
+        }
         let mut emulator = command(&elf, scenario, serial);
         emulator.current_dir(link.dir());
         let board = Self::spawn(emulator, &elf, decoded)?;
@@ -184,7 +195,7 @@ pub fn run_with_plant<S: AsRef<str>, P: Plant + Send + 'static>(
     plant: P,
 ) -> Result<PlantRun<P>, LaunchError> {
     let (board, link) =
-        Board::start_with_plant(elf, scenario, Serial::None, Stdio::piped(), plant)?;
+        Board::start_with_plant(elf, scenario, Serial::None, Stdio::piped(), plant, None)?;
     let run = run_board(board, limit);
     let (plant, counts) = link.join()?;
     Ok(PlantRun {

@@ -17,7 +17,7 @@ mod error;
 pub mod plant_link;
 mod progress;
 
-pub use board::{run_to_end, run_with_plant, Board, PlantRun, Run};
+pub use board::{run_to_end, run_with_plant, Board, PlantRun, Run, FLASH_FILE};
 pub use command::{command, Serial, ICOUNT_SHIFT, NS_PER_INSTRUCTION};
 pub use error::LaunchError;
 pub use progress::{relay, Progress};

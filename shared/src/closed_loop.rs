@@ -14,8 +14,8 @@ pub mod shape;
 pub mod track;
 
 pub use course::{
-    Course, CourseConfig, CourseError, CycleTrims, Decision, LateTrims, LoopReport, PositionSample,
-    Probe, Stage,
+    mean_position_m, Course, CourseConfig, CourseError, CycleTrims, Decision, LateTrims,
+    LoopReport, PositionSample, Probe, Stage,
 };
 pub use cycle_loop::{CycleLoop, LoopError, LoopLimits, Stroke, Trims};
 pub use cycle_map::CycleMap;

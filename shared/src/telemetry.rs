@@ -14,7 +14,7 @@
 
 use core::fmt::{self, Write};
 
-use crate::closed_loop::{PositionSample, Stage, TrackState};
+use crate::closed_loop::{mean_position_m, PositionSample, Stage, TrackState};
 use crate::number::Fixed;
 use crate::scheduler::Phase;
 use crate::supervisor::Fault;
@@ -212,19 +212,21 @@ impl Record {
     }
 }
 
-/// The mean of `samples`' positions and the largest distance from the centre among them, m;
-/// `None` without samples.
-pub fn positions(samples: &[PositionSample]) -> Option<(f64, f64)> {
-    if samples.is_empty() {
-        return None;
-    }
-    let (sum, peak) = samples.iter().fold((0.0, 0.0_f64), |(sum, peak), sample| {
-        (
-            sum + sample.position_m,
-            peak.max(libm::fabs(sample.position_m)),
-        )
-    });
-    Some((sum / samples.len() as f64, peak))
+/// The plate over one cycle, from the capture at its start (`start`) through the samples
+/// `during` it to the capture at its end (`end`): its mean position (trapezoids, as the closed
+/// loop measures it, [`mean_position_m`]) and its farthest distance from the centre, m.
+pub fn cycle_positions(
+    start: PositionSample,
+    during: &[PositionSample],
+    end: PositionSample,
+) -> (f64, f64) {
+    let peak_m = during
+        .iter()
+        .chain([&start, &end])
+        .fold(0.0_f64, |peak, sample| {
+            peak.max(libm::fabs(sample.position_m))
+        });
+    (mean_position_m(start, during, end), peak_m)
 }
 
 /// A field that may be absent (`-`).

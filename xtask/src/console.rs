@@ -1,8 +1,13 @@
 //! `cargo xtask console`: live control of the emulated feeder in one command. The QEMU console
 //! image runs with its serial port on a free loopback TCP port, its decoded log captured to
-//! `target/console-run.log` and its flash in `target/emulated-board/`; the operator gets the `feeder-ctl` prompt on the terminal, and when
-//! they leave it, the plate is brought to rest (a soft stop), QEMU is stopped and `host-sim hil`
-//! checks what happened.
+//! `target/console-run.log` and its flash in `target/emulated-board/`; the operator gets the
+//! `feeder-ctl` prompt on the terminal, and when they leave it, the plate is brought to rest (a
+//! soft stop), QEMU is stopped and `host-sim hil` checks what happened.
+//!
+//! With `--plant FILE` the console image with the plant's encoder runs the closed loop in
+//! lockstep with that plate (and a part of the configured μ on it); with `--script FILE` a
+//! command script runs headless instead of the prompt (`feeder-ctl script`), its telemetry
+//! recorded to CSV with `--record FILE`.
 
 use std::fs::File;
 use std::net::{TcpListener, TcpStream};
@@ -11,10 +16,16 @@ use std::process::Stdio;
 use std::thread;
 use std::time::{Duration, Instant};
 
-use feeder_emulator::{Board, Serial};
+use clap::Args;
+use feeder_emulator::plant_link::{PlantThread, TICK_HZ};
+use feeder_emulator::{Board, Serial, FLASH_FILE};
+use feeder_shared::{DacCalibration, Friction};
+use host_sim::cosim::PlatePlant;
+use host_sim::plate::PlantFile;
+use host_sim::Contact;
 
 use crate::command::{cargo, exec, exec_output, host_sim, root, workspace_binary};
-use crate::failure::Result;
+use crate::failure::{Failure, Result};
 use crate::qemu::{self, Image};
 use crate::tools;
 
@@ -42,11 +53,42 @@ fn board_dir() -> Result<PathBuf> {
     Ok(dir)
 }
 
-/// Builds and runs everything, hands the terminal to `feeder-ctl`, then checks the log.
-pub fn console() -> Result {
+/// The flags of `cargo xtask console`.
+#[derive(Args)]
+pub struct ConsoleArgs {
+    /// Runs the closed-loop console image in lockstep with this plant file's plate
+    /// (host-sim/plants/), a part of the configured μ on it.
+    #[arg(long, value_name = "FILE")]
+    plant: Option<PathBuf>,
+    /// Runs this command script headless instead of the prompt: console lines, one a line,
+    /// and `wait SECONDS` lines; every reply goes to standard output.
+    #[arg(long, value_name = "FILE")]
+    script: Option<PathBuf>,
+    /// With --script: records the telemetry to this CSV file, one row per record.
+    #[arg(long, value_name = "FILE", requires = "script")]
+    record: Option<PathBuf>,
+}
+
+/// Builds and runs everything, hands the terminal to `feeder-ctl` (or runs the script), then
+/// checks the log.
+pub fn console(args: &ConsoleArgs) -> Result {
+    let plant = args
+        .plant
+        .as_deref()
+        .map(|path| PlantFile::from_path(path).map_err(|error| Failure::Refused(error.to_string())))
+        .transpose()?;
+    if let Some(script) = &args.script {
+        std::fs::metadata(script).map_err(|error| {
+            Failure::Refused(format!("cannot read {}: {error}", script.display()))
+        })?;
+    }
     tools::ensure_linker()?;
     tools::ensure_emulation()?;
-    let elf = qemu::build_firmware(Image::Console)?;
+    let image = match plant {
+        Some(_) => Image::ClosedLoopConsole,
+        None => Image::Console,
+    };
+    let elf = qemu::build_firmware(image)?;
     exec(cargo().args(["build", "--release", "--locked"]).args([
         "--package",
         "feeder-ctl",
@@ -55,18 +97,33 @@ pub fn console() -> Result {
     ]))?;
     let log = log_path();
     let operator = {
-        let mut feeder = Feeder::start(&elf, &log)?;
+        let mut feeder = Feeder::start(&elf, &log, plant.as_ref())?;
         eprintln!(
             "xtask: the feeder runs under QEMU, its console on {}, its log in {} and its flash \
-             in {}; `help` lists the commands, `quit`, `exit` or Ctrl-D leave and check the run",
+             in {}{}",
             address(feeder.port),
             log.display(),
-            board_dir()?.join("feeder-flash.bin").display()
+            board_dir()?.join(FLASH_FILE).display(),
+            match &args.script {
+                Some(script) => format!("; running {}", script.display()),
+                None => "; `help` lists the commands, `quit`, `exit` or Ctrl-D leave and check \
+                         the run"
+                    .into(),
+            }
         );
-        let operator = operate(feeder.port).and_then(|()| bring_to_rest(feeder.port));
+        let operated = match &args.script {
+            Some(script) => run_script(feeder.port, script, args.record.as_deref()),
+            None => operate(feeder.port),
+        };
+        let operator = operated.and_then(|()| bring_to_rest(feeder.port));
         feeder.stop()?;
         operator
     };
+    if args.plant.is_some() {
+        // The closed loop's course trims every cycle: `hil` checks plans the scheduler alone
+        // makes, so the plate's own record (above) is the report.
+        return operator;
+    }
     eprintln!("\nWhat the firmware did, checked by host-sim hil:");
     let check = exec_output(
         host_sim()
@@ -77,28 +134,54 @@ pub fn console() -> Result {
     operator.and(check)
 }
 
-/// The emulated feeder: QEMU and the decoder writing its log. Both end when this is dropped.
+/// The emulated feeder: QEMU and the decoder writing its log, and the plate in lockstep with
+/// it where there is one. All end when this is dropped.
 struct Feeder {
     board: Board,
     port: u16,
+    plate: Option<PlantThread<PlatePlant>>,
 }
 
 impl Feeder {
-    /// Starts the console image `elf` with its decoded log going to `log`, and waits until its
-    /// serial port accepts connections.
-    fn start(elf: &Path, log: &Path) -> Result<Self> {
+    /// Starts the console image `elf` with its decoded log going to `log`, in lockstep with the
+    /// plate of `plant` where there is one, and waits until its serial port accepts
+    /// connections.
+    fn start(elf: &Path, log: &Path, plant: Option<&PlantFile>) -> Result<Self> {
         let port = free_port()?;
         let file = File::create(log)
             .map_err(|error| format!("cannot create {}: {error}", log.display()))?;
-        let board = Board::start(
-            elf,
-            &[] as &[&str],
-            Serial::Tcp { port },
-            Stdio::from(file),
-            &board_dir()?,
-        )
-        .map_err(|error| error.to_string())?;
-        let mut feeder = Feeder { board, port };
+        let dir = board_dir()?;
+        let (board, plate) = match plant {
+            None => (
+                Board::start(
+                    elf,
+                    &[] as &[&str],
+                    Serial::Tcp { port },
+                    Stdio::from(file),
+                    &dir,
+                )
+                .map_err(|error| error.to_string())?,
+                None,
+            ),
+            Some(plant) => {
+                let part =
+                    Contact::paper_part(Friction::CONFIGURED.mu, Friction::CONFIGURED.gravity_mps2)
+                        .map_err(|error| error.to_string())?;
+                let plate = PlatePlant::new(plant, &part, DacCalibration::DEFAULT, TICK_HZ)
+                    .map_err(|error| Failure::Refused(error.to_string()))?;
+                let (board, link) = Board::start_with_plant(
+                    elf,
+                    &[] as &[&str],
+                    Serial::Tcp { port },
+                    Stdio::from(file),
+                    plate,
+                    Some(&dir),
+                )
+                .map_err(|error| error.to_string())?;
+                (board, Some(link))
+            }
+        };
+        let mut feeder = Feeder { board, port, plate };
         feeder.wait_for_port()?;
         Ok(feeder)
     }
@@ -123,9 +206,24 @@ impl Feeder {
         }
     }
 
-    /// Ends QEMU and waits for the decoder to write the rest of the log.
+    /// Ends QEMU, waits for the decoder to write the rest of the log and, with a plate, says
+    /// where it went.
     fn stop(&mut self) -> Result {
-        self.board.stop().map_err(|error| error.to_string().into())
+        self.board.stop().map_err(|error| error.to_string())?;
+        if let Some(link) = self.plate.take() {
+            let (plate, _) = link.join().map_err(|error| error.to_string())?;
+            let state = plate.last_state();
+            eprintln!(
+                "xtask: the plate went {:.1} um from its centre at most{}; it ended at {:.1} um",
+                plate.peak_excursion_m() * 1e6,
+                match plate.end_stop() {
+                    Some(stop) => format!(", into its end stop at {:.3} s", stop.time_s),
+                    None => ", no end stop".into(),
+                },
+                state.position_m * 1e6
+            );
+        }
+        Ok(())
     }
 }
 
@@ -149,6 +247,23 @@ fn operate(port: u16) -> Result {
             .arg("--tcp")
             .arg(address(port)),
     )
+}
+
+/// `feeder-ctl script` on the console on `port`: every reply to standard output, the telemetry
+/// to `record`.
+fn run_script(port: u16, script: &Path, record: Option<&Path>) -> Result {
+    let mut command = workspace_binary("feeder-ctl");
+    command
+        .arg("--tcp")
+        .arg(address(port))
+        .arg("--timeout-ms")
+        .arg("30000")
+        .arg("script")
+        .arg(script);
+    if let Some(record) = record {
+        command.arg("--record").arg(record);
+    }
+    exec_output(&mut command)
 }
 
 /// One command to the console on `port`; its reply line.

@@ -59,8 +59,8 @@ enum Task {
     Size,
     /// Live control: the QEMU console image with the `feeder-ctl` prompt on this terminal and
     /// its decoded log in target/console-run.log; on leaving the prompt (`quit`, `exit`,
-    /// Ctrl-D), `host-sim hil` checks the run.
-    Console,
+    /// Ctrl-D), `host-sim hil` checks the run. With --plant, the closed loop on that plate.
+    Console(console::ConsoleArgs),
     /// The random-operator soak against the QEMU console image alone (also part of `test`).
     Soak(SoakArgs),
     /// The closed loop on the seeded plant family across its envelope (`host-sim family`:
@@ -85,7 +85,7 @@ fn main() -> ExitCode {
         Task::Run(args) => run::run(&args),
         Task::Test => test::test(),
         Task::Size => size::firmware_size(&mut io::stdout()),
-        Task::Console => console::console(),
+        Task::Console(args) => console::console(&args),
         Task::Soak(args) => soak::soak_alone(&args),
         Task::Family(args) => exec_output(host_sim().arg("family").args(&args.flags)),
         Task::Bless => bless::bless(),
@@ -120,12 +120,19 @@ mod tests {
     }
 
     #[test]
-    fn console_takes_no_arguments() {
+    fn console_takes_a_plant_a_script_and_a_recording_only() {
         assert!(matches!(
             parse(&["console"]).expect("accepted").task,
-            Task::Console
+            Task::Console(_)
         ));
         assert!(parse(&["console", "cycles=5"]).is_err());
+        assert!(
+            parse(&["console", "--plant", "p.toml", "--script", "s", "--record", "r.csv"]).is_ok()
+        );
+        assert!(
+            parse(&["console", "--record", "r.csv"]).is_err(),
+            "a recording needs a script"
+        );
     }
 
     #[test]

@@ -16,6 +16,8 @@ pub enum Image {
     Cosim,
     /// The co-simulated image with the plant's encoder: the closed loop.
     ClosedLoop,
+    /// The closed loop with the serial console instead of the scripted operator.
+    ClosedLoopConsole,
 }
 
 /// Builds a QEMU firmware image (in its own target directory, beside the board image) and
@@ -26,6 +28,7 @@ pub fn build_firmware(image: Image) -> Result<PathBuf> {
         Image::Console => ("qemu-console", "board-qemu,console"),
         Image::Cosim => ("qemu-cosim", "cosim"),
         Image::ClosedLoop => ("qemu-closed-loop", "cosim-encoder"),
+        Image::ClosedLoopConsole => ("qemu-closed-loop-console", "cosim-encoder,console"),
     };
     let target_dir = firmware_dir().join("target").join(directory);
     exec(

@@ -45,6 +45,11 @@ pub fn test() -> Result {
     )?;
     let console = qemu::build_firmware(qemu::Image::Console)?;
     exec(&mut ignored_tests("feeder-ctl", "qemu_session", &console))?;
+    let console_with_plate = qemu::build_firmware(qemu::Image::ClosedLoopConsole)?;
+    exec(
+        ignored_tests("feeder-ctl", "qemu_plant", &console_with_plate)
+            .env("FEEDER_CLOSED_LOOP_CONSOLE_ELF", &console_with_plate),
+    )?;
     let seed = std::env::var_os("FEEDER_SOAK_SEED")
         .is_none()
         .then_some(TEST_SOAK_SEED);

@@ -103,6 +103,9 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
     }; SAMPLES_MAX];
     let mut last_cycle: Option<u64> = None;
     let mut feed_asked: Option<FeedRequest> = None;
+    // The capture that began the cycle measured last, for its telemetry.
+    #[cfg(feature = "console")]
+    let mut previous_start: Option<PositionSample> = None;
     loop {
         let boundary = BOUNDARY.wait().await;
         let stage = course.stage();
@@ -128,7 +131,10 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
             });
             return;
         };
-        match course.boundary(&boundary.begun, &boundary.ahead, *start, during) {
+        let outcome = course.boundary(&boundary.begun, &boundary.ahead, *start, during);
+        #[cfg(feature = "console")]
+        let last_start = core::mem::replace(&mut previous_start, Some(*start));
+        match outcome {
             Ok(decision) => {
                 if course.stage() != stage {
                     info!(
@@ -151,7 +157,8 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
                 #[cfg(feature = "console")]
                 crate::telemetry::publish_loop(
                     course.stage(),
-                    feeder_shared::telemetry::positions(&samples[..count]),
+                    last_start
+                        .map(|last| feeder_shared::telemetry::cycle_positions(last, during, *start)),
                     Some(decision.trims),
                 );
                 let feedforward = course.feedforward();

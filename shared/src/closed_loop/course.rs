@@ -46,7 +46,7 @@ mod stage;
 pub use config::CourseConfig;
 pub use decision::{CycleTrims, Decision, LateTrims};
 pub use error::CourseError;
-pub use measure::PositionSample;
+pub use measure::{mean_position_m, PositionSample};
 pub use probe::{Probe, PROBE_CYCLES_MAX, PROBE_POSITIONS_MAX};
 pub use stage::{LoopReport, Stage};
 
@@ -60,7 +60,7 @@ use crate::scheduler::{Scheduler, Segment};
 use crate::segment::SegmentKind;
 use crate::waveform::Waveform;
 use lookahead::{next_shape, next_shape_from, rest_of_cycle};
-use measure::{mean_position_m, position_near_m, turn_position_m, Begun};
+use measure::{position_near_m, turn_position_m, Begun};
 
 /// The start of a cycle or idle period as [`Course::boundary`] takes it.
 struct At<'a> {

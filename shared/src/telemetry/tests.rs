@@ -83,15 +83,15 @@ fn lines_that_are_no_record_name_their_column() {
 }
 
 #[test]
-fn a_cycle_s_positions_give_their_mean_and_farthest_excursion() {
-    let samples = [-3e-6, 1e-6, 5e-6, -1e-6].map(|position_m| PositionSample {
-        tick: 0,
-        position_m,
-    });
-    let (mean_m, peak_m) = positions(&samples).unwrap();
-    assert!((mean_m - 0.5e-6).abs() < 1e-18, "{mean_m}");
-    assert_eq!(peak_m, 5e-6);
-    assert_eq!(positions(&[]), None);
+fn a_cycle_s_positions_give_its_time_mean_and_farthest_excursion() {
+    let at = |tick, um: f64| PositionSample {
+        tick,
+        position_m: um * 1e-6,
+    };
+    // Trapezoids over 0–100–300 ticks: (0 + 10)/2·100 + (10 − 50)/2·200 = −3500 µm·ticks.
+    let (mean_m, peak_m) = cycle_positions(at(0, 0.0), &[at(100, 10.0)], at(300, -50.0));
+    assert!((mean_m - -3500e-6 / 300.0).abs() < 1e-15, "{mean_m}");
+    assert_eq!(peak_m, 50.0 * 1e-6, "the farthest sample, as written");
 }
 
 #[test]

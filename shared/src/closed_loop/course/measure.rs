@@ -44,7 +44,7 @@ pub(super) fn position_near_m(last: &Begun, samples: &[PositionSample], after_s:
 }
 
 /// The mean position from `start` to `end` through `samples` (trapezoids).
-pub(super) fn mean_position_m(
+pub fn mean_position_m(
     start: PositionSample,
     samples: &[PositionSample],
     end: PositionSample,
