@@ -65,3 +65,24 @@ fn the_reference_documents_every_error_code() {
     expected.extend(60..=66);
     assert_eq!(documented, expected);
 }
+
+#[test]
+fn the_reference_telemetry_example_reads_as_a_record_and_names_every_column() {
+    use feeder_shared::telemetry::{Record, COLUMNS};
+    let example = REFERENCE
+        .lines()
+        .find_map(|line| line.strip_prefix("    T "))
+        .expect("PROTOCOL.md shows a telemetry line");
+    let record = Record::parse_line(example).expect("the example reads as a record");
+    let mut written = String::new();
+    record.write_line(&mut written).unwrap();
+    assert_eq!(written, format!("T {example}"));
+    for column in COLUMNS {
+        let mut header = String::new();
+        column.write_header(&mut header).unwrap();
+        assert!(
+            REFERENCE.contains(&format!("`{header}`")),
+            "PROTOCOL.md does not name {header}"
+        );
+    }
+}
