@@ -18,7 +18,7 @@ use crate::sensors::EncoderConfig;
 /// The plate at a sample request: a cycle start of the firmware's output.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct PlateSample {
-    /// The output's tick.
+    /// The output's tick, counted on through a restart of the board.
     pub tick: u64,
     pub time_s: f64,
     pub position_m: f64,
@@ -51,6 +51,10 @@ pub struct PlatePlant {
     held: Option<(u64, f64)>,
     /// The firmware's encoder sample interval, once configured.
     interval_ticks: Option<u64>,
+    /// The plate's tick at which the firmware's ticks began: 0, and after a restart of the
+    /// board (which configures its encoder again and counts its ticks from 0 again) the plate's
+    /// tick then. The plate's time goes on; the link's ticks are the firmware's.
+    epoch_ticks: u64,
     /// Samples the firmware has not taken yet: `(tick, count)`.
     pending: Vec<(u64, i32)>,
     /// Every level the output applied: `(tick, acceleration)`.
@@ -105,6 +109,7 @@ impl PlatePlant {
             clock_hz,
             held: None,
             interval_ticks: None,
+            epoch_ticks: 0,
             pending: Vec::new(),
             levels: Vec::new(),
             samples: Vec::new(),
@@ -142,17 +147,18 @@ impl PlatePlant {
         }
     }
 
-    /// Runs the held level up to `tick`, sampling the encoder at every multiple of the
-    /// firmware's interval on the way.
+    /// Runs the held level up to the plate's `tick`, sampling the encoder at every multiple of
+    /// the firmware's interval (on the firmware's ticks) on the way.
     fn advance(&mut self, tick: u64) {
         let Some((from, accel_mps2)) = self.held else {
             return;
         };
+        let epoch = self.epoch_ticks;
         let mut at = from;
         while at < tick && self.error.is_none() {
-            let next_sample = self
-                .interval_ticks
-                .map_or(u64::MAX, |interval| (at / interval + 1) * interval);
+            let next_sample = self.interval_ticks.map_or(u64::MAX, |interval| {
+                (at.saturating_sub(epoch) / interval + 1) * interval + epoch
+            });
             let to = next_sample.min(tick);
             let segment = PlateSegment {
                 duration_s: (to - at) as f64 / f64::from(self.clock_hz),
@@ -165,7 +171,7 @@ impl PlatePlant {
             at = to;
             if to == next_sample {
                 let count = self.count();
-                self.pending.push((to, count));
+                self.pending.push((to - epoch, count));
             }
         }
         self.held = Some((tick.max(from), accel_mps2));
@@ -217,24 +223,26 @@ impl PlatePlant {
 
 impl Plant for PlatePlant {
     fn level(&mut self, tick: u64, code: i32) {
-        self.advance(tick);
+        let plate_tick = tick + self.epoch_ticks;
+        self.advance(plate_tick);
         let accel_mps2 = self.dac.accel_mps2(code);
-        self.held = Some((tick, accel_mps2));
-        self.levels.push((tick, accel_mps2));
+        self.held = Some((plate_tick, accel_mps2));
+        self.levels.push((plate_tick, accel_mps2));
     }
 
     fn enable(&mut self, tick: u64, on: bool) {
-        self.advance(tick);
+        self.advance(tick + self.epoch_ticks);
         self.stepper.set_drive_enabled(on);
         self.drive_enabled = on;
     }
 
     fn sample(&mut self, tick: u64) -> i32 {
-        self.advance(tick);
+        let plate_tick = tick + self.epoch_ticks;
+        self.advance(plate_tick);
         let position_m = self.stepper.plate_position_m();
         let count = self.count();
         self.samples.push(PlateSample {
-            tick,
+            tick: plate_tick,
             time_s: self.stepper.time_s(),
             position_m,
             count,
@@ -259,6 +267,11 @@ impl Plant for PlatePlant {
                  encoder counts {} m",
                 self.encoder.resolution_m
             ));
+        }
+        if self.interval_ticks.is_some() {
+            // The board restarted: its ticks begin again where the plate is now.
+            self.epoch_ticks = self.held.map_or(self.epoch_ticks, |(tick, _)| tick);
+            self.pending.clear();
         }
         self.interval_ticks = Some(interval_ticks);
         Ok(())
@@ -528,4 +541,40 @@ pub fn golden_lines(log: &str) -> String {
         .filter(|line| !line.starts_with("EVT seg "))
         .flat_map(|line| [line, "\n"])
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn plate() -> PlatePlant {
+        let file = concat!(env!("CARGO_MANIFEST_DIR"), "/plants/realistic.toml");
+        let plant = PlantFile::from_path(std::path::Path::new(file)).expect("the plant file");
+        let part = Contact::paper_part(0.3, 9.80665).expect("the part");
+        PlatePlant::new(&plant, &part, DacCalibration::DEFAULT, 1_000_000).expect("the plate")
+    }
+
+    #[test]
+    fn a_restarted_board_counts_its_ticks_anew_while_the_plate_goes_on() {
+        let mut plate = plate();
+        plate.configure(250, 1000).unwrap();
+        plate.level(0, 2048);
+        plate.enable(0, true);
+        plate.sample(20_000);
+        plate.configure(250, 1000).unwrap();
+        plate.level(0, 2048);
+        plate.sample(20_000);
+        let last = plate.samples().last().copied().unwrap();
+        assert_eq!(last.tick, 40_000);
+        assert!((last.time_s - 0.04).abs() < 1e-12, "{}", last.time_s);
+        let streamed = plate.stream(20_000);
+        assert_eq!(
+            streamed.len(),
+            80,
+            "every 250 ticks of the new count, 250 to 20000"
+        );
+        assert!(streamed
+            .iter()
+            .all(|&(tick, _)| tick % 250 == 0 && tick <= 20_000));
+    }
 }
