@@ -18,16 +18,6 @@ use feeder_shared::{
 use libfuzzer_sys::arbitrary::{Result, Unstructured};
 use libfuzzer_sys::fuzz_target;
 
-const STAGES: [Stage; 7] = [
-    Stage::Waiting,
-    Stage::Settling,
-    Stage::Probing,
-    Stage::Identifying,
-    Stage::Centring,
-    Stage::Feeding,
-    Stage::Failed,
-];
-
 /// The tests' machine with a 16-bit timer: at most `u16::MAX` ticks per segment.
 fn machine() -> Machine {
     let machine = testing::machine();
@@ -43,7 +33,7 @@ fn loop_report(input: &mut Unstructured) -> Result<Option<LoopReport>> {
     if !input.arbitrary()? {
         return Ok(None);
     }
-    let stage = *input.choose(&STAGES)?;
+    let stage = *input.choose(&Stage::ALL)?;
     let drive = match input.arbitrary()? {
         true => Some(Identified {
             gain_positive: input.arbitrary()?,

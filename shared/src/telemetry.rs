@@ -265,15 +265,7 @@ const PHASES: [Phase; 4] = [
     Phase::Running,
     Phase::Stopping,
 ];
-const STAGES: [Stage; 7] = [
-    Stage::Waiting,
-    Stage::Settling,
-    Stage::Probing,
-    Stage::Identifying,
-    Stage::Centring,
-    Stage::Feeding,
-    Stage::Failed,
-];
+const STAGES: [Stage; 7] = Stage::ALL;
 const TRACK_STATES: [TrackState; 2] = [TrackState::Empty, TrackState::Full];
 const FAULTS: [Fault; 4] = [
     Fault::EdgeMissed,

@@ -26,6 +26,17 @@ pub enum Stage {
 }
 
 impl Stage {
+    /// Every stage, in the course's order.
+    pub const ALL: [Stage; 7] = [
+        Stage::Waiting,
+        Stage::Settling,
+        Stage::Probing,
+        Stage::Identifying,
+        Stage::Centring,
+        Stage::Feeding,
+        Stage::Failed,
+    ];
+
     /// The stage's name in replies and logs.
     pub const fn name(self) -> &'static str {
         match self {
