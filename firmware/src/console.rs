@@ -110,7 +110,8 @@ pub async fn serve<P: Read + Write, S: RecipeStore + ConfigurationStore>(
                 warn!("console: transmit error, reply lost");
             }
             if outcome.action == Action::Restart {
-                // The reply is out first: the operator sees it before the board goes.
+                // The reply is out first: the operator sees it before the board goes. The log
+                // line marks the restart for `cargo xtask console`'s check.
                 let _ = port.flush().await;
                 info!("restart: the board restarts with its saved configuration");
                 cortex_m::peripheral::SCB::sys_reset();

@@ -124,14 +124,37 @@ pub fn console(args: &ConsoleArgs) -> Result {
         // makes, so the plate's own record (above) is the report.
         return operator;
     }
+    let checked = last_boot(&log)?;
     eprintln!("\nWhat the firmware did, checked by host-sim hil:");
     let check = exec_output(
         host_sim()
             .args(["hil", "--input"])
-            .arg(&log)
+            .arg(&checked)
             .arg("--open-ended"),
     );
     operator.and(check)
+}
+
+/// What the firmware logs as it restarts (`firmware/src/console.rs`).
+const RESTART_MARKER: &str = "restart: the board restarts";
+
+/// The log of the board's last start: `log` itself, or after a `restart` the lines after the
+/// last one, written beside it (`hil` checks one run of the scheduler from its power-up).
+fn last_boot(log: &Path) -> Result<PathBuf> {
+    let text = std::fs::read_to_string(log)
+        .map_err(|error| format!("cannot read {}: {error}", log.display()))?;
+    let Some(at) = text.rfind(RESTART_MARKER) else {
+        return Ok(log.to_path_buf());
+    };
+    let after = text[at..].split_once('\n').map_or("", |(_, rest)| rest);
+    let last = log.with_file_name("console-run-last-start.log");
+    std::fs::write(&last, after)
+        .map_err(|error| format!("cannot write {}: {error}", last.display()))?;
+    eprintln!(
+        "xtask: the board restarted during the session: the check covers its last start ({})",
+        last.display()
+    );
+    Ok(last)
 }
 
 /// The emulated feeder: QEMU and the decoder writing its log, and the plate in lockstep with
