@@ -185,9 +185,8 @@ fn a_saved_configuration_survives_a_restart_and_a_power_cycle() {
     drop(console);
     let log = emulator.shut_down();
     assert!(
-        log.iter().any(|line| line.contains(
-            "configuration: as compiled, the saved one is not used: corrupt record: CRC"
-        )),
+        log.iter().any(|line| line
+            .contains("configuration: as compiled, the saved one is not used: Record(CrcMismatch")),
         "{}",
         log.join("\n")
     );

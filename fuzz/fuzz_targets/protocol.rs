@@ -5,7 +5,7 @@
 #![no_main]
 
 use feeder_shared::closed_loop::{
-    FeedCompensation, Identified, LoopReport, Stage, TrackReport, TrackState,
+    CourseError, FeedCompensation, Identified, LoopReport, Stage, TrackReport, TrackState,
 };
 use feeder_shared::configuration::{BoardFacts, Configuration, OutputKind};
 use feeder_shared::protocol::REPLY_CAPACITY;
@@ -57,7 +57,18 @@ fn loop_report(input: &mut Unstructured) -> Result<Option<LoopReport>> {
         }),
         false => None,
     };
-    Ok(Some(LoopReport { stage, drive, feed }))
+    let failure = match input.arbitrary()? {
+        true => Some(CourseError::Centring {
+            error_m: input.arbitrary()?,
+        }),
+        false => None,
+    };
+    Ok(Some(LoopReport {
+        stage,
+        drive,
+        feed,
+        failure,
+    }))
 }
 
 /// Track control's report on a board with a part sensor: either state, any rate.

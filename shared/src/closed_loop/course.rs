@@ -84,6 +84,8 @@ struct SettleRun {
 pub struct Course {
     config: CourseConfig,
     stage: Stage,
+    /// Why the course stopped, once it has.
+    failure: Option<CourseError>,
     probe_step: u16,
     probe: Option<Probe>,
     probe_cycles: u32,
@@ -128,6 +130,7 @@ impl Course {
             probe_step: config.probe_step(ramp_steps),
             config,
             stage: Stage::Waiting,
+            failure: None,
             probe: None,
             probe_cycles: 0,
             identified: None,
@@ -164,6 +167,7 @@ impl Course {
             stage: self.stage,
             drive: self.identified,
             feed: self.feed.map(|(_, found)| found),
+            failure: self.failure,
         }
     }
 
@@ -282,8 +286,9 @@ impl Course {
             start,
             samples,
         });
-        if result.is_err() {
+        if let Err(error) = result {
             self.stage = Stage::Failed;
+            self.failure = Some(error);
         }
         result
     }

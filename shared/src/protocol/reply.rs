@@ -143,7 +143,7 @@ impl Reply {
         Self::ok(format_args!("{}", HELP))
     }
 
-    /// The reply to `status`: `OK state=… freq_hz=… … uptime_s=… cycles=… [loop=… [gain_pos=…
+    /// The reply to `status`: `OK state=… freq_hz=… … uptime_s=… cycles=… [loop=… [loop_error=…] [gain_pos=…
     /// gain_neg=… offset_mps2=…]] [track=… parts_per_min=…] fault=…`, the closed loop's and the
     /// track's fields on a board that has them.
     pub fn status<F: fmt::Display>(status: &Status<F>) -> Self {
@@ -163,6 +163,9 @@ impl Reply {
         );
         if let Some(report) = &status.closed_loop {
             let _ = write!(reply, " loop={}", report.stage.name());
+            if let Some(failure) = &report.failure {
+                let _ = write!(reply, " loop_error={}", failure.name());
+            }
             if let Some(drive) = &report.drive {
                 let gain = |value| Fixed { value, decimals: 5 };
                 let _ = write!(

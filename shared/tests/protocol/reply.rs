@@ -31,8 +31,8 @@ fn status(fault: Option<&str>) -> Status<&str> {
     }
 }
 
-/// On a board that runs the closed loop, `status` names the course's stage and, once the drive
-/// is identified, its gains (5 decimals) and offset (3); on a board with a part sensor, the
+/// On a board that runs the closed loop, `status` names the course's stage, why it stopped
+/// where it has and, once the drive is identified, its gains (5 decimals) and offset (3); on a board with a part sensor, the
 /// track's state and parts per minute (1 decimal, ties to even); both before the fault, which
 /// stays last.
 #[test]
@@ -43,6 +43,7 @@ fn status_reports_the_closed_loop_before_the_fault() {
             stage: Stage::Probing,
             drive: None,
             feed: None,
+            failure: None,
         }),
         ..status(None)
     });
@@ -68,6 +69,7 @@ fn status_reports_the_closed_loop_before_the_fault() {
                 limited: true,
                 stroke_factor: 1.0,
             }),
+            failure: None,
         }),
         ..status(Some("closed-loop"))
     });
@@ -79,6 +81,21 @@ fn status_reports_the_closed_loop_before_the_fault() {
         "{feeding}"
     );
     assert!(feeding.as_str().len() <= REPLY_CAPACITY);
+    let failed = Reply::status(&Status {
+        closed_loop: Some(LoopReport {
+            stage: Stage::Failed,
+            drive: None,
+            feed: None,
+            failure: Some(feeder_shared::closed_loop::CourseError::Centring { error_m: 1e-3 }),
+        }),
+        ..status(Some("closed-loop"))
+    });
+    assert!(
+        failed
+            .as_str()
+            .ends_with(" cycles=617 loop=failed loop_error=centring fault=closed-loop"),
+        "{failed}"
+    );
     let full = Reply::status(&Status {
         track: Some(feeder_shared::closed_loop::TrackReport {
             state: feeder_shared::closed_loop::TrackState::Full,

@@ -31,6 +31,20 @@ pub enum CourseError {
 }
 
 impl CourseError {
+    /// One word for the console's `status` (`loop_error=`): the envelope's cause where the
+    /// identification names one.
+    pub fn name(&self) -> &'static str {
+        match self {
+            CourseError::Identify(error) => error.cause().map_or("identification", Cause::name),
+            CourseError::Loop(_) => "loop-limit",
+            CourseError::Centring { .. } => "centring",
+            CourseError::Plan => "plan",
+            CourseError::MissedBoundary { .. } => "missed-boundary",
+            CourseError::NoCapture { .. } => "no-capture",
+            CourseError::IdentifyLate { .. } => "identification-late",
+        }
+    }
+
     /// The envelope's property it names, if any.
     pub fn cause(&self) -> Option<Cause> {
         match self {

@@ -3,6 +3,8 @@
 use crate::closed_loop::feed::FeedCompensation;
 use crate::closed_loop::identify::Identified;
 
+use super::error::CourseError;
+
 /// Where the course is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -60,4 +62,6 @@ pub struct LoopReport {
     pub drive: Option<Identified>,
     /// The feed's compensation of the drive's lag for the plan running, once found.
     pub feed: Option<FeedCompensation>,
+    /// Why the course stopped, once it has.
+    pub failure: Option<CourseError>,
 }
