@@ -453,8 +453,12 @@ impl Operator {
                 self.command(&["config", "set", "start_ramp", &cycles], expect)
             }
             3 => {
-                let value = *self.rng.pick(&["0", "2.5", "1e9", "-1"]);
-                self.command(&["config", "set", "part_mu", value], Expect::Err(Some(65)))
+                // A start-up key: refused for its range whether the plate moves or not.
+                let value = *self.rng.pick(&["0", "0.2", "2.5", "1e9", "-1"]);
+                self.command(
+                    &["config", "set", "start_duty", value],
+                    Expect::Err(Some(65)),
+                )
             }
             4 => self.command(
                 &["config", "set", "closed_loop", "maybe"],
