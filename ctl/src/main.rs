@@ -7,14 +7,17 @@
 //! feeder-ctl … import FILE [--save]
 //! feeder-ctl … watch [--record FILE] [--seconds N]
 //! feeder-ctl … script FILE [--record FILE]
+//! feeder-ctl … calibrate [--save] [--report FILE]
 //! ```
 //!
 //! With command words, sends them as one line, prints the reply and exits with 0 for `OK`, 1 for
 //! `ERR`. Without, reads commands from standard input (with a prompt on a terminal) and prints
 //! each reply. `export` and `import` move the board's configuration to and from a file
 //! (`config_file`); `watch` shows and records the board's telemetry (`watch`); `script` runs a
-//! command script headless (`script`). Exit code 2: bad arguments or a connection or timeout error.
+//! command script headless (`script`); `calibrate` guides the drive's calibration
+//! (`calibrate`). Exit code 2: bad arguments or a connection or timeout error.
 
+mod calibrate;
 mod config_file;
 mod console;
 mod recording;
@@ -107,6 +110,18 @@ enum Tool {
         /// Headless: listens this many seconds, then writes the recording and ends.
         #[arg(long, value_name = "N", value_parser = seconds)]
         seconds: Option<f64>,
+    },
+    /// Guides the drive's calibration: the encoder's direction (by hand, on a terminal), the
+    /// drive identified by the closed loop (gains, zero offset, lag) and judged against the
+    /// envelope, the DAC zero code that takes the offset off, saved with consent. Exit code 1
+    /// if refused.
+    Calibrate {
+        /// Saves the proposed configuration on the board without asking, and restarts it.
+        #[arg(long)]
+        save: bool,
+        /// Writes every step's findings to FILE, one key=value a line.
+        #[arg(long, value_name = "FILE")]
+        report: Option<PathBuf>,
     },
     /// Runs a command script: console lines, one a line, and `wait SECONDS` lines (the board's
     /// clock); every command and reply on standard output. Exit code 1 if a reply was ERR.
@@ -231,6 +246,22 @@ fn run_tool(tool: &Tool, console: &mut Console, target: &Target) -> ExitCode {
                 Ok(records) => {
                     eprintln!("feeder-ctl: {records} telemetry records");
                     ExitCode::SUCCESS
+                }
+                Err(error) => {
+                    eprintln!("feeder-ctl: {error}");
+                    ExitCode::from(2)
+                }
+            };
+        }
+        Tool::Calibrate { save, report } => {
+            return match calibrate::run(console, *save, report.as_deref()) {
+                Ok(calibrate::Outcome::Accepted) => {
+                    eprintln!("feeder-ctl: calibration accepted");
+                    ExitCode::SUCCESS
+                }
+                Ok(calibrate::Outcome::Refused(reason)) => {
+                    eprintln!("feeder-ctl: calibration refused: {reason}");
+                    ExitCode::FAILURE
                 }
                 Err(error) => {
                     eprintln!("feeder-ctl: {error}");

@@ -1,7 +1,8 @@
 //! The closed-loop console image (`FEEDER_CLOSED_LOOP_CONSOLE_ELF`: features
 //! `cosim-encoder,console`) in lockstep with `realistic.toml`'s plate: `feeder-ctl watch
 //! --record --seconds` records telemetry whose cycle means are the plate's own, from the plant's
-//! record of where it was.
+//! record of where it was; `feeder-ctl calibrate` finds the drive's offset and saves the zero
+//! code that takes it off, and refuses an encoder that counts backwards, naming the flip.
 
 mod support;
 
@@ -9,7 +10,7 @@ use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use feeder_emulator::plant_link::TICK_HZ;
+use feeder_emulator::plant_link::{PlantThread, TICK_HZ};
 use feeder_emulator::{Board, Serial};
 use feeder_shared::telemetry::{Record, COLUMNS};
 use feeder_shared::{DacCalibration, Friction};
@@ -29,37 +30,54 @@ fn image() -> PathBuf {
 /// for its rounding and the trapezoids over 250 µs samples (0.1 µm apart on this plate).
 const MEAN_TOLERANCE_M: f64 = 1e-6;
 
-#[test]
-#[ignore = "needs the QEMU firmware; run by cargo xtask test"]
-fn a_headless_watch_records_the_plates_own_cycle_means() {
-    let plant_path =
-        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../host-sim/plants/realistic.toml");
-    let plant_file = PlantFile::from_path(&plant_path).expect("the plant file");
-    let part = Contact::paper_part(Friction::CONFIGURED.mu, Friction::CONFIGURED.gravity_mps2)
-        .expect("the part");
-    let plate =
-        PlatePlant::new(&plant_file, &part, DacCalibration::DEFAULT, TICK_HZ).expect("the plate");
-    let flash = tempfile::tempdir().expect("a directory for the board's flash");
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|listener| listener.local_addr())
-        .expect("a free port")
-        .port();
-    let (mut board, link) = Board::start_with_plant(
-        &image(),
-        &[] as &[&str],
-        Serial::Tcp { port },
-        Stdio::null(),
-        plate,
-        Some(flash.path()),
-    )
-    .expect("the board starts in lockstep with the plate");
-    let address = format!("127.0.0.1:{port}");
-    let ctl = |words: &[&str]| {
+/// The board in lockstep with `realistic.toml`'s plate, its flash in a directory of its own.
+struct Lockstep {
+    board: Board,
+    link: PlantThread<PlatePlant>,
+    address: String,
+    flash: tempfile::TempDir,
+}
+
+impl Lockstep {
+    fn start() -> Self {
+        let plant_path =
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../host-sim/plants/realistic.toml");
+        let plant_file = PlantFile::from_path(&plant_path).expect("the plant file");
+        let part = Contact::paper_part(Friction::CONFIGURED.mu, Friction::CONFIGURED.gravity_mps2)
+            .expect("the part");
+        let plate = PlatePlant::new(&plant_file, &part, DacCalibration::DEFAULT, TICK_HZ)
+            .expect("the plate");
+        let flash = tempfile::tempdir().expect("a directory for the board's flash");
+        let port = std::net::TcpListener::bind("127.0.0.1:0")
+            .and_then(|listener| listener.local_addr())
+            .expect("a free port")
+            .port();
+        let (board, link) = Board::start_with_plant(
+            &image(),
+            &[] as &[&str],
+            Serial::Tcp { port },
+            Stdio::null(),
+            plate,
+            Some(flash.path()),
+        )
+        .expect("the board starts in lockstep with the plate");
+        Lockstep {
+            board,
+            link,
+            address: format!("127.0.0.1:{port}"),
+            flash,
+        }
+    }
+
+    /// `feeder-ctl --tcp … words`, once the console takes connections: exit code, stdout,
+    /// stderr.
+    fn ctl(&self, words: &[&str]) -> (Option<i32>, String, String) {
         let deadline = Instant::now() + Duration::from_secs(20);
         loop {
             let output = Command::new(env!("CARGO_BIN_EXE_feeder-ctl"))
-                .args(["--tcp", &address, "--timeout-ms", "30000"])
+                .args(["--tcp", &self.address, "--timeout-ms", "30000"])
                 .args(words)
+                .stdin(Stdio::null())
                 .output()
                 .expect("feeder-ctl runs");
             let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
@@ -73,14 +91,27 @@ fn a_headless_watch_records_the_plates_own_cycle_means() {
             }
             return (output.status.code(), stdout, stderr);
         }
-    };
+    }
+
+    /// Ends the board; the plate as it was left.
+    fn stop(mut self) -> PlatePlant {
+        self.board.stop().expect("the board stops");
+        self.link.join().expect("the plate's thread ends").0
+    }
+}
+
+#[test]
+#[ignore = "needs the QEMU firmware; run by cargo xtask test"]
+fn a_headless_watch_records_the_plates_own_cycle_means() {
+    let lockstep = Lockstep::start();
+    let ctl = |words: &[&str]| lockstep.ctl(words);
     assert_eq!(ctl(&["start"]).1.trim(), "OK starting");
     let feeding = Instant::now() + Duration::from_secs(120);
     while !ctl(&["status"]).1.contains(" loop=feeding ") {
         assert!(Instant::now() < feeding, "the closed loop never fed");
         std::thread::sleep(Duration::from_millis(200));
     }
-    let recording = flash.path().join("watch.csv");
+    let recording = lockstep.flash.path().join("watch.csv");
     let (code, _, stderr) = ctl(&[
         "watch",
         "--record",
@@ -90,10 +121,9 @@ fn a_headless_watch_records_the_plates_own_cycle_means() {
     ]);
     assert_eq!(code, Some(0), "{stderr}");
     assert_eq!(ctl(&["stop"]).1.trim(), "OK stopping");
-    board.stop().expect("the board stops");
-    let (plate, _) = link.join().expect("the plate's thread ends");
-
     let text = std::fs::read_to_string(&recording).expect("the recording");
+    let plate = lockstep.stop();
+
     let mut lines = text.lines();
     let header = lines.next().expect("a header");
     assert_eq!(header.split(',').count(), COLUMNS.len());
@@ -128,4 +158,39 @@ fn a_headless_watch_records_the_plates_own_cycle_means() {
         compared += 1;
     }
     assert!(compared > 50, "{compared} cycle means compared");
+}
+
+/// The drive's calibration finds `realistic.toml`'s zero offset (1.05 m/s², 8.4 counts),
+/// saves the zero code that takes it off and restarts the board with it; on an encoder that
+/// counts backwards it is refused, naming the setting to flip.
+#[test]
+#[ignore = "needs the QEMU firmware; run by cargo xtask test"]
+fn calibration_takes_the_offset_off_and_refuses_a_backwards_encoder() {
+    let lockstep = Lockstep::start();
+    let report = lockstep.flash.path().join("calibration.txt");
+    let report_path = report.to_str().expect("a UTF-8 path");
+    let (code, stdout, stderr) = lockstep.ctl(&["calibrate", "--save", "--report", report_path]);
+    assert_eq!(code, Some(0), "{stdout}{stderr}");
+    assert!(stdout.contains("step 5/5: saving"), "{stdout}");
+    let text = std::fs::read_to_string(&report).expect("the report");
+    assert!(text.contains("proposed_dac_zero=2040\n"), "{text}");
+    assert!(
+        text.contains("saved=yes\n") && text.contains("outcome=accepted\n"),
+        "{text}"
+    );
+    let (_, zero, _) = lockstep.ctl(&["config", "get", "dac_zero"]);
+    assert_eq!(zero.trim(), "OK dac_zero=2040");
+
+    for line in ["config set encoder_dir reversed", "config save", "restart"] {
+        let (code, reply, _) = lockstep.ctl(&line.split(' ').collect::<Vec<_>>());
+        assert_eq!(code, Some(0), "{line}: {reply}");
+    }
+    let (code, stdout, stderr) = lockstep.ctl(&["calibrate"]);
+    assert_eq!(code, Some(1), "{stdout}{stderr}");
+    assert!(
+        stderr.contains("calibration refused")
+            && stderr.contains("config set encoder_dir reversed"),
+        "{stderr}"
+    );
+    lockstep.stop();
 }

@@ -12,6 +12,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_debug_implementations)]
 
+pub mod calibration;
 pub mod closed_loop;
 pub mod configuration;
 pub mod control;

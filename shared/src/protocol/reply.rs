@@ -144,7 +144,7 @@ impl Reply {
     }
 
     /// The reply to `status`: `OK state=… freq_hz=… … uptime_s=… cycles=… [loop=… [loop_error=…] [gain_pos=…
-    /// gain_neg=… offset_mps2=…]] [track=… parts_per_min=…] fault=…`, the closed loop's and the
+    /// gain_neg=… offset_mps2=… lag_ms=…]] [track=… parts_per_min=…] fault=…`, the closed loop's and the
     /// track's fields on a board that has them.
     pub fn status<F: fmt::Display>(status: &Status<F>) -> Self {
         let state = match &status.fault {
@@ -170,11 +170,15 @@ impl Reply {
                 let gain = |value| Fixed { value, decimals: 5 };
                 let _ = write!(
                     reply,
-                    " gain_pos={} gain_neg={} offset_mps2={}",
+                    " gain_pos={} gain_neg={} offset_mps2={} lag_ms={}",
                     gain(drive.gain_positive),
                     gain(drive.gain_negative),
                     Fixed {
                         value: drive.offset_mps2,
+                        decimals: 3
+                    },
+                    Fixed {
+                        value: drive.lag_s * 1e3,
                         decimals: 3
                     }
                 );

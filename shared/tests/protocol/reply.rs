@@ -75,7 +75,7 @@ fn status_reports_the_closed_loop_before_the_fault() {
     });
     assert!(
         feeding.as_str().ends_with(
-            " cycles=617 loop=feeding gain_pos=1.0184 gain_neg=0.98024 offset_mps2=-1.03 \
+            " cycles=617 loop=feeding gain_pos=1.0184 gain_neg=0.98024 offset_mps2=-1.03 lag_ms=0 \
              feed_amplitude=1.4 feed_limited_mmps=56.878 fault=closed-loop"
         ),
         "{feeding}"
