@@ -4,8 +4,8 @@
 //! 1. **The board**: stopped, no fault latched, a closed loop to run; its DAC calibration.
 //! 2. **The encoder's direction**, by hand, on a terminal: with the driver off the operator
 //!    pushes the plate forward, and the position the telemetry shows must rise; a fall refuses
-//!    the calibration and names the setting to flip. Headless, the drive's step stands in: a
-//!    loop on a backwards encoder loses the plate before it identifies the drive.
+//!    the calibration and names the setting to flip. Headless, the drive's step stands in: the
+//!    closed loop's settle refuses a backwards encoder (`loop_error=encoder-reversed`).
 //! 3. **The drive**: a start, on which the closed loop settles, probes and identifies the drive
 //!    (gains, zero offset, the current loop's lag), then a stop; every step ends with the plate
 //!    stopped, and `stop` from any console stops it meanwhile.
@@ -118,7 +118,7 @@ fn steps(console: &mut Console, save: bool, report: &mut Report) -> io::Result<O
             return Ok(Outcome::Refused(refused));
         }
     } else {
-        println!("  headless: the drive's step checks it (a backwards encoder loses the plate)");
+        println!("  headless: the closed loop's settle checks it on the drive's step");
         report.note("direction", "checked by the drive's step");
     }
 
@@ -286,6 +286,10 @@ fn identify(console: &mut Console, report: &mut Report) -> io::Result<Result<Ide
         let error = field(&status, "loop_error").unwrap_or("none");
         report.note("loop_error", error);
         let reason = match error {
+            "encoder-reversed" => "the encoder counts backwards (the closed loop's settle saw \
+                 the plate accelerate against its command): flip it (config set encoder_dir \
+                 reversed, config save, restart) and calibrate again"
+                .to_string(),
             "loop-limit" if field(&status, "gain_pos").is_none() => format!(
                 "the closed loop lost the plate before it identified the drive ({error}): an \
                  encoder that counts backwards does that; flip it (config set encoder_dir \

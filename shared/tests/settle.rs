@@ -28,17 +28,31 @@ fn sprung_settle(
     spring_per_s2: f64,
     target_m: f64,
 ) -> Result<(Settle, f64), LoopError> {
+    read_settle(drive, spring_per_s2, target_m, 1.0)
+}
+
+/// [`sprung_settle`] read through an encoder that counts forward (`sign` 1) or backward (−1):
+/// each segment's position at its start and the drive's acceleration through the segment
+/// that just ended, as the course fits it from the samples.
+fn read_settle(
+    drive: [f64; 3],
+    spring_per_s2: f64,
+    target_m: f64,
+    sign: f64,
+) -> Result<(Settle, f64), LoopError> {
     let [plus, minus, offset] = drive;
     let mut settle = Settle::new(LIMITS, 0.0, 0.0);
     let (mut x, mut v, mut largest) = (0.0f64, 0.0f64, 0.0f64);
     // The levels of the segment running and of the next, made before any decision.
     let mut levels = std::collections::VecDeque::from([0.0, 0.0]);
+    let mut ended_mps2 = None;
     for _ in 0..2 * PAIRS {
-        let read = (x / RESOLUTION_M).floor() * RESOLUTION_M + RESOLUTION_M / 2.0;
-        let level = settle.update(read, SEGMENT_S, target_m)?;
+        let read = sign * ((x / RESOLUTION_M).floor() * RESOLUTION_M + RESOLUTION_M / 2.0);
+        let level = settle.update(read, ended_mps2, SEGMENT_S, target_m)?;
         levels.push_back(level);
         let u = levels.pop_front().unwrap();
         let a = u * if u > 0.0 { plus } else { minus } + offset;
+        ended_mps2 = Some(sign * a);
         if spring_per_s2 > 0.0 {
             for _ in 0..50 {
                 (x, v) = sprung_motion((x, v), a, spring_per_s2, 0.0, SEGMENT_S / 50.0, 10);
@@ -110,7 +124,7 @@ fn the_last_pairs_bring_the_plate_to_its_target() {
     let (mut x, mut v) = (0.0f64, 0.0f64);
     let mut levels = std::collections::VecDeque::from([0.0, 0.0]);
     for _ in 0..2 * PAIRS {
-        let level = settle.update(x, SEGMENT_S, target_m).unwrap();
+        let level = settle.update(x, None, SEGMENT_S, target_m).unwrap();
         levels.push_back(level);
         let a = levels.pop_front().unwrap() + 1.0;
         x += v * SEGMENT_S + a * SEGMENT_S * SEGMENT_S / 2.0;
@@ -126,13 +140,32 @@ fn the_last_pairs_bring_the_plate_to_its_target() {
 #[test]
 fn a_plate_out_of_reach_stops_the_settle() {
     let mut settle = Settle::new(LIMITS, 0.0, 0.0);
-    assert!(settle.update(0.0, SEGMENT_S, 0.0).is_ok());
+    assert!(settle.update(0.0, None, SEGMENT_S, 0.0).is_ok());
     assert_eq!(
-        settle.update(5e-3, SEGMENT_S, 0.0),
+        settle.update(5e-3, None, SEGMENT_S, 0.0),
         Err(LoopError::Position { error_m: 5e-3 })
     );
     assert_eq!(
-        settle.update(f64::NAN, SEGMENT_S, 0.0),
+        settle.update(f64::NAN, None, SEGMENT_S, 0.0),
         Err(LoopError::Sensor)
+    );
+}
+
+/// Read through an encoder that counts backwards, the dither's pairs show the plate
+/// accelerating against the command: the settle stops by name, before its loop's correction
+/// outgrows its limit (which would stop it as a plate out of reach).
+#[test]
+fn a_backwards_encoder_is_refused_in_the_first_dither_level() {
+    let refused = read_settle([1.0, 1.0, 0.0], 0.0, 0.0, -1.0).map(|_| ());
+    let Err(LoopError::Backwards {
+        measured_mps2,
+        commanded_mps2,
+    }) = refused
+    else {
+        panic!("{refused:?}");
+    };
+    assert!(
+        measured_mps2 < -0.5 * commanded_mps2,
+        "{measured_mps2} {commanded_mps2}"
     );
 }

@@ -60,7 +60,7 @@ use crate::scheduler::{Scheduler, Segment};
 use crate::segment::SegmentKind;
 use crate::waveform::Waveform;
 use lookahead::{next_shape, next_shape_from, rest_of_cycle};
-use measure::{position_near_m, turn_position_m, Begun};
+use measure::{fitted_accel_mps2, position_near_m, turn_position_m, Begun};
 
 /// The start of a cycle or idle period as [`Course::boundary`] takes it.
 struct At<'a> {
@@ -305,7 +305,7 @@ impl Course {
             self.take_identified()?;
         }
         if begun.kind == SegmentKind::Settle {
-            return self.settle(begun, ahead, start);
+            return self.settle(begun, ahead, start, samples);
         }
         self.settle = None;
         let mut lookahead = ahead.clone();
@@ -497,6 +497,7 @@ impl Course {
         begun: &Segment,
         ahead: &Scheduler,
         start: PositionSample,
+        samples: &[PositionSample],
     ) -> Result<Decision, CourseError> {
         let plan = ahead.plan();
         let limit_m = ENVELOPE.resolution_max_m;
@@ -537,9 +538,14 @@ impl Course {
             return Err(CourseError::Plan);
         };
         let segment_s = plan.ticks_to_s(u64::from(begun.ticks));
+        // The settle segment that just ended, if the last boundary began one.
+        let ended_mps2 = self
+            .last
+            .filter(|last| last.settle)
+            .and_then(|last| fitted_accel_mps2(last.start, samples, start, plan.clock_hz));
         let bias_mps2 = run
             .settle
-            .update(start.position_m, segment_s, run.target_m)
+            .update(start.position_m, ended_mps2, segment_s, run.target_m)
             .map_err(CourseError::Loop)?;
         let (offset_mps2, gain_difference) = run.settle.drive();
         // The decision is for the segment after the next: once that is not a settle segment,

@@ -22,6 +22,12 @@
 //! (b_j + b_{j−1})/2`. The gains' difference scales a pair's swing by `ε·b` too, so that a bias
 //! moved between the two pairs adds `ε·(b_j − b_{j−1})/4`: the dither's regressor carries it.
 //!
+//! **Direction.** Through the dither a pair's command falls by `(D' + D)/2 + D` from its first
+//! half to its second, whatever the bias, and so does the plate's acceleration, fitted through
+//! each half's encoder samples; an encoder that counts backwards reads the fall reversed. Pairs
+//! that show it are counted (`Settle::check_direction`), so that a loop on such an encoder is
+//! refused before its corrections push the plate away.
+//!
 //! **Loop.** A settle segment is one segment long, so the next one is made as it begins, before
 //! the decision ([`Decision`](super::Decision)): at a pair's start the loop decides the next
 //! pair, predicting the slow state at its start, and places both poles of the sampled double
@@ -36,6 +42,16 @@ use super::cycle_loop::{LoopError, LoopLimits};
 
 /// Both poles of the settle's loop, per pair.
 pub const POLE: f64 = 0.4;
+
+/// The least fall of the command across a dithered pair that reads the encoder's direction,
+/// m/s² (`Settle::check_direction`).
+pub const DIRECTION_MIN_MPS2: f64 = 30.0;
+
+/// The share of that fall a pair must read, with the command or against it, to count.
+pub const DIRECTION_SHARE: f64 = 0.5;
+
+/// Backward pairs, with none forward, that refuse the encoder.
+pub const DIRECTION_PAIRS: u16 = 2;
 
 /// The dither levels, m/s², in turn: the upper ones above the envelope's stickiest slide
 /// (15 N on 0.5 kg, 30 m/s²) with its largest offset, all within the output's linear range
@@ -204,6 +220,11 @@ pub struct Settle {
     /// The measurements of the held pairs before the dither: the sum and the count.
     held_sum_mps2: f64,
     held: u16,
+    /// The encoder's direction as the dither shows it: the acceleration fitted through the
+    /// first half of the pair running, and the pairs that read forward and backward.
+    first_half_mps2: Option<f64>,
+    forward_pairs: u16,
+    backward_pairs: u16,
 }
 
 impl Settle {
@@ -225,6 +246,9 @@ impl Settle {
             hold_from: None,
             held_sum_mps2: 0.0,
             held: 0,
+            first_half_mps2: None,
+            forward_pairs: 0,
+            backward_pairs: 0,
         }
     }
 
@@ -307,11 +331,14 @@ impl Settle {
     }
 
     /// At the start of a settle segment of `segment_s`: `start_m` the position latched there,
-    /// `target_m` where the first cycle should start (the plate is held where it rests until
-    /// the last pairs). Returns the level of the segment after the next (bias and dither).
+    /// `ended_mps2` the acceleration fitted through the segment that just ended (where its
+    /// positions gave one), `target_m` where the first cycle should start (the plate is held
+    /// where it rests until the last pairs). Returns the level of the segment after the next
+    /// (bias and dither).
     pub fn update(
         &mut self,
         start_m: f64,
+        ended_mps2: Option<f64>,
         segment_s: f64,
         target_m: f64,
     ) -> Result<f64, LoopError> {
@@ -325,6 +352,7 @@ impl Settle {
         }
         let boundary = self.boundaries;
         self.boundaries = self.boundaries.saturating_add(1);
+        self.check_direction(boundary, ended_mps2)?;
         let pair = boundary / 2;
         if boundary % 2 == 1 {
             // Mid-pair: the next pair's second half, decided at this pair's start.
@@ -399,6 +427,46 @@ impl Settle {
         self.biases_mps2[0] = next;
         self.starts_m = [Some(start_m), self.starts_m[0]];
         Ok(next + (dither(0) + next_dither) / 2.0)
+    }
+
+    /// The encoder's direction, read passively through the dither: a dithered pair's first half
+    /// commands `(D' + D)/2` more than its bias and its second `D` less, so its fitted
+    /// acceleration falls by `c = (D' + D)/2 + D` from the first half to the second (bias,
+    /// offset and a spring's pull the same in both). A pair that reads the fall against its
+    /// command by more than [`DIRECTION_SHARE`] of it is counted backward, one that reads it with
+    /// the command forward; pairs of `c` below [`DIRECTION_MIN_MPS2`] (the slide's friction and
+    /// the drive's lag can hide them) are not counted. [`DIRECTION_PAIRS`] backward and none
+    /// forward: the encoder counts backwards, before the loop runs the plate away on it.
+    fn check_direction(&mut self, boundary: u16, ended_mps2: Option<f64>) -> Result<(), LoopError> {
+        if boundary % 2 == 1 {
+            self.first_half_mps2 = ended_mps2;
+            return Ok(());
+        }
+        let (Some(pair), Some(first), Some(second)) = (
+            (boundary / 2).checked_sub(1),
+            self.first_half_mps2.take(),
+            ended_mps2,
+        ) else {
+            return Ok(());
+        };
+        let before = pair.checked_sub(1).map_or(0.0, |j| self.dither_mps2(j));
+        let commanded_mps2 = (before + self.dither_mps2(pair)) / 2.0 + self.dither_mps2(pair);
+        if commanded_mps2 < DIRECTION_MIN_MPS2 {
+            return Ok(());
+        }
+        let measured_mps2 = first - second;
+        if measured_mps2 < -DIRECTION_SHARE * commanded_mps2 {
+            self.backward_pairs += 1;
+        } else if measured_mps2 > DIRECTION_SHARE * commanded_mps2 {
+            self.forward_pairs += 1;
+        }
+        if self.backward_pairs >= DIRECTION_PAIRS && self.forward_pairs == 0 {
+            return Err(LoopError::Backwards {
+                measured_mps2,
+                commanded_mps2,
+            });
+        }
+        Ok(())
     }
 
     fn take_held(&mut self, measured_mps2: f64) {

@@ -36,6 +36,7 @@ impl CourseError {
     pub fn name(&self) -> &'static str {
         match self {
             CourseError::Identify(error) => error.cause().map_or("identification", Cause::name),
+            CourseError::Loop(LoopError::Backwards { .. }) => "encoder-reversed",
             CourseError::Loop(_) => "loop-limit",
             CourseError::Centring { .. } => "centring",
             CourseError::Plan => "plan",

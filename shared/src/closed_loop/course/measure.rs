@@ -63,3 +63,47 @@ pub fn mean_position_m(
         start.position_m
     }
 }
+
+/// The acceleration of a parabola fitted to the positions from `start` through `samples` to
+/// `end` (least squares on `x = x₀ + v·t + a·t²/2`, `t` from `start`, ticks of `clock_hz`), m/s²;
+/// `None` with fewer than four positions.
+pub(super) fn fitted_accel_mps2(
+    start: PositionSample,
+    samples: &[PositionSample],
+    end: PositionSample,
+    clock_hz: u32,
+) -> Option<f64> {
+    let points = || {
+        core::iter::once(&start)
+            .chain(samples)
+            .chain(core::iter::once(&end))
+    };
+    if points().count() < 4 || clock_hz == 0 {
+        return None;
+    }
+    // Normal equations of the basis [1, t, t²/2], solved by Cramer's rule.
+    let mut normal = [[0.0; 3]; 3];
+    let mut right = [0.0; 3];
+    for point in points() {
+        let t = point.tick.saturating_sub(start.tick) as f64 / f64::from(clock_hz);
+        let basis = [1.0, t, t * t / 2.0];
+        for row in 0..3 {
+            for column in 0..3 {
+                normal[row][column] += basis[row] * basis[column];
+            }
+            right[row] += basis[row] * point.position_m;
+        }
+    }
+    let det = |m: [[f64; 3]; 3]| {
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    };
+    let whole = det(normal);
+    let mut replaced = normal;
+    for (row, value) in right.iter().enumerate() {
+        replaced[row][2] = *value;
+    }
+    let accel_mps2 = det(replaced) / whole;
+    accel_mps2.is_finite().then_some(accel_mps2)
+}

@@ -27,6 +27,12 @@ pub enum LoopError {
     /// A spring that turns the plate about half around in a cycle: one cycle's bias cannot
     /// steer both its position and its velocity.
     Unsteerable { spring_per_s2: f64, period_s: f64 },
+    /// The encoder counts backwards: through the settle's dither the plate's acceleration read
+    /// against the command (`measured_mps2` where the command swung by `commanded_mps2`).
+    Backwards {
+        measured_mps2: f64,
+        commanded_mps2: f64,
+    },
 }
 
 impl core::fmt::Display for LoopError {
@@ -47,6 +53,17 @@ impl core::fmt::Display for LoopError {
                 )
             }
             LoopError::Sensor => f.write_str("the position sensor returned no valid value"),
+            LoopError::Backwards {
+                measured_mps2,
+                commanded_mps2,
+            } => write!(
+                f,
+                "the encoder counts backwards: the plate's acceleration swung by {} m/s² where \
+                 the command swung by {} m/s²; flip it (config set encoder_dir reversed, config \
+                 save, restart)",
+                crate::number::Significant(measured_mps2),
+                crate::number::Significant(commanded_mps2)
+            ),
             LoopError::Unsteerable {
                 spring_per_s2,
                 period_s,
