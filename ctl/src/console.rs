@@ -12,6 +12,10 @@ use feeder_shared::telemetry::{Record, MARKER};
 /// Longest reply line accepted, in bytes.
 const MAX_REPLY_BYTES: usize = 1024;
 
+/// Telemetry records kept until taken, the oldest dropped beyond: over an hour at 50 Hz, where
+/// nobody takes them (telemetry left on at the prompt).
+const KEPT_RECORDS: usize = 200_000;
+
 /// Where the console is.
 pub enum Target<'a> {
     Serial { path: &'a str, baud: u32 },
@@ -142,6 +146,9 @@ impl Console {
                     let record = Record::parse_line(fields).map_err(|error| {
                         io::Error::new(io::ErrorKind::InvalidData, format!("{error}: {text:?}"))
                     })?;
+                    if self.telemetry.len() == KEPT_RECORDS {
+                        self.telemetry.pop_front();
+                    }
                     self.telemetry.push_back(record);
                     return Ok(Some(Line::Telemetry));
                 }

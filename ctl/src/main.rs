@@ -178,6 +178,8 @@ fn interactive(console: &mut Console) -> io::Result<()> {
             return Ok(());
         }
         println!("{}", console.command(line)?);
+        // At the prompt telemetry is not shown: `watch` draws it.
+        console.take_telemetry();
     }
 }
 
