@@ -24,7 +24,7 @@ mod recording;
 mod script;
 mod watch;
 
-use std::io::{self, BufRead, IsTerminal, Write};
+use std::io::{self, IsTerminal, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -81,7 +81,7 @@ struct Options {
     command: Vec<String>,
 }
 
-/// Work done by the tool rather than one console line.
+/// Work done by the tool rather than one console line; at the prompt too.
 #[derive(Subcommand)]
 enum Tool {
     /// Writes the board's configuration (`config list`, unsaved changes included) to FILE, one
@@ -158,24 +158,55 @@ impl Options {
     }
 }
 
-fn interactive(console: &mut Console) -> io::Result<()> {
+/// A tool typed at the prompt (`watch`, `calibrate` …), parsed as on the command line.
+#[derive(Parser)]
+#[command(
+    name = "feeder-ctl",
+    no_binary_name = true,
+    disable_help_subcommand = true
+)]
+struct PromptTool {
+    #[command(subcommand)]
+    tool: Tool,
+}
+
+/// The names of the tools, which the prompt runs itself instead of sending them.
+fn is_tool(word: &str) -> bool {
+    PromptTool::command()
+        .get_subcommands()
+        .any(|tool| tool.get_name() == word)
+}
+
+fn interactive(console: &mut Console, target: &Target) -> io::Result<()> {
     let stdin = io::stdin();
     let prompt = stdin.is_terminal();
-    let mut lines = stdin.lock().lines();
+    let mut buffer = String::new();
     loop {
         if prompt {
             print!("feeder> ");
             io::stdout().flush()?;
         }
-        let Some(line) = lines.next().transpose()? else {
+        // One line at a time, standard input locked only while it is read: a tool reads it too
+        // (`calibrate` asks the operator).
+        buffer.clear();
+        if stdin.read_line(&mut buffer)? == 0 {
             return Ok(());
-        };
-        let line = line.trim();
+        }
+        let line = buffer.trim();
         if line.is_empty() {
             continue;
         }
         if matches!(line, "quit" | "exit") {
             return Ok(());
+        }
+        if line.split_whitespace().next().is_some_and(is_tool) {
+            match PromptTool::try_parse_from(line.split_whitespace()) {
+                Ok(prompt) => {
+                    run_tool(&prompt.tool, console, target);
+                }
+                Err(error) => eprintln!("{}", error.render()),
+            }
+            continue;
         }
         println!("{}", console.command(line)?);
         // At the prompt telemetry is not shown: `watch` draws it.
@@ -212,7 +243,7 @@ fn main() -> ExitCode {
     let result = if let Some(tool) = &options.tool {
         return run_tool(tool, &mut console, &target);
     } else if options.command.is_empty() {
-        interactive(&mut console).map(|()| true)
+        interactive(&mut console, &target).map(|()| true)
     } else {
         console.command(&options.command.join(" ")).map(|reply| {
             println!("{reply}");

@@ -249,6 +249,29 @@ fn a_configuration_file_goes_out_and_comes_back() {
             && stderr.contains("every key is back as it was"),
         "{stderr}"
     );
+    // The tools run at the prompt as on the command line.
+    let typed = dir.path().join("typed.conf");
+    let mut prompt = std::process::Command::new(env!("CARGO_BIN_EXE_feeder-ctl"))
+        .arg("--tcp")
+        .arg(emulator.address())
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("feeder-ctl runs");
+    {
+        use std::io::Write as _;
+        let mut stdin = prompt.stdin.take().expect("the prompt's input");
+        writeln!(stdin, "export {}\nconfig get dac_zero", typed.display()).expect("typed");
+    }
+    let output = prompt.wait_with_output().expect("the prompt ends");
+    assert_eq!(
+        String::from_utf8_lossy(&output.stdout).trim(),
+        "OK dac_zero=2052"
+    );
+    let exported = std::fs::read_to_string(&typed).expect("the file the prompt exported");
+    assert!(exported.contains("\ndac_zero=2052\n"), "{exported}");
+
     let mut console = emulator.connect();
     let after = console.expect("config list", "OK config dac_zero=2052 ");
     assert!(after.contains(" start_duty=0.6 "), "{after}");
