@@ -106,8 +106,9 @@ pub fn console(args: &ConsoleArgs) -> Result {
             board_dir()?.join(FLASH_FILE).display(),
             match &args.script {
                 Some(script) => format!("; running {}", script.display()),
-                None => "; `help` lists the commands, `quit`, `exit` or Ctrl-D leave and check \
-                         the run"
+                None => "; `help` lists the board's commands, `watch`, `calibrate`, `export`, \
+                         `import` and `script` are feeder-ctl's tools, `quit`, `exit` or Ctrl-D \
+                         leave and check the run"
                     .into(),
             }
         );
