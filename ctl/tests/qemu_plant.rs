@@ -38,11 +38,15 @@ struct Lockstep {
     flash: tempfile::TempDir,
 }
 
+/// `realistic.toml`, the plant file.
+fn realistic() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../host-sim/plants/realistic.toml")
+}
+
 impl Lockstep {
-    fn start() -> Self {
-        let plant_path =
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../host-sim/plants/realistic.toml");
-        let plant_file = PlantFile::from_path(&plant_path).expect("the plant file");
+    /// The board in lockstep with the plate of the plant file at `plant_path`.
+    fn start(plant_path: &std::path::Path) -> Self {
+        let plant_file = PlantFile::from_path(plant_path).expect("the plant file");
         let part = Contact::paper_part(Friction::CONFIGURED.mu, Friction::CONFIGURED.gravity_mps2)
             .expect("the part");
         let plate = PlatePlant::new(&plant_file, &part, DacCalibration::DEFAULT, TICK_HZ)
@@ -103,7 +107,7 @@ impl Lockstep {
 #[test]
 #[ignore = "needs the QEMU firmware; run by cargo xtask test"]
 fn a_headless_watch_records_the_plates_own_cycle_means() {
-    let lockstep = Lockstep::start();
+    let lockstep = Lockstep::start(&realistic());
     let ctl = |words: &[&str]| lockstep.ctl(words);
     assert_eq!(ctl(&["start"]).1.trim(), "OK starting");
     let feeding = Instant::now() + Duration::from_secs(120);
@@ -160,13 +164,14 @@ fn a_headless_watch_records_the_plates_own_cycle_means() {
     assert!(compared > 50, "{compared} cycle means compared");
 }
 
-/// The drive's calibration finds `realistic.toml`'s zero offset (1.05 m/s², 8.4 counts),
-/// saves the zero code that takes it off and restarts the board with it; on an encoder that
-/// counts backwards it is refused, naming the setting to flip.
+/// The drive's calibration finds `realistic.toml`'s zero offset (1.05 m/s², 8.4 counts), saves
+/// the zero code that takes it off and restarts the board with it; on the same plate with its
+/// encoder mounted the other way round (a plant file of its own) it is refused, naming the
+/// setting to flip, and flipping it lets the calibration through.
 #[test]
 #[ignore = "needs the QEMU firmware; run by cargo xtask test"]
 fn calibration_takes_the_offset_off_and_refuses_a_backwards_encoder() {
-    let lockstep = Lockstep::start();
+    let lockstep = Lockstep::start(&realistic());
     let report = lockstep.flash.path().join("calibration.txt");
     let report_path = report.to_str().expect("a UTF-8 path");
     let (code, stdout, stderr) = lockstep.ctl(&["calibrate", "--save", "--report", report_path]);
@@ -180,11 +185,21 @@ fn calibration_takes_the_offset_off_and_refuses_a_backwards_encoder() {
     );
     let (_, zero, _) = lockstep.ctl(&["config", "get", "dac_zero"]);
     assert_eq!(zero.trim(), "OK dac_zero=2040");
+    lockstep.stop();
 
-    for line in ["config set encoder_dir reversed", "config save", "restart"] {
-        let (code, reply, _) = lockstep.ctl(&line.split(' ').collect::<Vec<_>>());
-        assert_eq!(code, Some(0), "{line}: {reply}");
-    }
+    let plants = tempfile::tempdir().expect("a directory for the plant file");
+    let reversed = plants.path().join("realistic-reversed-encoder.toml");
+    let text = std::fs::read_to_string(realistic()).expect("realistic.toml");
+    let text = text.replace(
+        "[sensors.encoder]\n",
+        "[sensors.encoder]\nreversed = true\n",
+    );
+    assert!(
+        text.contains("reversed = true"),
+        "the encoder's table is there"
+    );
+    std::fs::write(&reversed, text).expect("the plant file");
+    let lockstep = Lockstep::start(&reversed);
     let (code, stdout, stderr) = lockstep.ctl(&["calibrate"]);
     assert_eq!(code, Some(1), "{stdout}{stderr}");
     assert!(
@@ -192,5 +207,12 @@ fn calibration_takes_the_offset_off_and_refuses_a_backwards_encoder() {
             && stderr.contains("config set encoder_dir reversed"),
         "{stderr}"
     );
+    for line in ["config set encoder_dir reversed", "config save", "restart"] {
+        let (code, reply, _) = lockstep.ctl(&line.split(' ').collect::<Vec<_>>());
+        assert_eq!(code, Some(0), "{line}: {reply}");
+    }
+    let (code, stdout, stderr) = lockstep.ctl(&["calibrate"]);
+    assert_eq!(code, Some(0), "{stdout}{stderr}");
+    assert!(stdout.contains("proposed: dac_zero 2040"), "{stdout}");
     lockstep.stop();
 }

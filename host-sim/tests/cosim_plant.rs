@@ -18,6 +18,7 @@ fn plant(plate: PlateParams) -> PlantFile {
             encoder: Some(EncoderConfig {
                 resolution_m: 1e-6,
                 index_m: None,
+                reversed: false,
             }),
             ..SensorsConfig::default()
         },

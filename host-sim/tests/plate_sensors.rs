@@ -90,6 +90,7 @@ fn an_encoder_counts_the_offset_drift_exactly() {
     let mut encoder = Encoder::new(EncoderConfig {
         resolution_m,
         index_m: None,
+        reversed: false,
     })
     .unwrap();
     for k in 1..=100 {

@@ -65,6 +65,7 @@ fn encoder_counts_a_linear_motion_exactly() {
     let mut encoder = Encoder::new(EncoderConfig {
         resolution_m,
         index_m: Some(5.0 * resolution_m),
+        reversed: false,
     })
     .unwrap();
     // x = −10 counts + 0.75 counts per tick.
@@ -89,12 +90,39 @@ fn encoder_counts_a_linear_motion_exactly() {
     ));
 }
 
+/// Mounted the other way round, the encoder counts the mirrored position: down as the plate
+/// moves forward, its index mark where the mirrored position crosses it.
+#[test]
+fn a_reversed_encoder_counts_down_as_the_plate_moves_forward() {
+    let resolution_m = 2f64.powi(-20);
+    let config = |reversed, index_counts: f64| EncoderConfig {
+        resolution_m,
+        index_m: Some(index_counts * resolution_m),
+        reversed,
+    };
+    let mut reversed = Encoder::new(config(true, -5.0)).unwrap();
+    let mut forward = Encoder::new(config(false, 5.0)).unwrap();
+    // x = −10 counts + 0.75 counts per tick, and its mirror image (the index mark's too).
+    let plate = linear(-10.0 * resolution_m, 0.75 * resolution_m);
+    let mirror = linear(10.0 * resolution_m, -0.75 * resolution_m);
+    for tick in 0..64i64 {
+        let reading = reversed.sample(&plate, tick as f64).unwrap();
+        assert_eq!(
+            reading,
+            forward.sample(&mirror, tick as f64).unwrap(),
+            "tick {tick}"
+        );
+        assert_eq!(reading.count, (40 - 3 * tick).div_euclid(4), "tick {tick}");
+    }
+}
+
 #[test]
 fn encoder_counts_a_sinusoid_with_floor_semantics() {
     let resolution_m = 1e-6;
     let mut encoder = Encoder::new(EncoderConfig {
         resolution_m,
         index_m: Some(0.0),
+        reversed: false,
     })
     .unwrap();
     let plate = Plate {

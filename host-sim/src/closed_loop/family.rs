@@ -114,6 +114,7 @@ fn inside(rng: &mut ChaCha8Rng) -> PlantFile {
     let encoder = EncoderConfig {
         resolution_m: uniform(rng, 0.5e-6, e.resolution_max_m),
         index_m: Some(0.0),
+        reversed: false,
     };
     with_force_limit(PlantFile {
         plate,

@@ -13,15 +13,28 @@ const SENSOR: &str = "encoder";
 pub struct EncoderConfig {
     /// Plate travel per count in m (e.g. 1e-6).
     pub resolution_m: f64,
-    /// Position of the index mark in m; it lies in the count `floor(index_m / resolution_m)`.
+    /// Position of the index mark in m; it lies in the count at `index_m`.
     #[serde(default)]
     pub index_m: Option<f64>,
+    /// Mounted the other way round: it counts down as the plate moves forward, the count at
+    /// `x` being the forward one's at `−x`.
+    #[serde(default)]
+    pub reversed: bool,
 }
 
 impl EncoderConfig {
     /// The count at `position_m`, `None` beyond 2^53 counts.
     pub fn count(&self, position_m: f64) -> Option<i64> {
-        count_of(position_m, self.resolution_m)
+        count_of(self.along(position_m), self.resolution_m)
+    }
+
+    /// `position_m` along the encoder's scale.
+    fn along(&self, position_m: f64) -> f64 {
+        if self.reversed {
+            -position_m
+        } else {
+            position_m
+        }
     }
 
     pub fn validate(&self) -> Result<(), SimError> {
@@ -60,9 +73,7 @@ pub struct Encoder {
 impl Encoder {
     pub fn new(config: EncoderConfig) -> Result<Self, SimError> {
         config.validate()?;
-        let index_count = config
-            .index_m
-            .and_then(|index_m| count_of(index_m, config.resolution_m));
+        let index_count = config.index_m.and_then(|index_m| config.count(index_m));
         Ok(Encoder {
             config,
             index_count,
@@ -78,12 +89,11 @@ impl Encoder {
     ) -> Result<EncoderReading, SimError> {
         check_time(SENSOR, t_s, self.previous.map(|(t, _)| t))?;
         let position_m = check_motion(SENSOR, t_s, plate.position_m(t_s))?;
-        let count =
-            count_of(position_m, self.config.resolution_m).ok_or(SimError::SensorInput {
-                sensor: SENSOR,
-                t_s,
-                reason: "the position is beyond 2^53 counts",
-            })?;
+        let count = self.config.count(position_m).ok_or(SimError::SensorInput {
+            sensor: SENSOR,
+            t_s,
+            reason: "the position is beyond 2^53 counts",
+        })?;
         let index = match (self.index_count, self.previous) {
             (Some(mark), Some((_, before))) => {
                 (before < mark && mark <= count) || (count <= mark && mark < before)
