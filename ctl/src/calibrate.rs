@@ -26,7 +26,7 @@ use feeder_shared::calibration::DriveVerdict;
 use feeder_shared::closed_loop::{Identified, ENVELOPE};
 use feeder_shared::DacCalibration;
 
-use crate::console::Console;
+use crate::console::{field, uptime_s, Console};
 
 /// How often the drive's step asks for the board's status.
 const POLL: Duration = Duration::from_millis(200);
@@ -341,17 +341,6 @@ fn stop(console: &mut Console) -> io::Result<()> {
     ))
 }
 
-/// The value of `key=` in a reply.
-fn field<'a>(reply: &'a str, key: &str) -> Option<&'a str> {
-    reply
-        .split_whitespace()
-        .find_map(|word| word.strip_prefix(key)?.strip_prefix('='))
-}
-
-fn uptime_s(status: &str) -> Option<f64> {
-    field(status, "uptime_s")?.parse().ok()
-}
-
 /// A configuration key's number.
 fn config_number(console: &mut Console, key: &str) -> io::Result<f64> {
     let reply = console.command(&format!("config get {key}"))?;
@@ -370,18 +359,4 @@ fn consent(question: &str) -> io::Result<bool> {
     let mut answer = String::new();
     io::stdin().lock().read_line(&mut answer)?;
     Ok(matches!(answer.trim(), "y" | "Y" | "yes"))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_field_is_read_by_its_exact_key() {
-        let status = "OK state=running loop=feeding loop_error=none gain_pos=1.02 lag_ms=0.16";
-        assert_eq!(field(status, "loop"), Some("feeding"));
-        assert_eq!(field(status, "loop_error"), Some("none"));
-        assert_eq!(field(status, "lag_ms"), Some("0.16"));
-        assert_eq!(field(status, "gain"), None);
-    }
 }

@@ -178,3 +178,32 @@ impl Console {
         }
     }
 }
+
+/// The value of `key=` in a reply.
+pub fn field<'a>(reply: &'a str, key: &str) -> Option<&'a str> {
+    reply
+        .split_whitespace()
+        .find_map(|word| word.strip_prefix(key)?.strip_prefix('='))
+}
+
+/// The board's clock in a `status` reply, s.
+pub fn uptime_s(status: &str) -> Option<f64> {
+    field(status, "uptime_s")?.parse().ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_field_is_read_by_its_exact_key() {
+        let status =
+            "OK state=running uptime_s=12.5 loop=feeding loop_error=none gain_pos=1.02 lag_ms=0.16";
+        assert_eq!(field(status, "loop"), Some("feeding"));
+        assert_eq!(field(status, "loop_error"), Some("none"));
+        assert_eq!(field(status, "lag_ms"), Some("0.16"));
+        assert_eq!(field(status, "gain"), None);
+        assert_eq!(field(status, "lag"), None);
+        assert_eq!(uptime_s(status), Some(12.5));
+    }
+}

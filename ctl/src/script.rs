@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use feeder_shared::telemetry::Record;
 
-use crate::console::Console;
+use crate::console::{uptime_s, Console};
 use crate::recording;
 
 /// How often `wait` asks the board for its clock.
@@ -74,18 +74,14 @@ pub fn parse(text: &str) -> Result<Vec<Step>, ScriptError> {
 }
 
 /// The board's clock, from a `status` reply.
-fn uptime_s(console: &mut Console) -> io::Result<f64> {
+fn board_clock_s(console: &mut Console) -> io::Result<f64> {
     let reply = console.command("status")?;
-    reply
-        .split_whitespace()
-        .find_map(|word| word.strip_prefix("uptime_s="))
-        .and_then(|value| value.parse().ok())
-        .ok_or_else(|| {
-            io::Error::new(
-                io::ErrorKind::InvalidData,
-                format!("no uptime in {reply:?}"),
-            )
-        })
+    uptime_s(&reply).ok_or_else(|| {
+        io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!("no uptime in {reply:?}"),
+        )
+    })
 }
 
 /// Runs `steps` on `console`, printing every command and its reply; records the telemetry into
@@ -132,8 +128,8 @@ fn run_steps(
             }
             Step::Wait { seconds } => {
                 println!("> wait {seconds}");
-                let until = uptime_s(console).map_err(ScriptError::Io)? + seconds;
-                while uptime_s(console).map_err(ScriptError::Io)? < until {
+                let until = board_clock_s(console).map_err(ScriptError::Io)? + seconds;
+                while board_clock_s(console).map_err(ScriptError::Io)? < until {
                     records.extend(console.take_telemetry());
                     console.listen(WAIT_POLL).map_err(ScriptError::Io)?;
                 }

@@ -183,8 +183,8 @@ impl Record {
                 let seconds = number(next(1)?, 1)?.ok_or(ParseError { column: 1 })?;
                 libm::round(seconds * 1e3) as u64
             },
-            phase: word(next(2)?, 2, &PHASES)?.ok_or(ParseError { column: 2 })?,
-            stage: word(next(3)?, 3, &STAGES)?,
+            phase: word(next(2)?, 2, &PHASES, Phase::name)?.ok_or(ParseError { column: 2 })?,
+            stage: word(next(3)?, 3, &STAGES, Stage::name)?,
             mean_m: number(next(4)?, 4)?.map(|um| um * 1e-6),
             peak_m: number(next(5)?, 5)?.map(|um| um * 1e-6),
             trim_positive: number(next(6)?, 6)?,
@@ -193,13 +193,15 @@ impl Record {
             slack_ticks: whole(next(9)?, 9)?,
             edge_work_cycles: whole(next(10)?, 10)?,
             cpu_load_pct: number(next(11)?, 11)?,
-            track: word(next(12)?, 12, &TRACK_STATES)?,
+            track: word(next(12)?, 12, &TRACK_STATES, TrackState::name)?,
             parts_per_minute: number(next(13)?, 13)?,
             fault: {
                 let text = next(14)?;
                 match text {
                     "none" => None,
-                    _ => Some(word(text, 14, &FAULTS)?.ok_or(ParseError { column: 14 })?),
+                    _ => Some(
+                        word(text, 14, &FAULTS, Fault::name)?.ok_or(ParseError { column: 14 })?,
+                    ),
                 }
             },
         };
@@ -274,39 +276,19 @@ const FAULTS: [Fault; 4] = [
     Fault::ClosedLoop,
 ];
 
-/// Things named by a word.
-trait Named: Copy {
-    fn word(self) -> &'static str;
-}
-
-impl Named for Phase {
-    fn word(self) -> &'static str {
-        self.name()
-    }
-}
-impl Named for Stage {
-    fn word(self) -> &'static str {
-        self.name()
-    }
-}
-impl Named for TrackState {
-    fn word(self) -> &'static str {
-        self.name()
-    }
-}
-impl Named for Fault {
-    fn word(self) -> &'static str {
-        self.name()
-    }
-}
-
-fn word<T: Named>(text: &str, column: usize, all: &[T]) -> Result<Option<T>, ParseError> {
+/// The one of `all` whose `name` is `text`, `None` for `-`.
+fn word<T: Copy>(
+    text: &str,
+    column: usize,
+    all: &[T],
+    name: fn(T) -> &'static str,
+) -> Result<Option<T>, ParseError> {
     if text == "-" {
         return Ok(None);
     }
     all.iter()
         .copied()
-        .find(|item| item.word() == text)
+        .find(|&item| name(item) == text)
         .map(Some)
         .ok_or(ParseError { column })
 }
