@@ -164,6 +164,13 @@ fn a_headless_watch_records_the_plates_own_cycle_means() {
     assert!(compared > 50, "{compared} cycle means compared");
 }
 
+/// The value of `key` in a calibration report.
+fn report_value<'a>(text: &'a str, key: &str) -> &'a str {
+    text.lines()
+        .find_map(|line| line.strip_prefix(key)?.strip_prefix('='))
+        .unwrap_or_else(|| panic!("no {key} in {text}"))
+}
+
 /// The drive's calibration finds `realistic.toml`'s zero offset (1.05 m/s², 8.4 counts), saves
 /// the zero code that takes it off and restarts the board with it; on the same plate with its
 /// encoder mounted the other way round (a plant file of its own) it is refused, naming the
@@ -176,9 +183,32 @@ fn calibration_takes_the_offset_off_and_refuses_a_backwards_encoder() {
     let report_path = report.to_str().expect("a UTF-8 path");
     let (code, stdout, stderr) = lockstep.ctl(&["calibrate", "--save", "--report", report_path]);
     assert_eq!(code, Some(0), "{stdout}{stderr}");
-    assert!(stdout.contains("step 5/5: saving"), "{stdout}");
+    assert!(stdout.contains("step 7/7: saving"), "{stdout}");
     let text = std::fs::read_to_string(&report).expect("the report");
     assert!(text.contains("proposed_dac_zero=2040\n"), "{text}");
+    // The plate's drive (gains 1.02 / 0.98, offset 1 m/s², peak command 200 m/s²) gives the
+    // plate levels up to min(1.02·200 + 1, 0.98·200 − 1) = 195 m/s²: by Eq. 5 3.342 mm at
+    // 50 Hz, d = 0.586, 0.836 mm at 100 Hz; the settings' 2.5 mm fits.
+    for (key, expected_mm) in [
+        ("usable_stroke_mm_at_50_hz", 3.342),
+        ("usable_stroke_mm_at_100_hz", 0.8355),
+    ] {
+        let value: f64 = report_value(&text, key)
+            .split(' ')
+            .next()
+            .and_then(|number| number.parse().ok())
+            .unwrap_or_else(|| panic!("{key} in {text}"));
+        assert!(
+            (value / expected_mm - 1.0).abs() < 0.01,
+            "{key}={value}: {text}"
+        );
+    }
+    for check in ["swing", "offset", "gains", "lag", "stroke"] {
+        assert!(
+            report_value(&text, check).starts_with("ok "),
+            "{check}: {text}"
+        );
+    }
     assert!(
         text.contains("saved=yes\n") && text.contains("outcome=accepted\n"),
         "{text}"
