@@ -182,3 +182,72 @@ proptest! {
         prop_assert!(close(read.parts_per_minute, rounded(record.parts_per_minute, 1.0, 1)));
     }
 }
+
+/// The console's link as the board drives it: lines queue in the transmitter's buffer and go out
+/// a byte at a time at 115200 baud, 8N1.
+struct Link {
+    us_per_byte: f64,
+    /// When the bytes queued so far have all gone, µs.
+    idle_at_us: f64,
+}
+
+impl Link {
+    /// Queues `bytes` at `now_us`; returns when the first of them starts out and how many bytes
+    /// the buffer then holds, these included.
+    fn queue(&mut self, now_us: f64, bytes: usize) -> (f64, f64) {
+        let start_us = self.idle_at_us.max(now_us);
+        let held = (start_us - now_us) / self.us_per_byte + bytes as f64;
+        self.idle_at_us = start_us + bytes as f64 * self.us_per_byte;
+        (start_us, held)
+    }
+}
+
+proptest! {
+    /// The console's loop with telemetry on, as the firmware runs it: every `TELEMETRY_POLL_MS`
+    /// it writes the newest cycle's line where the pacer lets it, and a command's reply is
+    /// queued as soon as the command's line is in. Whatever the lines' lengths, the cycle's
+    /// period and the commands' instants, a reply starts within one longest line's time
+    /// (160 bytes and the terminator: 14.0 ms), under the 20 ms a reply may wait, and the
+    /// transmitter never holds more than two lines.
+    #[test]
+    fn a_reply_waits_behind_one_telemetry_line_at_most(
+        period_us in 10_000u32..=20_000,
+        line_bytes in prop::collection::vec(20usize..=MAX_LINE_BYTES + 2, 200),
+        gaps_us in prop::collection::vec(30_000u32..200_000, 12),
+        reply_bytes in prop::collection::vec(4usize..=64, 12),
+    ) {
+        const POLL_US: u64 = 5_000;
+        let mut pacer = Pacer::new(115_200);
+        let mut link = Link { us_per_byte: 10.0e6 / 115_200.0, idle_at_us: 0.0 };
+        let longest_us = pacer.line_us(MAX_LINE_BYTES + 2);
+        let mut commands_us = gaps_us.iter().scan(0u64, |at, gap| {
+            *at += u64::from(*gap) + 1;
+            Some(*at)
+        });
+        let mut next_command_us = commands_us.next();
+        let mut replies = reply_bytes.iter();
+        let mut lines = line_bytes.iter().cycle();
+        let mut last_cycle = None;
+        let mut worst_us: f64 = 0.0;
+        let mut poll_us = 0;
+        while let Some(command_us) = next_command_us {
+            if command_us < poll_us {
+                let (start_us, _) = link.queue(command_us as f64, *replies.next().unwrap());
+                worst_us = worst_us.max(start_us - command_us as f64);
+                next_command_us = commands_us.next();
+                continue;
+            }
+            let cycle = poll_us / u64::from(period_us);
+            if last_cycle != Some(cycle) && pacer.ready(poll_us) {
+                let bytes = *lines.next().unwrap();
+                let (_, held) = link.queue(poll_us as f64, bytes);
+                prop_assert!(held <= 2.0 * (MAX_LINE_BYTES + 2) as f64, "{held} bytes held");
+                pacer.sent(poll_us, bytes);
+                last_cycle = Some(cycle);
+            }
+            poll_us += POLL_US;
+        }
+        prop_assert!(worst_us <= longest_us, "a reply waited {worst_us} µs");
+        prop_assert!(longest_us < 20_000.0);
+    }
+}
