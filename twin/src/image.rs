@@ -1,0 +1,119 @@
+//! The firmware's release ELF as the board's flash holds it: its loadable segments, its
+//! functions (to name a program counter) and the instructions the twin handles itself.
+
+use std::collections::{BTreeMap, HashSet};
+use std::path::Path;
+
+use object::elf::PT_LOAD;
+use object::read::elf::{ElfFile32, ProgramHeader};
+use object::{Endianness, Object, ObjectSymbol, SymbolKind};
+
+use crate::TwinError;
+
+/// `WFI`, `WFE` and `SEV` (Thumb, 16 bits): the core sleeps, or signals an event.
+const WFI: u16 = 0xBF30;
+const WFE: u16 = 0xBF20;
+const SEV: u16 = 0xBF40;
+
+/// What the twin does at a halfword of the program that is one of its own instructions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Hint {
+    WaitForInterrupt,
+    WaitForEvent,
+    SendEvent,
+}
+
+/// A loaded image.
+pub struct Image {
+    /// `(address, bytes)` of every loadable segment with file contents.
+    pub segments: Vec<(u32, Vec<u8>)>,
+    /// Function start addresses (Thumb bit clear) and their names.
+    functions: BTreeMap<u32, String>,
+    /// Data symbols by name: the RTT control block among them.
+    symbols: BTreeMap<String, u32>,
+    /// Halfword addresses that hold a hint instruction, by kind.
+    hints: HashSet<(u32, u16)>,
+}
+
+impl Image {
+    pub fn load(path: &Path) -> Result<Self, TwinError> {
+        let bytes = std::fs::read(path).map_err(|error| TwinError::Image {
+            path: path.display().to_string(),
+            problem: error.to_string(),
+        })?;
+        let problem = |error: &dyn std::fmt::Display| TwinError::Image {
+            path: path.display().to_string(),
+            problem: error.to_string(),
+        };
+        let file = ElfFile32::<Endianness>::parse(&*bytes).map_err(|error| problem(&error))?;
+        let endian = file.endian();
+        let mut segments = Vec::new();
+        let mut hints = HashSet::new();
+        // Each loadable segment goes where the flash holds it: its physical (load) address,
+        // from which the start-up code copies `.data` to RAM.
+        for header in file.elf_program_headers() {
+            if header.p_type(endian) != PT_LOAD {
+                continue;
+            }
+            let data = header
+                .data(endian, &*bytes)
+                .map_err(|()| problem(&"a segment lies outside the file"))?;
+            if data.is_empty() {
+                continue;
+            }
+            let load_address = header.p_paddr(endian);
+            for (index, pair) in data.chunks_exact(2).enumerate() {
+                let halfword = u16::from_le_bytes([pair[0], pair[1]]);
+                if matches!(halfword, WFI | WFE | SEV) {
+                    hints.insert((load_address + 2 * index as u32, halfword));
+                }
+            }
+            segments.push((load_address, data.to_vec()));
+        }
+        let mut functions = BTreeMap::new();
+        let mut symbols = BTreeMap::new();
+        for symbol in file.symbols() {
+            let Ok(name) = symbol.name() else { continue };
+            match symbol.kind() {
+                SymbolKind::Text if symbol.address() != 0 => {
+                    functions.insert(symbol.address() as u32 & !1, name.to_string());
+                }
+                SymbolKind::Data => {
+                    symbols.insert(name.to_string(), symbol.address() as u32);
+                }
+                _ => {}
+            }
+        }
+        Ok(Image {
+            segments,
+            functions,
+            symbols,
+            hints,
+        })
+    }
+
+    /// The hint at `address`, where the instruction there is 16 bits long.
+    pub fn hint(&self, address: u32) -> Option<Hint> {
+        [
+            (WFI, Hint::WaitForInterrupt),
+            (WFE, Hint::WaitForEvent),
+            (SEV, Hint::SendEvent),
+        ]
+        .into_iter()
+        .find(|(halfword, _)| self.hints.contains(&(address, *halfword)))
+        .map(|(_, hint)| hint)
+    }
+
+    /// The function that holds `pc`, by its symbol.
+    pub fn function(&self, pc: u32) -> &str {
+        self.functions
+            .range(..=pc & !1)
+            .next_back()
+            .map_or("?", |(_, name)| name.as_str())
+    }
+
+    /// A data symbol's address.
+    pub fn symbol(&self, name: &str) -> Option<u32> {
+        self.symbols.get(name).copied()
+    }
+}
