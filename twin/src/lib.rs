@@ -9,9 +9,11 @@
 //! covers ends the run with its address and the instruction that made it.
 
 pub mod image;
+pub mod log;
 pub mod machine;
 pub mod peripherals;
 pub mod rtt;
+pub mod scenario;
 
 use std::fmt;
 

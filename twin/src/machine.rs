@@ -340,6 +340,7 @@ impl<'a> Machine<'a> {
             if self.take_exception()? {
                 continue;
             }
+            self.drain_rtt();
             let next = self.board().next_event().map_or(until, |at| at.min(until));
             let cycles = next.saturating_sub(now).max(1);
             let instructions =

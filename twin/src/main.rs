@@ -1,12 +1,19 @@
-//! `feeder-twin ELF [SECONDS]`: runs the G474 image on the twin with nothing on its outputs and
-//! writes its defmt log (raw frames) to standard output.
+//! `feeder-twin ELF [--cycles N]`: runs a G474 image without a console on the twin as an
+//! operator with the user button runs it (start, `N` motion cycles, soft stop) and writes its
+//! decoded log to standard output, for `host-sim hil`; a summary goes to standard error.
+//!
+//! Exit code 0 when the run went through, 1 when it did not (a watchdog reset, a start that
+//! never came), 2 when the twin could not run the image.
 
-use std::io::Write;
+use std::io::{self, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use feeder_twin::log::LogTable;
+use feeder_twin::scenario::button_run;
 use feeder_twin::{Cycles, Machine, Plate, CORE_HZ};
 
+/// Nothing on the outputs: the analog command and the enable go nowhere, the encoder reads 0.
 struct Bench;
 
 impl Plate for Bench {
@@ -18,43 +25,61 @@ impl Plate for Bench {
 }
 
 fn main() -> ExitCode {
-    let mut args = std::env::args().skip(1);
-    let Some(elf) = args.next().map(PathBuf::from) else {
-        eprintln!("usage: feeder-twin ELF [SECONDS]");
-        return ExitCode::from(2);
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let (elf, cycles) = match args.as_slice() {
+        [elf] => (PathBuf::from(elf), 200),
+        [elf, flag, n] if flag == "--cycles" => match n.parse::<u64>() {
+            Ok(n) if n >= 1 => (PathBuf::from(elf), n),
+            _ => return usage(&format!("--cycles takes a whole number from 1, not {n:?}")),
+        },
+        _ => return usage("one ELF, then optionally --cycles N"),
     };
-    let seconds: f64 = args.next().and_then(|s| s.parse().ok()).unwrap_or(1.0);
+    let bytes = match std::fs::read(&elf) {
+        Ok(bytes) => bytes,
+        Err(error) => return failure(&format!("cannot read {}: {error}", elf.display())),
+    };
+    let table = match LogTable::load(&bytes) {
+        Ok(table) => table,
+        Err(error) => return failure(&error.to_string()),
+    };
     let mut machine = match Machine::load(&elf, Box::new(Bench)) {
         Ok(machine) => machine,
-        Err(error) => {
-            eprintln!("feeder-twin: {error}");
-            return ExitCode::from(2);
-        }
+        Err(error) => return failure(&error.to_string()),
     };
     let started = std::time::Instant::now();
-    let at = |s: f64| (s * CORE_HZ as f64) as Cycles;
-    let mut result = machine.run_until(at(0.05));
-    machine.button(true);
-    if result.is_ok() {
-        result = machine.run_until(at(0.1));
-    }
-    machine.button(false);
-    if result.is_ok() {
-        result = machine.run_until(at(seconds));
-    }
-    let log = machine.take_log();
-    let _ = std::io::stdout().write_all(&log);
+    let stdout = io::stdout();
+    let mut out = stdout.lock();
+    let outcome = button_run(&mut machine, table.decoder(), &mut out, cycles);
+    let _ = out.flush();
+    let core_s = machine.now() as f64 / CORE_HZ as f64;
+    let wall_s = started.elapsed().as_secs_f64();
     eprintln!(
-        "feeder-twin: {:?} at pc 0x{:08x} ({}) after {} instructions, {:.6} s of core time, {:.2} s wall",
-        result,
-        machine.pc(),
-        machine.function(machine.pc()),
+        "feeder-twin: {} instructions, {core_s:.3} s of core time in {wall_s:.2} s ({:.1} core seconds a second)",
         machine.instructions(),
-        machine.now() as f64 / CORE_HZ as f64,
-        started.elapsed().as_secs_f64()
+        core_s / wall_s
     );
-    match result {
-        Ok(_) => ExitCode::SUCCESS,
-        Err(_) => ExitCode::from(1),
+    match outcome {
+        Ok(outcome) if outcome.completed => ExitCode::SUCCESS,
+        Ok(outcome) => {
+            match outcome.watchdog_reset {
+                Some(at) => eprintln!(
+                    "feeder-twin: the watchdog reset the board at {:.6} s",
+                    at as f64 / CORE_HZ as f64
+                ),
+                None => eprintln!("feeder-twin: the feeder never started"),
+            }
+            ExitCode::from(1)
+        }
+        Err(error) => failure(&error.to_string()),
     }
+}
+
+fn usage(problem: &str) -> ExitCode {
+    eprintln!("feeder-twin: {problem}\nusage: feeder-twin ELF [--cycles N]");
+    ExitCode::from(2)
+}
+
+fn failure(problem: &str) -> ExitCode {
+    eprintln!("feeder-twin: {problem}");
+    ExitCode::from(2)
 }

@@ -422,6 +422,14 @@ impl Board {
         self.tim4.set_external_count(count);
     }
 
+    /// The core time of the output timeline's tick 0: the segment timer's first start (TIM2,
+    /// or TIM1 for the PWM stage).
+    pub fn output_origin(&self) -> Option<Cycles> {
+        self.tim2
+            .first_started_at()
+            .or(self.tim1.first_started_at())
+    }
+
     /// The flash interface, for programming.
     pub fn flash(&mut self) -> &mut FlashInterface {
         &mut self.flash

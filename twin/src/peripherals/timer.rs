@@ -101,6 +101,8 @@ pub struct Timer {
     external_count: u32,
     /// The last compare match taken, by channel.
     compared_at: [Option<Cycles>; 4],
+    /// When the counter was first enabled: the origin of an output's timeline.
+    first_started_at: Option<Cycles>,
 }
 
 impl Timer {
@@ -131,6 +133,7 @@ impl Timer {
             since: 0,
             external_count: 0,
             compared_at: [None; 4],
+            first_started_at: None,
         }
     }
 
@@ -254,6 +257,11 @@ impl Timer {
         }
     }
 
+    /// When the counter was first enabled.
+    pub fn first_started_at(&self) -> Option<Cycles> {
+        self.first_started_at
+    }
+
     /// Sets the count an outside source gives (an encoder's position).
     pub fn set_external_count(&mut self, count: u32) {
         self.external_count = count & self.counter_max;
@@ -319,6 +327,9 @@ impl Timer {
             CR1 => {
                 let was_running = self.runs_on_clock();
                 self.cr1 = value & 0xFFF;
+                if self.cr1 & CR1_CEN != 0 && self.first_started_at.is_none() {
+                    self.first_started_at = Some(now);
+                }
                 if was_running != self.runs_on_clock() {
                     self.count_at_since = count;
                     self.since = now;
