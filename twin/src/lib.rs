@@ -11,6 +11,7 @@
 pub mod image;
 pub mod log;
 pub mod machine;
+pub mod outputs;
 pub mod peripherals;
 pub mod rtt;
 pub mod scenario;

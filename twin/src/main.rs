@@ -2,27 +2,19 @@
 //! operator with the user button runs it (start, `N` motion cycles, soft stop) and writes its
 //! decoded log to standard output, for `host-sim hil`; a summary goes to standard error.
 //!
-//! Exit code 0 when the run went through, 1 when it did not (a watchdog reset, a start that
-//! never came), 2 when the twin could not run the image.
+//! Every segment the firmware reports is checked on the twin's DAC: its level on its tick.
+//! Exit code 0 when the run went through and the DAC agreed, 1 when it did not (a watchdog
+//! reset, a start that never came, a level the DAC did not take), 2 when the twin could not run
+//! the image.
 
 use std::io::{self, Write};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 use feeder_twin::log::LogTable;
+use feeder_twin::outputs::OutputRecord;
 use feeder_twin::scenario::button_run;
-use feeder_twin::{Cycles, Machine, Plate, CORE_HZ};
-
-/// Nothing on the outputs: the analog command and the enable go nowhere, the encoder reads 0.
-struct Bench;
-
-impl Plate for Bench {
-    fn level(&mut self, _at: Cycles, _code: u32) {}
-    fn enable(&mut self, _at: Cycles, _on: bool) {}
-    fn count(&mut self, _at: Cycles) -> i32 {
-        0
-    }
-}
+use feeder_twin::{Machine, CORE_HZ};
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -42,14 +34,15 @@ fn main() -> ExitCode {
         Ok(table) => table,
         Err(error) => return failure(&error.to_string()),
     };
-    let mut machine = match Machine::load(&elf, Box::new(Bench)) {
+    let record = OutputRecord::default();
+    let mut machine = match Machine::load(&elf, Box::new(record.clone())) {
         Ok(machine) => machine,
         Err(error) => return failure(&error.to_string()),
     };
     let started = std::time::Instant::now();
     let stdout = io::stdout();
     let mut out = stdout.lock();
-    let outcome = button_run(&mut machine, table.decoder(), &mut out, cycles);
+    let outcome = button_run(&mut machine, table.decoder(), &mut out, cycles, &record);
     let _ = out.flush();
     let core_s = machine.now() as f64 / CORE_HZ as f64;
     let wall_s = started.elapsed().as_secs_f64();
@@ -58,8 +51,28 @@ fn main() -> ExitCode {
         machine.instructions(),
         core_s / wall_s
     );
+    if let Ok(outcome) = &outcome {
+        let check = &outcome.outputs;
+        eprintln!(
+            "feeder-twin: the DAC took {} segments' levels on their ticks, {} did not, {} changes \
+             at no segment's start",
+            check.matched,
+            check.problems.len(),
+            check.stray
+        );
+        for problem in check.problems.iter().take(5) {
+            eprintln!("  {problem}");
+        }
+    }
     match outcome {
-        Ok(outcome) if outcome.completed => ExitCode::SUCCESS,
+        Ok(outcome)
+            if outcome.completed
+                && outcome.outputs.problems.is_empty()
+                && outcome.outputs.stray == 0 =>
+        {
+            ExitCode::SUCCESS
+        }
+        Ok(outcome) if outcome.completed => ExitCode::from(1),
         Ok(outcome) => {
             match outcome.watchdog_reset {
                 Some(at) => eprintln!(

@@ -6,10 +6,11 @@
 
 use std::io::{self, Write};
 
-use feeder_shared::event::{parse_line, Event};
+use feeder_shared::event::{parse_line, Event, SegmentEvent};
 
 use crate::log::LogDecoder;
 use crate::machine::{Machine, Stop};
+use crate::outputs::{self, OutputCheck, OutputRecord};
 use crate::{Cycles, TwinError, CORE_HZ};
 
 /// How long a press is held, s: longer than the firmware's debounce.
@@ -29,6 +30,8 @@ pub struct ButtonOutcome {
     pub completed: bool,
     /// A watchdog reset on the way, at this core time.
     pub watchdog_reset: Option<Cycles>,
+    /// The DAC's output against the segments the firmware reported.
+    pub outputs: OutputCheck,
 }
 
 fn seconds(s: f64) -> Cycles {
@@ -49,6 +52,8 @@ struct Log<'d, 'o> {
     timing: Option<Timing>,
     /// The output tick of the start request.
     start_tick: Option<u64>,
+    /// The segments the firmware reported as played.
+    segments: Vec<SegmentEvent>,
 }
 
 impl Log<'_, '_> {
@@ -68,6 +73,7 @@ impl Log<'_, '_> {
                     })
                 }
                 Ok(Some(Event::Start { tick })) => self.start_tick = Some(tick),
+                Ok(Some(Event::Segment(segment))) => self.segments.push(segment),
                 _ => {}
             }
         }
@@ -99,48 +105,62 @@ fn press(machine: &mut Machine, log: &mut Log, at: Cycles) -> Result<Option<Cycl
     Ok(reset)
 }
 
-/// Runs the button scenario for `cycles` motion cycles, the decoded log to `out`.
+/// Runs the button scenario for `cycles` motion cycles, the decoded log to `out`; `record` is
+/// what the board's outputs did (the plate `machine` was loaded with).
 pub fn button_run(
     machine: &mut Machine,
     decoder: LogDecoder,
     out: &mut dyn Write,
     cycles: u64,
+    record: &OutputRecord,
 ) -> Result<ButtonOutcome, TwinError> {
     let mut log = Log {
         decoder,
         out,
         timing: None,
         start_tick: None,
+        segments: Vec::new(),
     };
-    let failed = |reset| ButtonOutcome {
+    let judge = |machine: &Machine, log: &Log| {
+        let changes = record.changes();
+        let zero_code = changes.iter().find_map(|change| match change {
+            crate::peripherals::Output::Dac { code, .. } => Some(*code),
+            crate::peripherals::Output::Enable { .. } => None,
+        });
+        outputs::check(
+            &changes,
+            &log.segments,
+            machine.board().output_origin().unwrap_or(0),
+            zero_code.unwrap_or(0),
+        )
+    };
+    let failed = |machine: &Machine, log: &Log, reset| ButtonOutcome {
         completed: false,
-        watchdog_reset: Some(reset),
+        watchdog_reset: reset,
+        outputs: judge(machine, log),
     };
     if let Some(reset) = press(machine, &mut log, seconds(FIRST_PRESS_S))? {
-        return Ok(failed(reset));
+        return Ok(failed(machine, &log, Some(reset)));
     }
     // The start takes effect at the next period's boundary: wait for its request.
     let limit = seconds(LIMIT_S);
     while log.start_tick.is_none() && machine.now() < limit {
         let step = machine.now() + seconds(0.01);
         if let Some(reset) = run(machine, &mut log, step)? {
-            return Ok(failed(reset));
+            return Ok(failed(machine, &log, Some(reset)));
         }
     }
     let (Some(timing), Some(start_tick)) = (log.timing, log.start_tick) else {
-        return Ok(ButtonOutcome {
-            completed: false,
-            watchdog_reset: None,
-        });
+        return Ok(failed(machine, &log, None));
     };
     let origin = machine.board().output_origin().unwrap_or(0);
     let stop_at = origin + start_tick + cycles * timing.period;
     if let Some(reset) = press(machine, &mut log, stop_at)? {
-        return Ok(failed(reset));
+        return Ok(failed(machine, &log, Some(reset)));
     }
     let end = machine.now() + (timing.ramp_cycles + STOP_MARGIN_PERIODS) * timing.period;
     if let Some(reset) = run(machine, &mut log, end)? {
-        return Ok(failed(reset));
+        return Ok(failed(machine, &log, Some(reset)));
     }
     let tick = machine.now() - origin;
     writeln!(log.out, "{}", Event::End { tick }).map_err(|error| TwinError::Engine {
@@ -150,5 +170,6 @@ pub fn button_run(
     Ok(ButtonOutcome {
         completed: true,
         watchdog_reset: None,
+        outputs: judge(machine, &log),
     })
 }
