@@ -275,6 +275,11 @@ impl<'a> Machine<'a> {
             .drive_pin(2, 13, Some(pressed));
     }
 
+    /// A peripheral register's value now, as the core would read it.
+    pub fn register(&self, address: u32) -> Option<u32> {
+        self.board().read(address, self.now()).ok()
+    }
+
     /// The instruction the core runs next.
     pub fn pc(&self) -> u32 {
         self.reg(RegisterARM::PC)

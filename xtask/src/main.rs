@@ -26,6 +26,7 @@ mod size;
 mod soak;
 mod test;
 mod tools;
+mod twin;
 
 use std::io;
 use std::process::ExitCode;

@@ -17,12 +17,17 @@ use host_sim::plate::PlantFile;
 use crate::command::{cargo, exec, exec_output, host_sim, root, shown};
 use crate::failure::{Failure, Result};
 use crate::progress::Meter;
-use crate::{qemu, tools};
+use crate::{qemu, tools, twin};
 
 /// The flags of `cargo xtask run`.
 #[derive(Args)]
 #[command(after_help = scenario_help())]
 pub struct RunArgs {
+    /// The board that runs the firmware: QEMU's mps2-an386 with the emulated board's image, or
+    /// the NUCLEO-G474RE's own release image on the register-level twin (`twin/`), started and
+    /// stopped with its user button (the scenario takes `cycles=N` alone).
+    #[arg(long, value_enum, default_value_t = BoardChoice::Qemu)]
+    board: BoardChoice,
     /// Drive a real plate from this plant file (host-sim/plants/) instead: the QEMU image with
     /// the plant's encoder, running the closed loop, in lockstep with `host-sim cosim`, which
     /// reports the plate's motion and ends with `closed loop: PASSED` or `FAILED (…)`.
@@ -38,6 +43,13 @@ pub struct RunArgs {
     /// Flags for `host-sim hil`, after `--` (e.g. `-- --json`).
     #[arg(last = true, value_name = "HIL FLAGS")]
     pub hil_flags: Vec<String>,
+}
+
+/// Where `cargo xtask run` runs the firmware.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum BoardChoice {
+    Qemu,
+    G474,
 }
 
 fn scenario_help() -> String {
@@ -75,6 +87,16 @@ fn checked_scenario(words: &[String], closed_loop: bool) -> Result<Scenario> {
 /// before anything is installed, built or started. Only `hil`'s report (or JSON) goes to
 /// standard output; the prediction, the builds and the run's progress go to standard error.
 pub fn run(args: &RunArgs) -> Result {
+    if args.board == BoardChoice::G474 {
+        if args.plant.is_some() {
+            return Err(Failure::Refused(
+                "--plant runs the closed loop under QEMU; the twin has no encoder model to close \
+                 it on yet"
+                    .into(),
+            ));
+        }
+        return twin::run(&args.scenario, &args.hil_flags);
+    }
     if let Some(plant) = &args.plant {
         return run_plant(plant, args);
     }

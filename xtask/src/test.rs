@@ -1,6 +1,6 @@
 //! `cargo xtask test`: the whole test suite. The host tests, a type check of the fuzz targets,
 //! the `no_std` crate and the firmware for the thumb target, the firmware size budget, then the
-//! firmware-in-the-loop scenarios and the soak under QEMU.
+//! firmware-in-the-loop scenarios under QEMU, the G474 image on its twin, and the soak.
 
 use std::io;
 use std::process::Command;
@@ -8,7 +8,7 @@ use std::process::Command;
 use crate::command::{cargo, cargo_test, exec, ignored_tests, root, THUMB_TARGET};
 use crate::failure::Result;
 use crate::soak::{soak, SoakArgs};
-use crate::{qemu, size, tools};
+use crate::{qemu, size, tools, twin};
 
 /// The soak's seed in `test`, so that every run sends the same operator lines (the firmware's
 /// timing against them still varies); `FEEDER_SOAK_SEED` or `cargo xtask soak` choose others.
@@ -50,10 +50,28 @@ pub fn test() -> Result {
         ignored_tests("feeder-ctl", "qemu_plant", &console_with_plate)
             .env("FEEDER_CLOSED_LOOP_CONSOLE_ELF", &console_with_plate),
     )?;
+    g474_twin()?;
     let seed = std::env::var_os("FEEDER_SOAK_SEED")
         .is_none()
         .then_some(TEST_SOAK_SEED);
     soak(&console, &SoakArgs { cycles: None, seed })
+}
+
+/// The G474's own image on the register-level twin: the twin's models, the register values
+/// the review checked, a button run checked on the twin's DAC, and the README's `--board g474`
+/// run judged by `host-sim hil`.
+fn g474_twin() -> Result {
+    let image = twin::build_image(&[])?;
+    twin::build_twin()?;
+    exec(
+        cargo()
+            .args(["test", "--release", "--locked", "--manifest-path"])
+            .arg(root().join("twin").join("Cargo.toml"))
+            .args(["--", "--include-ignored"])
+            .env("FEEDER_G474_ELF", &image)
+            .env_remove("CARGO_TARGET_DIR"),
+    )?;
+    twin::run(&["cycles=100".to_string()], &[])
 }
 
 /// A type check of every fuzz target (`fuzz/`, its own workspace) on the stable toolchain:

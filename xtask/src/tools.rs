@@ -58,6 +58,15 @@ const QEMU: AptTool = AptTool {
     needed_by: "running the firmware without a board (machine mps2-an386)",
 };
 
+const CMAKE: AptTool = AptTool {
+    program: "cmake",
+    package: "cmake",
+    needed_by: "building the G474 twin's CPU engine (unicorn's C code)",
+};
+
+/// The Debian package with libclang, which the twin's CPU engine's bindings are generated with.
+const LIBCLANG: &str = "libclang-dev";
+
 /// Where the cargo-installed tools live: `target/tools/bin`.
 fn tools_root() -> PathBuf {
     root().join("target").join("tools")
@@ -273,6 +282,23 @@ fn install_packages(packages: &[&str]) -> Result {
 pub fn ensure_linker() -> Result {
     ensure_thumb_target()?;
     ensure_cargo_tool(&FLIP_LINK)
+}
+
+/// What building the G474 twin's CPU engine needs: cmake and libclang.
+pub fn ensure_twin_build() -> Result {
+    ensure_apt_tool(&CMAKE)?;
+    if package_installed(LIBCLANG) {
+        return Ok(());
+    }
+    let by_hand = format!(
+        "libclang is needed for building the G474 twin's CPU engine (its bindings): install it \
+         with `sudo apt-get install --no-install-recommends --no-remove {LIBCLANG}` \
+         (Debian/Ubuntu)"
+    );
+    if !is_root() {
+        return Err(format!("{by_hand}; xtask installs it itself only as root").into());
+    }
+    install_packages(&[LIBCLANG]).map_err(|error| format!("{by_hand} ({error})").into())
 }
 
 /// The emulator and the log decoder the QEMU runs need.

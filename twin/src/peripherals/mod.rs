@@ -178,7 +178,7 @@ impl Board {
     }
 
     /// Reads the 32-bit register at `address` at `now`.
-    pub fn read(&mut self, address: u32, now: Cycles) -> Result<u32, Refused> {
+    pub fn read(&self, address: u32, now: Cycles) -> Result<u32, Refused> {
         let (base, offset) = (address & !(BLOCK - 1), address & (BLOCK - 1));
         let access = match base {
             TIM1 => self.tim1.read(offset, now),

@@ -1,0 +1,101 @@
+//! The NUCLEO-G474RE's own release image on the twin (`FEEDER_G474_ELF`, built with
+//! `hil-trace` by `cargo xtask test`): the register values the review of the board's code
+//! checked, as the image leaves them after its start-up, and a run with the user button whose
+//! every segment reaches the DAC's output on its tick.
+
+use std::path::PathBuf;
+
+use feeder_twin::log::LogTable;
+use feeder_twin::outputs::OutputRecord;
+use feeder_twin::scenario::button_run;
+use feeder_twin::{Machine, CORE_HZ};
+
+fn image() -> PathBuf {
+    std::env::var_os("FEEDER_G474_ELF")
+        .map(PathBuf::from)
+        .expect("FEEDER_G474_ELF names the G474 image (cargo xtask test sets it)")
+}
+
+#[test]
+#[ignore = "needs the G474 image; run by cargo xtask test"]
+fn start_up_leaves_the_reviewed_register_values() {
+    let mut machine = Machine::load(&image(), Box::new(OutputRecord::default())).expect("loads");
+    machine
+        .run_until(CORE_HZ / 100)
+        .expect("runs 10 ms from reset");
+    let expected = [
+        // TIM2 CR2: MMS = 010, TRGO on the update event.
+        (0x4000_0004, 0x20, "TIM2 CR2"),
+        // TIM3 SMCR: TS = 001 (ITR1 = TIM2's TRGO), SMS = 111 (external clock mode 1).
+        (0x4000_0408, 0x17, "TIM3 SMCR"),
+        // DAC1 CR: EN1, TEN1, TSEL1 = 4 (TIM2's TRGO).
+        (0x5000_0800, 0x13, "DAC1 CR"),
+        // DAC1 DOR1: the zero code.
+        (0x5000_082C, 2048, "DAC1 DOR1"),
+        // DBGMCU APB1FZR1: TIM2 and TIM3 stop on a halt, the IWDG runs on (bit 12 clear).
+        (0xE004_2008, 0x3, "DBGMCU APB1FZR1"),
+        // DBGMCU APB2FZR: TIM1 stops on a halt.
+        (0xE004_2010, 0x800, "DBGMCU APB2FZR"),
+    ];
+    for (address, value, name) in &expected {
+        assert_eq!(
+            machine.register(*address),
+            Some(*value),
+            "{name} at 0x{address:08x}"
+        );
+    }
+    // FLASH ACR: four wait states at 170 MHz (RM0440, "Read access latency").
+    let acr = machine.register(0x4002_2000).expect("FLASH ACR");
+    assert_eq!(acr & 0xF, 4, "FLASH ACR latency: {acr:#x}");
+    // GPIOA: PA10, the driver enable, an output driven low; PA4 in analog mode.
+    let moder = machine.register(0x4800_0000).expect("GPIOA MODER");
+    assert_eq!((moder >> 20) & 3, 1, "PA10 an output: {moder:#x}");
+    assert_eq!((moder >> 8) & 3, 3, "PA4 analog: {moder:#x}");
+    assert_eq!(
+        machine.register(0x4800_0014).map(|odr| odr & (1 << 10)),
+        Some(0)
+    );
+    // NVIC: TIM2 (IRQ 28) at priority 0, the control executor's UART4 (IRQ 52) at 1.
+    let priority = |irq: u32| {
+        machine
+            .register(0xE000_E400 + (irq & !3))
+            .map(|word| (word >> (8 * (irq & 3))) & 0xFF)
+    };
+    assert_eq!(priority(28), Some(0x00), "TIM2's priority");
+    assert_eq!(priority(52), Some(0x10), "UART4's priority");
+}
+
+#[test]
+#[ignore = "needs the G474 image; run by cargo xtask test"]
+fn a_button_run_latches_every_segment_on_its_tick() {
+    let elf = image();
+    let bytes = std::fs::read(&elf).expect("the image");
+    let table = LogTable::load(&bytes).expect("its defmt table");
+    let record = OutputRecord::default();
+    let mut machine = Machine::load(&elf, Box::new(record.clone())).expect("loads");
+    let mut log = Vec::new();
+    let outcome = button_run(&mut machine, table.decoder(), &mut log, 20, &record).expect("runs");
+    let text = String::from_utf8(log).expect("text");
+    assert!(outcome.completed, "{text}");
+    assert!(
+        outcome.outputs.problems.is_empty(),
+        "{:?}",
+        outcome.outputs.problems
+    );
+    assert_eq!(outcome.outputs.stray, 0);
+    // Idle periods before the start and after the stop, the ramps' and the 20 cycles' four
+    // segments each.
+    assert!(
+        outcome.outputs.matched > 4 * 20,
+        "{}",
+        outcome.outputs.matched
+    );
+    assert!(
+        text.contains("Stopped -> Running") && text.ends_with("\n"),
+        "{text}"
+    );
+    assert!(text
+        .lines()
+        .last()
+        .is_some_and(|line| line.starts_with("EVT end tick=")));
+}
