@@ -455,3 +455,47 @@ fn a_missed_edge_is_reported_with_where_the_halt_left_the_plate() {
         planned.plate_drift_m
     );
 }
+
+/// Each field the checker compares with the plan fails a run when it is wrong: a level of the
+/// wrong sign, a wrong cycle index, a wrong kind, length or start in one segment, a wrong step
+/// or step count (in every segment, so that no amplitude changes mid-cycle and only the
+/// comparison with the plan can see it).
+#[test]
+fn every_compared_field_of_a_segment_is_checked() {
+    let faithful = faithful_stream(7);
+    let reverse = faithful
+        .iter()
+        .position(|line| line.contains("kind=reverse") && line.contains(" step=4 "))
+        .unwrap();
+    let one = |from: &str, to: &str| {
+        let mut lines = faithful.clone();
+        assert!(lines[reverse].contains(from), "{}", lines[reverse]);
+        lines[reverse] = lines[reverse].replace(from, to);
+        lines
+    };
+    let every = |from: &str, to: &str| {
+        faithful
+            .iter()
+            .map(|line| match is_seg(line) {
+                true => line.replace(from, to),
+                false => line.clone(),
+            })
+            .collect::<Vec<_>>()
+    };
+    let cases = [
+        ("the level's sign", one("level=-1", "level=1")),
+        ("the cycle index", one(" cycle=", " cycle=9")),
+        ("the kind", one("kind=reverse", "kind=plateau")),
+        ("the length", one(" ticks=", " ticks=1")),
+        ("the step", every(" step=", " step=1")),
+        ("the step count", every("steps=4", "steps=5")),
+    ];
+    assert!(check(&faithful).passed());
+    for (field, lines) in cases {
+        let report = check(&lines);
+        assert!(
+            !report.passed() && report.unexpected > 0,
+            "{field}: {report:?}"
+        );
+    }
+}

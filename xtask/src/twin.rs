@@ -135,6 +135,9 @@ mod tests {
             "{:?}",
             refused.err().map(|f| f.to_string())
         );
-        assert!(matches!(button_cycles(&words(&["cycles=x"])), Err(Failure::Refused(_))));
+        assert!(matches!(
+            button_cycles(&words(&["cycles=x"])),
+            Err(Failure::Refused(_))
+        ));
     }
 }
