@@ -7,7 +7,8 @@
 //! is no terminator. The panic handler makes the stores from Rust, the HardFault entry from
 //! assembly.
 //!
-//! * HardFault: the entry (`HardFault`, below) uses registers only until the stores are made, so
+//! * HardFault: the entry (`HardFault`, below; on the NUCLEO-G474RE also NMI's and every
+//!   unbound interrupt's, `board::g474`) uses registers only until the stores are made, so
 //!   a fault whose stack is gone still reaches them: under flip-link a stack overflow faults when
 //!   the stack pointer crosses the bottom of RAM, and the exception frame cannot be stacked
 //!   either. It then reads the stacked pc and lr if the frame was stacked, resets the main stack
@@ -119,6 +120,18 @@ core::arch::global_asm!(
     report = sym report_hard_fault,
 );
 
+/// The exception's name in the log: HardFault, NMI, or the number of one without a handler.
+fn exception_name(number: u32) -> &'static str {
+    match number {
+        2 => "NMI",
+        3 => "HardFault",
+        4 => "MemManage",
+        5 => "BusFault",
+        6 => "UsageFault",
+        _ => "an exception without a handler",
+    }
+}
+
 /// The HardFault handler's Rust part, on a fresh stack with the output already safe: logs the
 /// fault and hands over to the board. `sp` is the stack pointer at the fault, `exc_return` the
 /// exception's return code; `pc` and `lr` are the stacked ones, lost when the frame could not
@@ -127,6 +140,8 @@ extern "C" fn report_hard_fault(sp: u32, exc_return: u32, pc: u32, lr: u32) -> !
     // SAFETY: reads of the fault status registers, which nothing else writes.
     let scb = unsafe { &*SCB::PTR };
     let cfsr = scb.cfsr.read();
+    let number = scb.icsr.read() & VECTACTIVE;
+    let name = exception_name(number);
     if first_to_log() {
         let mode = if exc_return & RETURN_TO_THREAD != 0 {
             "thread mode"
@@ -135,16 +150,19 @@ extern "C" fn report_hard_fault(sp: u32, exc_return: u32, pc: u32, lr: u32) -> !
         };
         if cfsr & STACKING_ERRORS == 0 {
             defmt::error!(
-                "HardFault in {=str} at pc {=u32:#010x}, lr {=u32:#010x}, sp {=u32:#010x}",
+                "{=str} in {=str} at pc {=u32:#010x}, lr {=u32:#010x}, sp {=u32:#010x} (exception {=u32})",
+                name,
                 mode,
                 pc,
                 lr,
-                sp
+                sp,
+                number
             );
         } else {
             defmt::error!(
-                "HardFault in {=str}, sp {=u32:#010x}: the exception frame could not be stacked \
+                "{=str} in {=str}, sp {=u32:#010x}: the exception frame could not be stacked \
                  (a stack overflow?), pc and lr are lost",
+                name,
                 mode,
                 sp
             );

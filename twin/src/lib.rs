@@ -37,6 +37,8 @@ pub enum TwinError {
     Engine { what: String, problem: String },
     /// The core can never wake: asleep with nothing pending and no event to come.
     Asleep { pc: u32, function: String },
+    /// The core locked up and nothing (no watchdog) can reset it.
+    LockedUp { pc: u32, function: String },
 }
 
 impl fmt::Display for TwinError {
@@ -54,6 +56,10 @@ impl fmt::Display for TwinError {
                 if *write { "wrote" } else { "read" }
             ),
             TwinError::Engine { what, problem } => write!(f, "the CPU engine failed to {what}: {problem}"),
+            TwinError::LockedUp { pc, function } => write!(
+                f,
+                "the core locked up at pc 0x{pc:08x} ({function}) and no watchdog runs to reset it"
+            ),
             TwinError::Asleep { pc, function } => write!(
                 f,
                 "the core sleeps at pc 0x{pc:08x} ({function}) with nothing that could wake it"

@@ -6,7 +6,7 @@
 use std::path::Path;
 use std::rc::Rc;
 
-use unicorn_engine::{Arch, ArmCpuModel, HookType, Mode, Prot, RegisterARM, Unicorn};
+use unicorn_engine::{uc_error, Arch, ArmCpuModel, HookType, Mode, Prot, RegisterARM, Unicorn};
 
 use crate::image::{Hint, Image};
 use crate::peripherals::scs::{Request, HARD_FAULT, SCR_SEVONPEND};
@@ -52,6 +52,11 @@ pub trait Plate {
     fn enable(&mut self, at: Cycles, on: bool);
     /// The encoder's count at `at`.
     fn count(&mut self, at: Cycles) -> i32;
+    /// The board resets at `at`: the driver is off (its enable's pull-down) and the analog
+    /// output disconnected until the firmware drives them again.
+    fn reset(&mut self, at: Cycles) {
+        self.enable(at, false);
+    }
 }
 
 /// Why a run stopped.
@@ -62,6 +67,21 @@ pub enum Stop {
     /// The independent watchdog reset the board (it runs on from the reset).
     WatchdogReset { at: Cycles },
 }
+
+/// A fault the core raises on an instruction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum CoreFault {
+    /// An undefined instruction (UDF among them): a UsageFault.
+    Undefined,
+    /// An access the memory map refuses: a BusFault, at `address` where known.
+    Bus { address: Option<u32> },
+}
+
+/// CFSR bits (ARMv7-M ARM, B3.2.15): UNDEFINSTR, PRECISERR with BFARVALID, STKERR.
+const CFSR_UNDEFINSTR: u32 = 1 << 16;
+const CFSR_PRECISERR: u32 = 1 << 9;
+const CFSR_BFARVALID: u32 = 1 << 15;
+const CFSR_STKERR: u32 = 1 << 12;
 
 /// Why the engine stopped a slice.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -104,6 +124,8 @@ pub struct State {
     log: Vec<u8>,
     /// The address of the last access the memory map refused.
     bad_access: Option<u32>,
+    /// The core is locked up (a fault it could not take): it runs nothing until a reset.
+    locked: bool,
 }
 
 impl State {
@@ -118,6 +140,7 @@ impl State {
             match output {
                 Output::Dac { at, code } => self.plate.level(at, code),
                 Output::Enable { at, on } => self.plate.enable(at, on),
+                Output::Reset { at } => self.plate.reset(at),
             }
         }
     }
@@ -158,6 +181,7 @@ impl<'a> Machine<'a> {
             event: false,
             log: Vec::new(),
             bad_access: None,
+            locked: false,
         };
         let mut engine = Unicorn::new_with_data(Arch::ARM, Mode::THUMB | Mode::MCLASS, state)
             .map_err(engine_error("start"))?;
@@ -237,6 +261,9 @@ impl<'a> Machine<'a> {
             .reg_write(RegisterARM::PRIMASK, 0)
             .map_err(&reg)?;
         self.engine
+            .reg_write(RegisterARM::FAULTMASK, 0)
+            .map_err(&reg)?;
+        self.engine
             .reg_write(RegisterARM::BASEPRI, 0)
             .map_err(&reg)?;
         self.engine
@@ -254,6 +281,7 @@ impl<'a> Machine<'a> {
         let state = self.engine.get_data_mut();
         state.active.clear();
         state.event = false;
+        state.locked = false;
         Ok(())
     }
 
@@ -275,9 +303,19 @@ impl<'a> Machine<'a> {
             .drive_pin(2, 13, Some(pressed));
     }
 
+    /// The stack pointer.
+    pub fn stack_pointer(&self) -> u32 {
+        self.reg(RegisterARM::SP)
+    }
+
     /// A peripheral register's value now, as the core would read it.
     pub fn register(&self, address: u32) -> Option<u32> {
         self.board().read(address, self.now()).ok()
+    }
+
+    /// Raises the non-maskable interrupt.
+    pub fn nmi(&mut self) {
+        self.engine.get_data_mut().board.scs.pend_nmi();
     }
 
     /// The instruction the core runs next.
@@ -342,6 +380,10 @@ impl<'a> Machine<'a> {
                 self.drain_rtt();
                 return Ok(Stop::Ended);
             }
+            if self.engine.get_data().locked {
+                self.locked_until(until)?;
+                continue;
+            }
             if self.take_exception()? {
                 continue;
             }
@@ -375,27 +417,72 @@ impl<'a> Machine<'a> {
                     let exc_return = self.reg(RegisterARM::PC) | 1;
                     self.exception_return(exc_return)?;
                 }
-                (_, Some(SliceEnd::CpuException(_))) => self.enter(HARD_FAULT)?,
+                (_, Some(SliceEnd::CpuException(_))) => self.fault(CoreFault::Undefined)?,
                 (Err(error), _) => {
                     let pc = self.reg(RegisterARM::PC);
                     if pc >= EXC_RETURN_BASE {
                         self.exception_return(pc | 1)?;
-                    } else {
-                        let state = self.engine.get_data_mut();
-                        let at = state
-                            .bad_access
-                            .take()
-                            .map_or(String::new(), |address| format!(" at 0x{address:08x}"));
-                        let pc = state.pc;
-                        return Err(TwinError::Engine {
-                            what: format!("run the code at 0x{pc:08x} ({})", self.function(pc)),
-                            problem: format!("{error:?}{at}"),
-                        });
+                        continue;
                     }
+                    let address = self.engine.get_data_mut().bad_access.take();
+                    let fault = match error {
+                        uc_error::INSN_INVALID | uc_error::EXCEPTION => CoreFault::Undefined,
+                        uc_error::READ_UNMAPPED
+                        | uc_error::WRITE_UNMAPPED
+                        | uc_error::FETCH_UNMAPPED
+                        | uc_error::READ_PROT
+                        | uc_error::WRITE_PROT
+                        | uc_error::FETCH_PROT => CoreFault::Bus { address },
+                        _ => {
+                            let pc = self.engine.get_data().pc;
+                            return Err(TwinError::Engine {
+                                what: format!("run the code at 0x{pc:08x} ({})", self.function(pc)),
+                                problem: format!("{error:?}"),
+                            });
+                        }
+                    };
+                    self.fault(fault)?;
                 }
                 (Ok(()), Some(SliceEnd::Budget | SliceEnd::Evaluate) | None) => {}
             }
         }
+    }
+
+    /// A fault of the instruction at the current `pc` (ARMv7-M ARM, B1.5.14): escalated to
+    /// HardFault, with its cause in CFSR (and the address in BFAR); where the execution
+    /// priority is already −1 or less (FAULTMASK, in HardFault or NMI), the core locks up.
+    fn fault(&mut self, fault: CoreFault) -> Result<(), TwinError> {
+        let pc = self.engine.get_data().pc;
+        self.set_reg(RegisterARM::PC, pc)?;
+        if self.execution_priority() <= -1 {
+            self.engine.get_data_mut().locked = true;
+            return Ok(());
+        }
+        let (cfsr, address) = match fault {
+            CoreFault::Undefined => (CFSR_UNDEFINSTR, None),
+            CoreFault::Bus { address } => (CFSR_PRECISERR | CFSR_BFARVALID, address),
+        };
+        self.engine
+            .get_data_mut()
+            .board
+            .scs
+            .record_fault(cfsr, address);
+        self.enter(HARD_FAULT)
+    }
+
+    /// A locked-up core: time passes to the next event, which only a reset ends.
+    fn locked_until(&mut self, until: Cycles) -> Result<(), TwinError> {
+        let now = self.now();
+        let Some(next) = self.board().next_event() else {
+            let pc = self.reg(RegisterARM::PC);
+            return Err(TwinError::LockedUp {
+                pc,
+                function: self.function(pc),
+            });
+        };
+        let to = next.min(until).max(now);
+        self.engine.get_data_mut().extra_cycles += to - now;
+        self.settle(to)
     }
 
     /// Brings the board up to `now`: its events, the DMA's moves, the outputs to the plate.
@@ -497,13 +584,18 @@ impl<'a> Machine<'a> {
             top -= 4;
             frame[7] |= 1 << 9;
         }
-        for (index, word) in frame.iter().enumerate() {
-            if self.write_word(top + 4 * index as u32, *word).is_none() {
-                return Err(TwinError::Engine {
-                    what: format!("stack exception {number}'s frame at 0x{top:08x}"),
-                    problem: "the stack is outside RAM".into(),
-                });
-            }
+        // A frame that cannot be stacked is a bus fault on stacking (STKERR): the handler is
+        // entered all the same, the stack pointer moved, the frame not written.
+        let stacked = (0..frame.len() as u32).all(|index| {
+            self.write_word(top + 4 * index, frame[index as usize])
+                .is_some()
+        });
+        if !stacked {
+            self.engine
+                .get_data_mut()
+                .board
+                .scs
+                .record_fault(CFSR_STKERR, None);
         }
         let vector_table = self.board().scs.vector_table();
         let handler = self.read_word(vector_table + 4 * number).unwrap_or(0);

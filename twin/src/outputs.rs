@@ -35,6 +35,10 @@ impl Plate for OutputRecord {
     fn count(&mut self, _at: Cycles) -> i32 {
         0
     }
+
+    fn reset(&mut self, at: Cycles) {
+        self.0.borrow_mut().push(Output::Reset { at });
+    }
 }
 
 /// The check's findings.
@@ -60,7 +64,7 @@ pub fn check(
         .iter()
         .filter_map(|change| match *change {
             Output::Dac { at, code } => Some((at, code)),
-            Output::Enable { .. } => None,
+            Output::Enable { .. } | Output::Reset { .. } => None,
         })
         .collect();
     let code_at = |at: Cycles| {

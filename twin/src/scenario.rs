@@ -11,6 +11,7 @@ use feeder_shared::event::{parse_line, Event, SegmentEvent};
 use crate::log::LogDecoder;
 use crate::machine::{Machine, Stop};
 use crate::outputs::{self, OutputCheck, OutputRecord};
+use crate::peripherals::Output;
 use crate::{Cycles, TwinError, CORE_HZ};
 
 /// How long a press is held, s: longer than the firmware's debounce.
@@ -19,6 +20,9 @@ const PRESS_S: f64 = 0.1;
 const FIRST_PRESS_S: f64 = 0.01;
 /// Periods left for the soft stop beyond its ramp.
 const STOP_MARGIN_PERIODS: u64 = 3;
+/// The firmware's log line as a fault drill begins (`firmware/src/board/g474/drill.rs`).
+const DRILL_LINE: &str = "fault drill now";
+
 /// The longest a run may take in the core's time, s: a firmware that never starts or stops
 /// ends there.
 const LIMIT_S: f64 = 600.0;
@@ -54,12 +58,22 @@ struct Log<'d, 'o> {
     start_tick: Option<u64>,
     /// The segments the firmware reported as played.
     segments: Vec<SegmentEvent>,
+    /// When the firmware announced a fault drill, by its log's timestamp.
+    drill_at: Option<Cycles>,
 }
 
 impl Log<'_, '_> {
     fn take(&mut self, machine: &mut Machine) -> io::Result<()> {
+        let clock_origin = machine.board().clock_origin().unwrap_or(0);
         for line in self.decoder.lines(&machine.take_log()) {
             writeln!(self.out, "{line}")?;
+            if line.contains(DRILL_LINE) && self.drill_at.is_none() {
+                self.drill_at = line
+                    .split_whitespace()
+                    .next()
+                    .and_then(|stamp| stamp.parse::<f64>().ok())
+                    .map(|stamp| clock_origin + seconds(stamp));
+            }
             match parse_line(&line) {
                 Ok(Some(Event::Plan {
                     tick: 0,
@@ -120,12 +134,13 @@ pub fn button_run(
         timing: None,
         start_tick: None,
         segments: Vec::new(),
+        drill_at: None,
     };
     let judge = |machine: &Machine, log: &Log| {
         let changes = record.changes();
         let zero_code = changes.iter().find_map(|change| match change {
-            crate::peripherals::Output::Dac { code, .. } => Some(*code),
-            crate::peripherals::Output::Enable { .. } => None,
+            Output::Dac { code, .. } => Some(*code),
+            _ => None,
         });
         outputs::check(
             &changes,
@@ -172,4 +187,119 @@ pub fn button_run(
         watchdog_reset: None,
         outputs: judge(machine, &log),
     })
+}
+
+/// What a fault drill did to the outputs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DrillOutcome {
+    /// When the firmware announced the drill (its log's timestamp), core cycles.
+    pub fault_at: Cycles,
+    /// From when on the driver stayed disabled (a store, or the reset's pull-down).
+    pub enable_off_at: Option<Cycles>,
+    /// From when on the command stayed at zero (the zero code, or the DAC off by a reset).
+    pub command_safe_at: Option<Cycles>,
+    /// The watchdog's reset, if one came.
+    pub watchdog_reset: Option<Cycles>,
+}
+
+/// How long after the drill the outputs are watched, s.
+const DRILL_WATCH_S: f64 = 0.02;
+
+/// Where a drill's fault comes from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Drill {
+    /// The image's own (`FEEDER_FAULT_DRILL`), 2 s into the run, announced in its log.
+    Firmware,
+    /// A non-maskable interrupt from outside (a clock failure, a pin), 1 s into the run.
+    Nmi,
+}
+
+/// When the twin raises an NMI, s into the run.
+const NMI_AT_S: f64 = 1.0;
+
+/// Runs a fault drill: a press starts the feeder, the fault comes, and the outputs are watched
+/// for [`DRILL_WATCH_S`] after it; the decoded log goes to `out`. `None` when the fault never
+/// came.
+pub fn drill_run(
+    machine: &mut Machine,
+    decoder: LogDecoder,
+    out: &mut dyn Write,
+    record: &OutputRecord,
+    drill: Drill,
+) -> Result<Option<DrillOutcome>, TwinError> {
+    let mut log = Log {
+        decoder,
+        out,
+        timing: None,
+        start_tick: None,
+        segments: Vec::new(),
+        drill_at: None,
+    };
+    let mut watchdog_reset = press(machine, &mut log, seconds(FIRST_PRESS_S))?;
+    if drill == Drill::Nmi && watchdog_reset.is_none() {
+        watchdog_reset = run(machine, &mut log, seconds(NMI_AT_S))?;
+        log.drill_at = Some(machine.now());
+        machine.nmi();
+    }
+    let limit = seconds(LIMIT_S);
+    while log.drill_at.is_none() && machine.now() < limit && watchdog_reset.is_none() {
+        let step = machine.now() + seconds(0.01);
+        watchdog_reset = run(machine, &mut log, step)?;
+    }
+    let Some(fault_at) = log.drill_at else {
+        return Ok(None);
+    };
+    let end = fault_at + seconds(DRILL_WATCH_S);
+    while machine.now() < end {
+        if let Some(at) = run(machine, &mut log, end)? {
+            watchdog_reset = watchdog_reset.or(Some(at));
+        }
+    }
+    let changes = record.changes();
+    let zero_code = changes.iter().find_map(|change| match change {
+        Output::Dac { code, .. } => Some(*code),
+        _ => None,
+    });
+    let after: Vec<&Output> = changes
+        .iter()
+        .filter(|change| change_at(change) >= fault_at)
+        .collect();
+    let safe_from = |unsafe_change: &dyn Fn(&Output) -> bool,
+                     safe_change: &dyn Fn(&Output) -> bool| {
+        let last_unsafe = after.iter().rposition(|change| unsafe_change(change));
+        let from = last_unsafe.map_or(0, |index| index + 1);
+        after[from..]
+            .iter()
+            .find(|change| safe_change(change))
+            .map(|change| change_at(change))
+            .or_else(|| last_unsafe.is_none().then_some(fault_at))
+    };
+    let enable_off_at = safe_from(
+        &|change| matches!(change, Output::Enable { on: true, .. }),
+        &|change| {
+            matches!(
+                change,
+                Output::Enable { on: false, .. } | Output::Reset { .. }
+            )
+        },
+    );
+    let command_safe_at = safe_from(
+        &|change| matches!(change, Output::Dac { code, .. } if Some(*code) != zero_code),
+        &|change| {
+            matches!(change, Output::Reset { .. })
+                || matches!(change, Output::Dac { code, .. } if Some(*code) == zero_code)
+        },
+    );
+    Ok(Some(DrillOutcome {
+        fault_at,
+        enable_off_at,
+        command_safe_at,
+        watchdog_reset,
+    }))
+}
+
+fn change_at(change: &Output) -> Cycles {
+    match *change {
+        Output::Dac { at, .. } | Output::Enable { at, .. } | Output::Reset { at } => at,
+    }
 }

@@ -58,9 +58,10 @@ pub fn test() -> Result {
 }
 
 /// The G474's own image on the register-level twin: the twin's models, the register values
-/// the review checked, a button run checked on the twin's DAC, and the README's `--board g474`
-/// run judged by `host-sim hil`.
+/// the review checked, a button run checked on the twin's DAC, the fault drills judged on the
+/// twin's pins, and the README's `--board g474` run judged by `host-sim hil`.
 fn g474_twin() -> Result {
+    let drills = twin::build_drills()?;
     let image = twin::build_image(&[])?;
     twin::build_twin()?;
     exec(
@@ -69,6 +70,7 @@ fn g474_twin() -> Result {
             .arg(root().join("twin").join("Cargo.toml"))
             .args(["--", "--include-ignored"])
             .env("FEEDER_G474_ELF", &image)
+            .env("FEEDER_G474_DRILLS", &drills)
             .env_remove("CARGO_TARGET_DIR"),
     )?;
     twin::run(&["cycles=100".to_string()], &[])

@@ -44,6 +44,53 @@ pub fn build_image(features: &[&str]) -> Result<PathBuf> {
         .join("feeder-firmware"))
 }
 
+/// The fault drills the G474 image builds with `FEEDER_FAULT_DRILL`
+/// (`firmware/src/board/g474/drill.rs`).
+const DRILLS: [&str; 5] = [
+    "panic",
+    "stack-overflow",
+    "critical-section",
+    "hang",
+    "lockup",
+];
+
+/// Builds an image per fault drill (with the event stream) and returns the directory that holds
+/// them, `<drill>.elf` each.
+pub fn build_drills() -> Result<PathBuf> {
+    let target_dir = firmware_dir().join("target").join("g474-twin-drills");
+    let drills = root().join("target").join("g474-drills");
+    std::fs::create_dir_all(&drills)
+        .map_err(|error| format!("cannot make {}: {error}", drills.display()))?;
+    for drill in DRILLS {
+        exec(
+            firmware_cargo()
+                .args([
+                    "build",
+                    "--release",
+                    "--locked",
+                    "--features",
+                    "hil-trace",
+                    "--target-dir",
+                ])
+                .arg(&target_dir)
+                .env("FEEDER_FAULT_DRILL", drill),
+        )?;
+        let elf = target_dir
+            .join(THUMB_TARGET)
+            .join("release")
+            .join("feeder-firmware");
+        let copy = drills.join(format!("{drill}.elf"));
+        std::fs::copy(&elf, &copy).map_err(|error| {
+            format!(
+                "cannot copy {} to {}: {error}",
+                elf.display(),
+                copy.display()
+            )
+        })?;
+    }
+    Ok(drills)
+}
+
 /// Builds the twin (after what its engine's build needs) and returns its binary's path.
 pub fn build_twin() -> Result<PathBuf> {
     tools::ensure_twin_build()?;

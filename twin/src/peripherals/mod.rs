@@ -60,6 +60,10 @@ pub enum Output {
     Dac { at: Cycles, code: u32 },
     /// The driver enable (PA10) from `at` on.
     Enable { at: Cycles, on: bool },
+    /// A reset at `at`: every pin back to its reset state (PA10 an input, its external
+    /// pull-down holding the driver off; the DAC off, PA4 at high impedance) until the firmware
+    /// drives them again.
+    Reset { at: Cycles },
 }
 
 /// Where a peripheral access went wrong.
@@ -165,15 +169,13 @@ impl Board {
     }
 
     /// The board after a system or watchdog reset: every peripheral at its reset values, the
-    /// reset's cause in RCC_CSR; the outputs go to their reset state (the DAC off, the enable
-    /// low) at `at`.
+    /// reset's cause in RCC_CSR; the outputs go to their reset state at `at`.
     pub fn reset(&self, at: Cycles, by_watchdog: bool) -> Self {
         let mut board = Board::new();
         if by_watchdog {
             board.rcc = self.rcc.after_watchdog_reset();
         }
-        board.outputs.push(Output::Enable { at, on: false });
-        board.outputs.push(Output::Dac { at, code: 0 });
+        board.outputs.push(Output::Reset { at });
         board
     }
 
@@ -428,6 +430,12 @@ impl Board {
         self.tim2
             .first_started_at()
             .or(self.tim1.first_started_at())
+    }
+
+    /// The core time from which the firmware's clock (embassy's time driver on TIM15) counts:
+    /// its log's timestamps are seconds from here.
+    pub fn clock_origin(&self) -> Option<Cycles> {
+        self.tim15.first_started_at()
     }
 
     /// The flash interface, for programming.

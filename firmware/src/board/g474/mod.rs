@@ -55,6 +55,17 @@ mod segment_timer;
 mod setup;
 mod watchdog;
 
+// NMI, and every exception and interrupt without a handler of its own, take the HardFault entry
+// (`crate::fault`): the safe state's stores before anything touches the stack, then the log
+// names the exception. cortex-m-rt would otherwise send them to a `DefaultHandler` that spins
+// with the output as it was.
+core::arch::global_asm!(
+    ".global NonMaskableInt",
+    ".thumb_set NonMaskableInt, HardFault",
+    ".global DefaultHandler",
+    ".thumb_set DefaultHandler, HardFault",
+);
+
 use defmt_rtt as _;
 use embassy_executor::{Executor, SendSpawner};
 use embassy_stm32::exti::ExtiInput;

@@ -1,0 +1,104 @@
+//! Fault drills on the G474's own image on the twin, judged on the twin's pins and registers:
+//! after the fault the driver enable (PA10) must go low and stay low, and the command must go to
+//! the zero code (or the DAC off, by a reset) and stay there, within the time the firmware
+//! documents. A panic and an NMI take the safe state's stores at once; a stack overflow (on the
+//! twin's 1.5 cycles an instruction the recursion outlasts the watchdog), masked interrupts, a
+//! hang and a lockup leave the feeds off, and the independent watchdog resets the board.
+//!
+//! `FEEDER_G474_DRILLS` names a directory with an image per drill (`panic.elf`, …, built with
+//! `FEEDER_FAULT_DRILL`), `FEEDER_G474_ELF` the image without one (for the NMI); `cargo xtask
+//! test` builds and sets both.
+
+use std::path::{Path, PathBuf};
+
+use feeder_twin::log::LogTable;
+use feeder_twin::outputs::OutputRecord;
+use feeder_twin::scenario::{drill_run, Drill, DrillOutcome};
+use feeder_twin::{Cycles, Machine, CORE_HZ};
+
+/// The safe state's stores, made by the panic handler and the HardFault entry before anything
+/// else: within this of the fault, s (the panic's own machinery and log line come first).
+const STORES_S: f64 = 100e-6;
+/// The independent watchdog's timeout as `firmware/src/board/g474/watchdog.rs` documents it, at
+/// most 1.09 ms with the slowest LSI (the twin's runs at its nominal 32 kHz).
+const WATCHDOG_S: f64 = 1.09e-3;
+
+fn drill(elf: &Path, kind: Drill) -> (DrillOutcome, String) {
+    let bytes = std::fs::read(elf).unwrap_or_else(|error| panic!("{}: {error}", elf.display()));
+    let table = LogTable::load(&bytes).expect("the image's defmt table");
+    let record = OutputRecord::default();
+    let mut machine = Machine::load(elf, Box::new(record.clone())).expect("loads");
+    let mut log = Vec::new();
+    let outcome = drill_run(&mut machine, table.decoder(), &mut log, &record, kind)
+        .expect("runs")
+        .expect("the fault came");
+    (outcome, String::from_utf8_lossy(&log).into_owned())
+}
+
+fn drills_dir() -> PathBuf {
+    std::env::var_os("FEEDER_G474_DRILLS")
+        .map(PathBuf::from)
+        .expect("FEEDER_G474_DRILLS names the drill images' directory (cargo xtask test sets it)")
+}
+
+fn after(outcome: &DrillOutcome, at: Option<Cycles>) -> f64 {
+    let at = at.expect("the output became safe");
+    (at - outcome.fault_at) as f64 / CORE_HZ as f64
+}
+
+fn assert_safe_within(name: &str, outcome: &DrillOutcome, bound_s: f64, log: &str) {
+    let enable_s = after(outcome, outcome.enable_off_at);
+    let command_s = after(outcome, outcome.command_safe_at);
+    assert!(
+        enable_s <= bound_s && command_s <= bound_s,
+        "{name}: the enable off {:.1} µs and the command safe {:.1} µs after the fault, over \
+         {:.1} µs\n{log}",
+        enable_s * 1e6,
+        command_s * 1e6,
+        bound_s * 1e6
+    );
+}
+
+#[test]
+#[ignore = "needs the G474 drill images; run by cargo xtask test"]
+fn a_panic_makes_the_output_safe_at_once_and_the_watchdog_resets_the_board() {
+    let (outcome, log) = drill(&drills_dir().join("panic.elf"), Drill::Firmware);
+    assert_safe_within("panic", &outcome, STORES_S, &log);
+    assert!(outcome.watchdog_reset.is_some(), "{log}");
+    assert!(log.contains("panic in exception"), "{log}");
+}
+
+#[test]
+#[ignore = "needs the G474 image; run by cargo xtask test"]
+fn an_nmi_takes_the_hardfault_entry_and_its_stores() {
+    let elf = std::env::var_os("FEEDER_G474_ELF")
+        .map(PathBuf::from)
+        .expect("FEEDER_G474_ELF names the G474 image");
+    let (outcome, log) = drill(&elf, Drill::Nmi);
+    assert_safe_within("NMI", &outcome, 1e-6, &log);
+    assert!(
+        log.contains("NMI in thread mode") || log.contains("NMI in handler mode"),
+        "{log}"
+    );
+}
+
+#[test]
+#[ignore = "needs the G474 drill images; run by cargo xtask test"]
+fn a_stack_overflow_masked_interrupts_a_hang_and_a_lockup_end_in_the_watchdogs_reset() {
+    for name in ["stack-overflow", "critical-section", "hang", "lockup"] {
+        let (outcome, log) = drill(&drills_dir().join(format!("{name}.elf")), Drill::Firmware);
+        assert_safe_within(name, &outcome, WATCHDOG_S, &log);
+        let reset = outcome
+            .watchdog_reset
+            .expect("the watchdog reset the board");
+        assert_eq!(
+            Some(reset),
+            outcome.enable_off_at,
+            "{name}: safe by the reset"
+        );
+        assert!(
+            log.contains("fault latched: WatchdogReset"),
+            "{name}: the board came up faulted\n{log}"
+        );
+    }
+}
