@@ -41,6 +41,8 @@ const PERIPHERALS: u64 = 0x4000_0000;
 const PERIPHERALS_BYTES: u64 = 0x2000_0000;
 const PRIVATE: u64 = 0xE000_0000;
 const PRIVATE_BYTES: u64 = 0x10_0000;
+/// TIM2's auto-reload: the DAC stage's preload writes it last (`firmware/src/board/g474/dac.rs`).
+const TIM2_ARR: u32 = 0x4000_002C;
 /// EXC_RETURN values are fetched from here.
 const EXC_RETURN_BASE: u32 = 0xFFFF_FFE0;
 
@@ -64,8 +66,12 @@ pub trait Plate {
 pub enum Stop {
     /// The time asked for has passed.
     Ended,
-    /// The independent watchdog reset the board (it runs on from the reset).
-    WatchdogReset { at: Cycles },
+    /// The independent watchdog reset the board at `at`, `last_feed` after its last feed (it
+    /// runs on from the reset).
+    WatchdogReset {
+        at: Cycles,
+        last_feed: Option<Cycles>,
+    },
 }
 
 /// A fault the core raises on an instruction.
@@ -126,6 +132,38 @@ pub struct State {
     bad_access: Option<u32>,
     /// The core is locked up (a fault it could not take): it runs nothing until a reset.
     locked: bool,
+    /// The work since the last edge, until its preload's last store.
+    edge: Option<EdgeWork>,
+    /// The edge with the most instructions from the edge to the next preload's last store
+    /// (TIM2's ARR).
+    worst_edge: EdgeWork,
+    /// Edges whose work was measured.
+    edges_measured: u64,
+}
+
+/// The work from an edge to the next preload: what decides how long it takes on the board.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct EdgeWork {
+    pub instructions: u64,
+    /// Bytes of those instructions (2 or 4 each): flash lines to fetch.
+    pub code_bytes: u64,
+    /// Data reads from flash (constants, tables).
+    pub flash_reads: u64,
+}
+
+/// Bytes the flash interface reads at once (RM0440, "Embedded flash memory": 64-bit lines).
+const FLASH_LINE_BYTES: u64 = 8;
+
+impl EdgeWork {
+    /// Core cycles the work takes at most with no help from the ART accelerator: every 8-byte
+    /// line of code and every data read from flash a miss of `wait_states + 1` cycles, none of
+    /// it overlapped with execution, and each instruction a cycle to execute.
+    pub fn cycles_without_cache(&self, wait_states: u64) -> u64 {
+        let line_cycles = wait_states + 1;
+        self.code_bytes.div_ceil(FLASH_LINE_BYTES) * line_cycles
+            + self.flash_reads * line_cycles
+            + self.instructions
+    }
 }
 
 impl State {
@@ -182,6 +220,9 @@ impl<'a> Machine<'a> {
             log: Vec::new(),
             bad_access: None,
             locked: false,
+            edge: None,
+            worst_edge: EdgeWork::default(),
+            edges_measured: 0,
         };
         let mut engine = Unicorn::new_with_data(Arch::ARM, Mode::THUMB | Mode::MCLASS, state)
             .map_err(engine_error("start"))?;
@@ -321,6 +362,13 @@ impl<'a> Machine<'a> {
     /// The instruction the core runs next.
     pub fn pc(&self) -> u32 {
         self.reg(RegisterARM::PC)
+    }
+
+    /// The edge with the most instructions from the edge (TIM2's update) to the store that ends
+    /// the next segment's preload (TIM2's ARR), and how many edges were measured.
+    pub fn edge_work(&self) -> (EdgeWork, u64) {
+        let state = self.engine.get_data();
+        (state.worst_edge, state.edges_measured)
     }
 
     /// The board's peripherals, to look at.
@@ -489,6 +537,9 @@ impl<'a> Machine<'a> {
     fn settle(&mut self, now: Cycles) -> Result<(), TwinError> {
         let state = self.engine.get_data_mut();
         state.board.advance(now);
+        if state.board.take_edge() {
+            state.edge = Some(EdgeWork::default());
+        }
         move_items(&mut self.engine);
         self.engine.get_data_mut().deliver_outputs();
         Ok(())
@@ -500,8 +551,9 @@ impl<'a> Machine<'a> {
             return Ok(None);
         }
         let at = self.now();
+        let last_feed = self.board().last_feed();
         self.system_reset(true)?;
-        Ok(Some(Stop::WatchdogReset { at }))
+        Ok(Some(Stop::WatchdogReset { at, last_feed }))
     }
 
     /// A system reset: the peripherals at their reset values, the core from its vectors; SRAM
@@ -859,6 +911,10 @@ fn install_hooks(engine: &mut Unicorn<'_, State>) -> Result<(), TwinError> {
             }
             state.pc = address;
             state.executed += 1;
+            if let Some(work) = state.edge.as_mut() {
+                work.instructions += 1;
+                work.code_bytes += u64::from(size);
+            }
         })
         .map_err(&hook)?;
     for (base, bytes) in [(PERIPHERALS, PERIPHERALS_BYTES), (PRIVATE, PRIVATE_BYTES)] {
@@ -895,6 +951,14 @@ fn install_hooks(engine: &mut Unicorn<'_, State>) -> Result<(), TwinError> {
                         let address = (base + offset) as u32;
                         let state = uc.get_data_mut();
                         let now = state.now();
+                        if address == TIM2_ARR {
+                            if let Some(work) = state.edge.take() {
+                                if work.instructions > state.worst_edge.instructions {
+                                    state.worst_edge = work;
+                                }
+                                state.edges_measured += 1;
+                            }
+                        }
                         let result =
                             widen(&mut state.board, address, size as u32, value as u32, now)
                                 .ok_or(())
@@ -928,6 +992,19 @@ fn install_hooks(engine: &mut Unicorn<'_, State>) -> Result<(), TwinError> {
             )
             .map_err(&hook)?;
     }
+    engine
+        .add_mem_hook(
+            HookType::MEM_READ,
+            FLASH,
+            FLASH + FLASH_BYTES - 1,
+            |uc, _kind, _address, _size, _value| {
+                if let Some(work) = uc.get_data_mut().edge.as_mut() {
+                    work.flash_reads += 1;
+                }
+                true
+            },
+        )
+        .map_err(&hook)?;
     engine
         .add_mem_hook(
             HookType::MEM_INVALID,

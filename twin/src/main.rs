@@ -51,6 +51,17 @@ fn main() -> ExitCode {
         machine.instructions(),
         core_s / wall_s
     );
+    let (work, edges) = machine.edge_work();
+    let wait_states = u64::from(machine.board().flash_wait_states());
+    eprintln!(
+        "feeder-twin: the worst of {edges} edges took {} instructions ({} bytes, {} reads from \
+         flash) to the next preload: at most {} cycles at {wait_states} wait states with no \
+         cache hit",
+        work.instructions,
+        work.code_bytes,
+        work.flash_reads,
+        work.cycles_without_cache(wait_states)
+    );
     if let Ok(outcome) = &outcome {
         let check = &outcome.outputs;
         eprintln!(

@@ -60,6 +60,8 @@ struct Log<'d, 'o> {
     segments: Vec<SegmentEvent>,
     /// When the firmware announced a fault drill, by its log's timestamp.
     drill_at: Option<Cycles>,
+    /// The watchdog's last feed before its last reset.
+    feed_before_reset: Option<Cycles>,
 }
 
 impl Log<'_, '_> {
@@ -95,7 +97,8 @@ impl Log<'_, '_> {
     }
 }
 
-/// Runs `machine` until `until`, the log taken; a watchdog reset ends the run.
+/// Runs `machine` until `until`, the log taken; a watchdog reset ends the run early, and its
+/// time is returned (its last feed kept in `log`).
 fn run(machine: &mut Machine, log: &mut Log, until: Cycles) -> Result<Option<Cycles>, TwinError> {
     let stop = machine.run_until(until)?;
     log.take(machine).map_err(|error| TwinError::Engine {
@@ -103,7 +106,10 @@ fn run(machine: &mut Machine, log: &mut Log, until: Cycles) -> Result<Option<Cyc
         problem: error.to_string(),
     })?;
     Ok(match stop {
-        Stop::WatchdogReset { at } => Some(at),
+        Stop::WatchdogReset { at, last_feed } => {
+            log.feed_before_reset = last_feed;
+            Some(at)
+        }
         Stop::Ended => None,
     })
 }
@@ -135,6 +141,7 @@ pub fn button_run(
         start_tick: None,
         segments: Vec::new(),
         drill_at: None,
+        feed_before_reset: None,
     };
     let judge = |machine: &Machine, log: &Log| {
         let changes = record.changes();
@@ -200,6 +207,8 @@ pub struct DrillOutcome {
     pub command_safe_at: Option<Cycles>,
     /// The watchdog's reset, if one came.
     pub watchdog_reset: Option<Cycles>,
+    /// The watchdog's last feed before the reset (or the end).
+    pub last_feed: Option<Cycles>,
 }
 
 /// How long after the drill the outputs are watched, s.
@@ -234,6 +243,7 @@ pub fn drill_run(
         start_tick: None,
         segments: Vec::new(),
         drill_at: None,
+        feed_before_reset: None,
     };
     let mut watchdog_reset = press(machine, &mut log, seconds(FIRST_PRESS_S))?;
     if drill == Drill::Nmi && watchdog_reset.is_none() {
@@ -251,10 +261,12 @@ pub fn drill_run(
     };
     let end = fault_at + seconds(DRILL_WATCH_S);
     while machine.now() < end {
-        if let Some(at) = run(machine, &mut log, end)? {
-            watchdog_reset = watchdog_reset.or(Some(at));
-        }
+        let reset = run(machine, &mut log, end)?;
+        watchdog_reset = watchdog_reset.or(reset);
     }
+    // The feed before the first reset (a later reset's would overwrite it only after another
+    // watchdog expiry, which the watch is too short for).
+    let last_feed = watchdog_reset.and(log.feed_before_reset);
     let changes = record.changes();
     let zero_code = changes.iter().find_map(|change| match change {
         Output::Dac { code, .. } => Some(*code),
@@ -295,6 +307,7 @@ pub fn drill_run(
         enable_off_at,
         command_safe_at,
         watchdog_reset,
+        last_feed,
     }))
 }
 

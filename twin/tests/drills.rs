@@ -96,6 +96,15 @@ fn a_stack_overflow_masked_interrupts_a_hang_and_a_lockup_end_in_the_watchdogs_r
             outcome.enable_off_at,
             "{name}: safe by the reset"
         );
+        // 7 to 8 counts of 125 µs after the last feed: a feed reloads the count, not the
+        // prescaler's phase.
+        let feed = outcome.last_feed.expect("the watchdog was fed before");
+        let since_feed_s = (reset - feed) as f64 / CORE_HZ as f64;
+        assert!(
+            (0.875e-3..=1.0e-3).contains(&since_feed_s),
+            "{name}: the reset {:.1} µs after the last feed",
+            since_feed_s * 1e6
+        );
         assert!(
             log.contains("fault latched: WatchdogReset"),
             "{name}: the board came up faulted\n{log}"

@@ -55,14 +55,77 @@ fn start_up_leaves_the_reviewed_register_values() {
         machine.register(0x4800_0014).map(|odr| odr & (1 << 10)),
         Some(0)
     );
-    // NVIC: TIM2 (IRQ 28) at priority 0, the control executor's UART4 (IRQ 52) at 1.
+    assert_priorities(&machine, 28);
+}
+
+/// The segment timer's update (IRQ `edge_irq`) alone at priority 0, above every other enabled
+/// interrupt; the control executor (UART4, IRQ 52) at 1.
+fn assert_priorities(machine: &Machine, edge_irq: u32) {
     let priority = |irq: u32| {
         machine
             .register(0xE000_E400 + (irq & !3))
             .map(|word| (word >> (8 * (irq & 3))) & 0xFF)
     };
-    assert_eq!(priority(28), Some(0x00), "TIM2's priority");
+    let enabled = |irq: u32| {
+        machine
+            .register(0xE000_E100 + 4 * (irq / 32))
+            .is_some_and(|word| word & (1 << (irq % 32)) != 0)
+    };
+    assert!(enabled(edge_irq), "the edge's interrupt is enabled");
+    assert_eq!(priority(edge_irq), Some(0x00), "the edge's priority");
     assert_eq!(priority(52), Some(0x10), "UART4's priority");
+    let beside: Vec<(u32, Option<u32>)> = (0..102)
+        .filter(|&irq| irq != edge_irq && enabled(irq))
+        .map(|irq| (irq, priority(irq)))
+        .filter(|(_, p)| !p.is_some_and(|p| p >= 0x10))
+        .collect();
+    assert!(
+        beside.is_empty(),
+        "enabled at the edge's priority (IRQ, priority): {beside:?}"
+    );
+}
+
+/// The encoder image (`FEEDER_G474_ENCODER_ELF`): the sampling's DMA routed from TIM6's and
+/// TIM2's update requests (RM0440's DMAMUX request IDs 8 and 60), TIM4 in encoder mode 3 with
+/// its input filter, TIM6 overflowing every 250 µs, DMA1 channel 1 circular into the samples.
+#[test]
+#[ignore = "needs the G474 encoder image; run by cargo xtask test"]
+fn the_encoder_image_routes_its_sampling_as_reviewed() {
+    let elf = std::env::var_os("FEEDER_G474_ENCODER_ELF")
+        .map(PathBuf::from)
+        .expect("FEEDER_G474_ENCODER_ELF names the encoder image");
+    let mut machine = Machine::load(&elf, Box::new(OutputRecord::default())).expect("loads");
+    machine
+        .run_until(CORE_HZ / 100)
+        .expect("runs 10 ms from reset");
+    let expected = [
+        (0x4002_0800, 8, "DMAMUX1 C0CR: TIM6_UP"),
+        (0x4002_0804, 60, "DMAMUX1 C1CR: TIM2_UP"),
+        (0x4000_102C, 42_499, "TIM6 ARR: 250 µs at 170 MHz"),
+        (
+            0x4002_0008,
+            0x35A1,
+            "DMA1 CCR1: circular, 16-bit, memory increment, very high",
+        ),
+        (0x4002_0010, 0x4000_0824, "DMA1 CPAR1: TIM4's count"),
+        (
+            0xE004_2008,
+            0x13,
+            "DBGMCU APB1FZR1: TIM2, TIM3 and TIM6 stop on a halt",
+        ),
+    ];
+    for (address, value, name) in &expected {
+        assert_eq!(machine.register(*address), Some(*value), "{name}");
+    }
+    let smcr = machine.register(0x4000_0808).expect("TIM4 SMCR");
+    assert_eq!(smcr & 0x7, 3, "TIM4 in encoder mode 3: {smcr:#x}");
+    let ccmr1 = machine.register(0x4000_0818).expect("TIM4 CCMR1");
+    assert_eq!(
+        ccmr1 & 0xF3F3,
+        0x3131,
+        "TI1 and TI2, filtered over 8 clocks: {ccmr1:#x}"
+    );
+    assert_priorities(&machine, 28);
 }
 
 #[test]

@@ -62,6 +62,7 @@ pub fn test() -> Result {
 /// twin's pins, and the README's `--board g474` run judged by `host-sim hil`.
 fn g474_twin() -> Result {
     let drills = twin::build_drills()?;
+    let encoder = twin::build_image(&["encoder"])?;
     let image = twin::build_image(&[])?;
     twin::build_twin()?;
     exec(
@@ -71,6 +72,7 @@ fn g474_twin() -> Result {
             .args(["--", "--include-ignored"])
             .env("FEEDER_G474_ELF", &image)
             .env("FEEDER_G474_DRILLS", &drills)
+            .env("FEEDER_G474_ENCODER_ELF", &encoder)
             .env_remove("CARGO_TARGET_DIR"),
     )?;
     twin::run(&["cycles=100".to_string()], &[])

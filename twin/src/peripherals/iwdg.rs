@@ -24,6 +24,8 @@ pub struct Iwdg {
     started_at: Option<Cycles>,
     /// The prescaled tick at which the counter reaches zero.
     expiry_tick: u64,
+    /// The last refresh.
+    pub refreshed_at: Option<Cycles>,
 }
 
 impl Iwdg {
@@ -35,6 +37,7 @@ impl Iwdg {
             unlocked: false,
             started_at: None,
             expiry_tick: 0,
+            refreshed_at: None,
         }
     }
 
@@ -59,6 +62,7 @@ impl Iwdg {
     fn reload_at(&mut self, now: Cycles) {
         if let Some(start) = self.started_at {
             self.expiry_tick = self.next_tick(start, now) + u64::from(self.reload);
+            self.refreshed_at = Some(now);
         }
         self.unlocked = false;
     }

@@ -100,6 +100,8 @@ pub struct Board {
     moves: Vec<Move>,
     /// The independent watchdog expired: the machine resets the board.
     pub watchdog_expired: bool,
+    /// TIM2's counter overflowed (an edge of the DAC stage) since last asked.
+    edge_came: bool,
 }
 
 /// Base addresses (RM0440, "Memory map and register boundary addresses").
@@ -165,6 +167,7 @@ impl Board {
             outputs: Vec::new(),
             moves: Vec::new(),
             watchdog_expired: false,
+            edge_came: false,
         }
     }
 
@@ -377,11 +380,17 @@ impl Board {
                     .filter(|timer| timer.next_event() == Some(at))
                     .map(|timer| timer.event(at));
                 if let Some(update) = update {
+                    self.edge_came |= base == TIM2 && update.trigger;
                     self.route_update(base, update, at);
                 }
             }
             self.raise_lines();
         }
+    }
+
+    /// Whether an edge (TIM2's overflow) came since last asked.
+    pub fn take_edge(&mut self) -> bool {
+        std::mem::take(&mut self.edge_came)
     }
 
     /// The outputs' changes since last taken.
@@ -432,10 +441,20 @@ impl Board {
             .or(self.tim1.first_started_at())
     }
 
+    /// The independent watchdog's last refresh (a feed).
+    pub fn last_feed(&self) -> Option<Cycles> {
+        self.iwdg.refreshed_at
+    }
+
     /// The core time from which the firmware's clock (embassy's time driver on TIM15) counts:
     /// its log's timestamps are seconds from here.
     pub fn clock_origin(&self) -> Option<Cycles> {
         self.tim15.first_started_at()
+    }
+
+    /// The flash's wait states (FLASH_ACR's LATENCY).
+    pub fn flash_wait_states(&self) -> u32 {
+        self.flash.latency()
     }
 
     /// The flash interface, for programming.

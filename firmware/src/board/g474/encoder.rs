@@ -32,6 +32,7 @@ use core::cell::{RefCell, UnsafeCell};
 
 use embassy_stm32::pac;
 use embassy_stm32::pac::bdma::vals::{Dir, Pl, Size};
+use embassy_stm32::pac::timer::vals::FilterValue;
 use embassy_stm32::peripherals::{DMA1_CH1, DMA1_CH2, PB6, PB7, TIM4, TIM6};
 use embassy_stm32::timer::low_level::Timer;
 use embassy_stm32::timer::qei::{Config as QeiConfig, Qei, QeiMode};
@@ -232,6 +233,13 @@ impl Encoder {
                 ..QeiConfig::default()
             },
         );
+        // A pulse on A or B shorter than eight timer clocks (47 ns) is no edge: IC1F and IC2F =
+        // 0011, fSAMPLING = fCK_INT, N = 8 (RM0440, TIM2/TIM3/TIM4/TIM5, "TIMx_CCMR1"). At
+        // 1 µm a count and 1 m/s a channel's edges come every 2 µs.
+        pac::TIM4.ccmr_input(0).modify(|w| {
+            w.set_icf(0, FilterValue::FCK_INT_N8);
+            w.set_icf(1, FilterValue::FCK_INT_N8);
+        });
         let sample_request = <DMA1_CH1 as UpDma<TIM6>>::request(&sample_dma);
         let capture_request = <DMA1_CH2 as UpDma<S>>::request(&capture_dma);
         let timer = Timer::new(sample_timer);

@@ -25,9 +25,11 @@ pub const DRIVER_DISABLE: RegisterWrite =
 // The raw value above means what its comment says, as the PAC decodes it.
 const _: () = assert!(pac::gpio::regs::Bsrr(1 << (16 + DRIVER_ENABLE_PIN)).br(DRIVER_ENABLE_PIN));
 
-/// 170 MHz from HSI16: /4 × 85 /2, range 1 boost.
+/// 170 MHz from HSI16: /4 × 85 /2, range 1 boost; the DMA channels' interrupts (which nothing
+/// here enables a flag for) below the edges and the control executor.
 pub fn clocks() -> Config {
     let mut config = Config::default();
+    config.bdma_interrupt_priority = embassy_stm32::interrupt::Priority::P2;
     config.rcc.pll = Some(rcc::Pll {
         source: rcc::PllSource::HSI,
         prediv: rcc::PllPreDiv::DIV4,

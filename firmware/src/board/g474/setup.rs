@@ -64,6 +64,7 @@ pub fn init(thread_spawner: SendSpawner) -> (SendSpawner, Board<Hardware>) {
     pac::RCC.csr().modify(|w| w.set_rmvf(true));
 
     let p = embassy_stm32::init(clocks());
+    lower_shared_interrupts();
     let driver_enable = gpio::Output::new(p.PA10, Level::Low, Speed::Low);
     let led = gpio::Output::new(p.PA5, Level::Low, Speed::Low);
     let button = ExtiInput::new(p.PC13, p.EXTI13, Pull::Down, Irqs);
@@ -115,6 +116,25 @@ pub fn init(thread_spawner: SendSpawner) -> (SendSpawner, Board<Hardware>) {
         background_spawner: thread_spawner,
     };
     (task_spawner, board)
+}
+
+/// Only the segment timer's update runs at P0, above every other interrupt: the time driver's
+/// timer (TIM15, which embassy enables at P0) goes to the control executor's P1, where it waits
+/// for the control loop's work at an edge rather than delaying the edge; the EXTI lines (embassy
+/// enables them all at P0; the button's and the light barrier's are EXTI15_10's) to P2.
+fn lower_shared_interrupts() {
+    interrupt::TIM1_BRK_TIM15.set_priority(Priority::P1);
+    for line in [
+        interrupt::EXTI0,
+        interrupt::EXTI1,
+        interrupt::EXTI2,
+        interrupt::EXTI3,
+        interrupt::EXTI4,
+        interrupt::EXTI9_5,
+        interrupt::EXTI15_10,
+    ] {
+        line.set_priority(Priority::P2);
+    }
 }
 
 /// On a debugger halt the segment timers and the edge counter stop (DBGMCU_APB1FZR1, APB2FZR):

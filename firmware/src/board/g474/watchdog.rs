@@ -20,8 +20,11 @@ use crate::ports::Watchdog;
 /// counts LSI / 4, 125 µs a count at 32 kHz (RM0440, IWDG, prescaler 4, the shortest), but the
 /// LSI may run as slow as 29.5 kHz (DS12288, "LSI oscillator characteristics"), 135.6 µs a
 /// count: 1.5 ms allows 11 counts. `IndependentWatchdog::new` rounds a timeout down to whole
-/// counts and is exact for multiples of 500 µs, so 1.0 ms: 8 counts, at most 1.09 ms with the
-/// slowest LSI. Larger strokes leave less room, none at 5 mm: there only the end stops help.
+/// counts and is exact for multiples of 500 µs, so 1.0 ms: a reload of 8 counts. A feed reloads
+/// the count but not the prescaler, whose phase runs on from the start, so the reset comes 7 to
+/// 8 counts after the last feed: from 0.82 ms (7 counts at the fastest LSI, 34 kHz) to 1.09 ms
+/// (8 at the slowest); 0.875–1.0 ms at the nominal 32 kHz, as the G474 twin shows. Larger strokes
+/// leave less room, none at 5 mm: there only the end stops help.
 pub const WATCHDOG_TIMEOUT_US: u32 = 1_000;
 
 /// The independent watchdog, fed only while the output plays what the control loop preloaded,
@@ -49,8 +52,8 @@ impl OutputWatchdog {
 impl Watchdog for OutputWatchdog {
     /// A quarter of the timeout: the monitor shares the control executor, so a check may wait for
     /// the control loop's work at an edge (at most about 94 µs), and one feed withheld for a
-    /// replayed segment still leaves a feed in time, even with the LSI at its fastest (34 kHz,
-    /// 0.94 ms).
+    /// replayed segment still leaves a feed in time, even with the reset at its earliest (7
+    /// counts at the fastest LSI, 0.82 ms).
     const MONITOR_PERIOD_US: u64 = WATCHDOG_TIMEOUT_US as u64 / 4;
     /// A recipe write blocks thread mode for tens of milliseconds, far longer than the timeout.
     const WATCHES_THREAD_MODE: bool = true;
