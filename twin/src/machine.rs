@@ -54,6 +54,8 @@ pub trait Plate {
     fn enable(&mut self, at: Cycles, on: bool);
     /// The encoder's count at `at`.
     fn count(&mut self, at: Cycles) -> i32;
+    /// From `at` on TIM1 drives a PWM duty of `duty_counts` on PA8 and the direction on PA9.
+    fn pwm(&mut self, _at: Cycles, _duty_counts: u32, _forward: bool) {}
     /// The board resets at `at`: the driver is off (its enable's pull-down) and the analog
     /// output disconnected until the firmware drives them again.
     fn reset(&mut self, at: Cycles) {
@@ -179,6 +181,11 @@ impl State {
                 Output::Dac { at, code } => self.plate.level(at, code),
                 Output::Enable { at, on } => self.plate.enable(at, on),
                 Output::Reset { at } => self.plate.reset(at),
+                Output::Pwm {
+                    at,
+                    duty_counts,
+                    forward,
+                } => self.plate.pwm(at, duty_counts, forward),
             }
         }
     }

@@ -2,7 +2,8 @@
 //! operator with the user button runs it (start, `N` motion cycles, soft stop) and writes its
 //! decoded log to standard output, for `host-sim hil`; a summary goes to standard error.
 //!
-//! Every segment the firmware reports is checked on the twin's DAC: its level on its tick.
+//! Every segment the firmware reports is checked on the twin's output (the DAC, or TIM1's PWM
+//! and direction): its level on its tick.
 //! Exit code 0 when the run went through and the DAC agreed, 1 when it did not (a watchdog
 //! reset, a start that never came, a level the DAC did not take), 2 when the twin could not run
 //! the image.
@@ -53,20 +54,22 @@ fn main() -> ExitCode {
     );
     let (work, edges) = machine.edge_work();
     let wait_states = u64::from(machine.board().flash_wait_states());
-    eprintln!(
-        "feeder-twin: the worst of {edges} edges took {} instructions ({} bytes, {} reads from \
-         flash) to the next preload: at most {} cycles at {wait_states} wait states with no \
-         cache hit",
-        work.instructions,
-        work.code_bytes,
-        work.flash_reads,
-        work.cycles_without_cache(wait_states)
-    );
+    if edges > 0 {
+        eprintln!(
+            "feeder-twin: the worst of {edges} edges took {} instructions ({} bytes, {} reads \
+             from flash) to the next preload: at most {} cycles at {wait_states} wait states \
+             with no cache hit",
+            work.instructions,
+            work.code_bytes,
+            work.flash_reads,
+            work.cycles_without_cache(wait_states)
+        );
+    }
     if let Ok(outcome) = &outcome {
         let check = &outcome.outputs;
         eprintln!(
-            "feeder-twin: the DAC took {} segments' levels on their ticks, {} did not, {} changes \
-             at no segment's start",
+            "feeder-twin: the output took {} segments' levels on their ticks, {} did not, {} \
+             levels at no segment's start",
             check.matched,
             check.problems.len(),
             check.stray

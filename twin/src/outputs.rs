@@ -1,7 +1,8 @@
 //! What the board's outputs did, as the twin's pins and registers show it, and its check
-//! against the segments the firmware reports: every segment's level must reach the DAC's output
-//! on the segment's own tick (TIM2's update latching the preloaded code through TRGO), with the
-//! level's sign about the zero code, and the output must change nowhere else. The firmware's log
+//! against the segments the firmware reports: every segment's level must reach the output on the
+//! segment's own tick (the DAC's code that TIM2's update latches through TRGO, with the level's
+//! sign about the zero code; or TIM1's duty and direction that its update loads), and the output
+//! must drive no level anywhere else. The firmware's log
 //! says what it meant to do; this is what the hardware did.
 
 use std::cell::RefCell;
@@ -32,6 +33,14 @@ impl Plate for OutputRecord {
         self.0.borrow_mut().push(Output::Enable { at, on });
     }
 
+    fn pwm(&mut self, at: Cycles, duty_counts: u32, forward: bool) {
+        self.0.borrow_mut().push(Output::Pwm {
+            at,
+            duty_counts,
+            forward,
+        });
+    }
+
     fn count(&mut self, _at: Cycles) -> i32 {
         0
     }
@@ -52,34 +61,56 @@ pub struct OutputCheck {
     pub stray: usize,
 }
 
-/// Checks `changes` against `segments` on a timeline whose tick 0 is core time `origin`, with
-/// `zero_code` the code of zero acceleration.
+/// The sign of the level an output change drives: a DAC code about `zero_code`, or a PWM duty
+/// with its direction (no duty, or the main output off, is zero).
+fn level_sign(change: &Output, zero_code: u32) -> Option<(Cycles, i8)> {
+    match *change {
+        Output::Dac { at, code } => {
+            Some((at, (i64::from(code) - i64::from(zero_code)).signum() as i8))
+        }
+        Output::Pwm {
+            at,
+            duty_counts,
+            forward,
+        } => Some((
+            at,
+            match (duty_counts, forward) {
+                (0, _) => 0,
+                (_, true) => 1,
+                (_, false) => -1,
+            },
+        )),
+        Output::Enable { .. } | Output::Reset { .. } => None,
+    }
+}
+
+/// Checks `changes` against `segments` on a timeline whose tick 0 is core time `origin` and
+/// whose ticks last `cycles_per_tick` core cycles, with `zero_code` the DAC's code of zero
+/// acceleration.
 pub fn check(
     changes: &[Output],
     segments: &[SegmentEvent],
     origin: Cycles,
+    cycles_per_tick: Cycles,
     zero_code: u32,
 ) -> OutputCheck {
-    let latches: Vec<(Cycles, u32)> = changes
+    let levels: Vec<(Cycles, i8)> = changes
         .iter()
-        .filter_map(|change| match *change {
-            Output::Dac { at, code } => Some((at, code)),
-            Output::Enable { .. } | Output::Reset { .. } => None,
-        })
+        .filter_map(|change| level_sign(change, zero_code))
         .collect();
-    let code_at = |at: Cycles| {
-        latches
+    let sign_at = |at: Cycles| {
+        levels
             .iter()
             .take_while(|(when, _)| *when <= at)
             .last()
-            .map(|&(_, code)| code)
+            .map(|&(_, sign)| sign)
     };
     let mut check = OutputCheck::default();
     let mut starts = std::collections::BTreeSet::new();
     for segment in segments {
-        let at = origin + segment.actual_tick;
+        let at = origin + segment.actual_tick * cycles_per_tick;
         starts.insert(at);
-        let sign = code_at(at).map(|code| (code as i64 - zero_code as i64).signum() as i8);
+        let sign = sign_at(at);
         if sign == Some(segment.level) {
             check.matched += 1;
         } else {
@@ -87,15 +118,17 @@ pub fn check(
                 "cycle {} {}: the output held {} on tick {}, not a level of sign {}",
                 segment.cycle,
                 segment.kind.name(),
-                code_at(at).map_or("nothing".into(), |code| format!("code {code}")),
+                sign.map_or("nothing".into(), |sign| format!("a level of sign {sign}")),
                 segment.actual_tick,
                 segment.level
             ));
         }
     }
-    check.stray = latches
+    // A change at no segment's start that drives a level: the power-up zero and a halt's zero
+    // are no such change.
+    check.stray = levels
         .iter()
-        .filter(|(at, code)| !starts.contains(at) && *code != zero_code)
+        .filter(|(at, sign)| !starts.contains(at) && *sign != 0)
         .count();
     check
 }

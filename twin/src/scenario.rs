@@ -42,10 +42,12 @@ fn seconds(s: f64) -> Cycles {
     (s * CORE_HZ as f64) as Cycles
 }
 
-/// The plan's period and ramp, in core cycles and cycles, from the power-up plan's event.
+/// The plan's period and ramp from the power-up plan's event: the period in core cycles, the
+/// output's ticks in core cycles, and the ramp in cycles.
 #[derive(Debug, Clone, Copy)]
 struct Timing {
     period: Cycles,
+    cycles_per_tick: Cycles,
     ramp_cycles: u64,
 }
 
@@ -84,7 +86,8 @@ impl Log<'_, '_> {
                     ramp_cycles,
                 })) => {
                     self.timing = Some(Timing {
-                        period: (spec.period_s * f64::from(clock_hz)) as Cycles,
+                        period: (spec.period_s * CORE_HZ as f64) as Cycles,
+                        cycles_per_tick: CORE_HZ / u64::from(clock_hz.max(1)),
                         ramp_cycles: u64::from(ramp_cycles),
                     })
                 }
@@ -153,6 +156,7 @@ pub fn button_run(
             &changes,
             &log.segments,
             machine.board().output_origin().unwrap_or(0),
+            log.timing.map_or(1, |timing| timing.cycles_per_tick),
             zero_code.unwrap_or(0),
         )
     };
@@ -176,7 +180,7 @@ pub fn button_run(
         return Ok(failed(machine, &log, None));
     };
     let origin = machine.board().output_origin().unwrap_or(0);
-    let stop_at = origin + start_tick + cycles * timing.period;
+    let stop_at = origin + start_tick * timing.cycles_per_tick + cycles * timing.period;
     if let Some(reset) = press(machine, &mut log, stop_at)? {
         return Ok(failed(machine, &log, Some(reset)));
     }
@@ -184,7 +188,7 @@ pub fn button_run(
     if let Some(reset) = run(machine, &mut log, end)? {
         return Ok(failed(machine, &log, Some(reset)));
     }
-    let tick = machine.now() - origin;
+    let tick = (machine.now() - origin) / timing.cycles_per_tick;
     writeln!(log.out, "{}", Event::End { tick }).map_err(|error| TwinError::Engine {
         what: "write the log".into(),
         problem: error.to_string(),
@@ -313,6 +317,9 @@ pub fn drill_run(
 
 fn change_at(change: &Output) -> Cycles {
     match *change {
-        Output::Dac { at, .. } | Output::Enable { at, .. } | Output::Reset { at } => at,
+        Output::Dac { at, .. }
+        | Output::Enable { at, .. }
+        | Output::Reset { at }
+        | Output::Pwm { at, .. } => at,
     }
 }

@@ -28,6 +28,10 @@ pub struct RunArgs {
     /// stopped with its user button (the scenario takes `cycles=N` alone).
     #[arg(long, value_enum, default_value_t = BoardChoice::Qemu)]
     board: BoardChoice,
+    /// With `--board g474`: the image's features, as `cd firmware && cargo build --release
+    /// --features …` takes them (`output-pwm` for the PWM stage).
+    #[arg(long, value_delimiter = ',', value_name = "FEATURES")]
+    features: Vec<String>,
     /// Drive a real plate from this plant file (host-sim/plants/) instead: the QEMU image with
     /// the plant's encoder, running the closed loop, in lockstep with `host-sim cosim`, which
     /// reports the plate's motion and ends with `closed loop: PASSED` or `FAILED (…)`.
@@ -95,7 +99,12 @@ pub fn run(args: &RunArgs) -> Result {
                     .into(),
             ));
         }
-        return twin::run(&args.scenario, &args.hil_flags);
+        return twin::run(&args.scenario, &args.features, &args.hil_flags);
+    }
+    if !args.features.is_empty() {
+        return Err(Failure::Refused(
+            "--features chooses the G474 image's features: it needs --board g474".into(),
+        ));
     }
     if let Some(plant) = &args.plant {
         return run_plant(plant, args);

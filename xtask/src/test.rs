@@ -59,7 +59,8 @@ pub fn test() -> Result {
 
 /// The G474's own image on the register-level twin: the twin's models, the register values
 /// the review checked, a button run checked on the twin's DAC, the fault drills judged on the
-/// twin's pins, and the README's `--board g474` run judged by `host-sim hil`.
+/// twin's pins, and the README's `--board g474` run judged by `host-sim hil`, with the DAC and
+/// with the PWM stage.
 fn g474_twin() -> Result {
     let drills = twin::build_drills()?;
     let encoder = twin::build_image(&["encoder"])?;
@@ -75,7 +76,8 @@ fn g474_twin() -> Result {
             .env("FEEDER_G474_ENCODER_ELF", &encoder)
             .env_remove("CARGO_TARGET_DIR"),
     )?;
-    twin::run(&["cycles=100".to_string()], &[])
+    twin::run(&["cycles=100".to_string()], &[], &[])?;
+    twin::run(&["cycles=50".to_string()], &["output-pwm".to_string()], &[])
 }
 
 /// A type check of every fuzz target (`fuzz/`, its own workspace) on the stable toolchain:

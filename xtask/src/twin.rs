@@ -3,7 +3,7 @@
 //! GPL), as an operator with the user button runs it, checked edge by edge by `host-sim hil`;
 //! the twin checks every segment on its DAC's output itself.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 use feeder_shared::scenario::{parse_setting, ScenarioSetting};
@@ -17,31 +17,64 @@ use crate::tools;
 /// Motion cycles of the button's run when the scenario names none.
 const DEFAULT_CYCLES: u32 = 200;
 
-/// Builds the G474 image with the event stream and `features`, in a target directory of its
-/// own, and returns the ELF's path.
-pub fn build_image(features: &[&str]) -> Result<PathBuf> {
+/// The target directory every G474 image for the twin is built in: they differ in the
+/// firmware's own features only, so the dependencies are built once.
+fn image_target_dir() -> PathBuf {
+    firmware_dir().join("target").join("g474-twin")
+}
+
+/// Builds the G474 image with the event stream, `features` and the fault drill `drill`, and
+/// copies it to `copy`.
+fn build_copy(features: &[&str], drill: Option<&str>, copy: &Path) -> Result<PathBuf> {
     let mut all = vec!["hil-trace"];
     all.extend_from_slice(features);
-    let features = all.join(",");
-    let target_dir = firmware_dir()
-        .join("target")
-        .join(format!("g474-twin-{}", features.replace(',', "-")));
-    exec(
-        firmware_cargo()
-            .args([
-                "build",
-                "--release",
-                "--locked",
-                "--features",
-                &features,
-                "--target-dir",
-            ])
-            .arg(&target_dir),
-    )?;
-    Ok(target_dir
+    let target_dir = image_target_dir();
+    let mut build = firmware_cargo();
+    build
+        .args([
+            "build",
+            "--release",
+            "--locked",
+            "--features",
+            &all.join(","),
+            "--target-dir",
+        ])
+        .arg(&target_dir);
+    match drill {
+        Some(drill) => build.env("FEEDER_FAULT_DRILL", drill),
+        None => build.env_remove("FEEDER_FAULT_DRILL"),
+    };
+    exec(&mut build)?;
+    let elf = target_dir
         .join(THUMB_TARGET)
         .join("release")
-        .join("feeder-firmware"))
+        .join("feeder-firmware");
+    if let Some(directory) = copy.parent() {
+        std::fs::create_dir_all(directory)
+            .map_err(|error| format!("cannot make {}: {error}", directory.display()))?;
+    }
+    std::fs::copy(&elf, copy).map_err(|error| {
+        format!(
+            "cannot copy {} to {}: {error}",
+            elf.display(),
+            copy.display()
+        )
+    })?;
+    Ok(copy.to_path_buf())
+}
+
+/// Builds the G474 image with the event stream and `features` and returns the ELF's path
+/// (`target/g474-images/`).
+pub fn build_image(features: &[&str]) -> Result<PathBuf> {
+    let name = match features {
+        [] => "default".to_string(),
+        _ => features.join("-"),
+    };
+    let copy = root()
+        .join("target")
+        .join("g474-images")
+        .join(format!("{name}.elf"));
+    build_copy(features, None, &copy)
 }
 
 /// The fault drills the G474 image builds with `FEEDER_FAULT_DRILL`
@@ -57,36 +90,9 @@ const DRILLS: [&str; 5] = [
 /// Builds an image per fault drill (with the event stream) and returns the directory that holds
 /// them, `<drill>.elf` each.
 pub fn build_drills() -> Result<PathBuf> {
-    let target_dir = firmware_dir().join("target").join("g474-twin-drills");
     let drills = root().join("target").join("g474-drills");
-    std::fs::create_dir_all(&drills)
-        .map_err(|error| format!("cannot make {}: {error}", drills.display()))?;
     for drill in DRILLS {
-        exec(
-            firmware_cargo()
-                .args([
-                    "build",
-                    "--release",
-                    "--locked",
-                    "--features",
-                    "hil-trace",
-                    "--target-dir",
-                ])
-                .arg(&target_dir)
-                .env("FEEDER_FAULT_DRILL", drill),
-        )?;
-        let elf = target_dir
-            .join(THUMB_TARGET)
-            .join("release")
-            .join("feeder-firmware");
-        let copy = drills.join(format!("{drill}.elf"));
-        std::fs::copy(&elf, &copy).map_err(|error| {
-            format!(
-                "cannot copy {} to {}: {error}",
-                elf.display(),
-                copy.display()
-            )
-        })?;
+        build_copy(&[], Some(drill), &drills.join(format!("{drill}.elf")))?;
     }
     Ok(drills)
 }
@@ -126,11 +132,26 @@ fn button_cycles(words: &[String]) -> Result<u32> {
     Ok(cycles)
 }
 
-/// The run: the twin's log piped into `host-sim hil` (with `hil_flags`).
-pub fn run(scenario: &[String], hil_flags: &[String]) -> Result {
+/// Features of the G474 image the twin runs: the PWM stage; the encoder's image runs only its
+/// register checks here (the twin has no plate to close its loop on).
+const TWIN_FEATURES: [&str; 1] = ["output-pwm"];
+
+/// The run of the image with `features`: the twin's log piped into `host-sim hil` (with
+/// `hil_flags`).
+pub fn run(scenario: &[String], features: &[String], hil_flags: &[String]) -> Result {
     let cycles = button_cycles(scenario)?;
+    if let Some(other) = features
+        .iter()
+        .find(|f| !TWIN_FEATURES.contains(&f.as_str()))
+    {
+        return Err(Failure::Refused(format!(
+            "the twin runs the G474 image with {}; not with {other}",
+            TWIN_FEATURES.join(", ")
+        )));
+    }
     tools::ensure_linker()?;
-    let elf = build_image(&[])?;
+    let features: Vec<&str> = features.iter().map(String::as_str).collect();
+    let elf = build_image(&features)?;
     let twin = build_twin()?;
     exec(cargo().args(["build", "--release", "--locked", "--package", "host-sim"]))?;
     let mut run = Command::new(&twin);

@@ -60,6 +60,13 @@ pub enum Output {
     Dac { at: Cycles, code: u32 },
     /// The driver enable (PA10) from `at` on.
     Enable { at: Cycles, on: bool },
+    /// TIM1's PWM from `at` on: the magnitude's duty on CH1 (0 with the main output off) and the
+    /// direction on CH2 (high: forward).
+    Pwm {
+        at: Cycles,
+        duty_counts: u32,
+        forward: bool,
+    },
     /// A reset at `at`: every pin back to its reset state (PA10 an input, its external
     /// pull-down holding the driver off; the DAC off, PA4 at high impedance) until the firmware
     /// drives them again.
@@ -314,6 +321,14 @@ impl Board {
                 if let Some(code) = self.dac.trigger(TSEL_TIM2_TRGO) {
                     self.outputs.push(Output::Dac { at: now, code });
                 }
+            }
+            if base == TIM1 {
+                let (duty_counts, forward) = self.tim1.pwm();
+                self.outputs.push(Output::Pwm {
+                    at: now,
+                    duty_counts,
+                    forward,
+                });
             }
             if itr.is_some() && itr == Some(self.tim3.trigger_source()) {
                 let counted = self.tim3.trigger_in();

@@ -257,6 +257,19 @@ impl Timer {
         }
     }
 
+    /// The PWM of an advanced timer as its outputs drive it: CH1's duty (0 with the main output
+    /// off, MOE, or the channel off, CC1E) and whether CH2 is high (its duty the whole period).
+    pub fn pwm(&self) -> (u32, bool) {
+        let moe = self.bdtr & (1 << 15) != 0;
+        let duty = if moe && self.ccer & 1 != 0 {
+            self.ccr[0]
+        } else {
+            0
+        };
+        let forward = moe && self.ccer & (1 << 4) != 0 && self.ccr[1] > self.arr_active;
+        (duty, forward)
+    }
+
     /// When the counter was first enabled.
     pub fn first_started_at(&self) -> Option<Cycles> {
         self.first_started_at
