@@ -169,21 +169,42 @@ mod tests {
                 code: 1000,
             },
         ];
-        let found = check(&changes, &[segment(100, 1)], 1000, 2048);
+        let found = check(&changes, &[segment(100, 1)], 1000, 1, 2048);
         assert_eq!(
             (found.matched, found.problems.len(), found.stray),
             (1, 0, 1)
         );
-        let late = check(&changes, &[segment(99, 1)], 1000, 2048);
+        let late = check(&changes, &[segment(99, 1)], 1000, 1, 2048);
         assert_eq!(
             late.matched, 0,
             "the code came a tick after the segment's start"
         );
-        let wrong = check(&changes, &[segment(250, 1)], 1000, 2048);
+        let wrong = check(&changes, &[segment(250, 1)], 1000, 1, 2048);
         assert_eq!(
             wrong.problems.len(),
             1,
             "a negative code for a positive level"
         );
+    }
+
+    #[test]
+    fn a_pwm_level_is_its_duty_with_its_direction_on_ticks_of_the_carrier() {
+        let changes = [
+            Output::Pwm {
+                at: 1000,
+                duty_counts: 0,
+                forward: true,
+            },
+            Output::Pwm {
+                at: 1000 + 2 * 8500,
+                duty_counts: 4000,
+                forward: false,
+            },
+        ];
+        // 20 kHz ticks: 8 500 core cycles each.
+        let found = check(&changes, &[segment(0, 0), segment(2, -1)], 1000, 8500, 0);
+        assert_eq!((found.matched, found.stray), (2, 0), "{:?}", found.problems);
+        let wrong = check(&changes, &[segment(2, 1)], 1000, 8500, 0);
+        assert_eq!(wrong.matched, 0, "backward for a forward level");
     }
 }
