@@ -10,7 +10,7 @@ use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_hal_async::digital::Wait;
 use feeder_shared::closed_loop::PositionSample;
 use feeder_shared::configuration::Configuration;
-use feeder_shared::TickClock;
+use feeder_shared::{Fault, TickClock};
 
 use crate::output::SegmentOutput;
 
@@ -43,8 +43,9 @@ pub struct Board<P: Parts> {
     pub operator: P::Operator,
     pub sensor: P::Sensor,
     pub part_sensor: P::PartSensor,
-    /// The last reset was the watchdog's.
-    pub after_watchdog_reset: bool,
+    /// What power-up found wrong, latched before anything runs: the watchdog's reset, or a
+    /// failed self-test.
+    pub latched_at_power_up: Option<Fault>,
     /// Spawner of the executor that runs the control loop above the other tasks.
     pub control_spawner: SendSpawner,
     /// Spawner of the executor below every other: long computations (the drive's

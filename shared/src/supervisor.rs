@@ -24,6 +24,10 @@ pub enum Fault {
     /// The closed loop stopped: the drive's identification was refused, the plate could not be
     /// held, the position sensor failed, or the loop's decision came too late for its cycle.
     ClosedLoop,
+    /// The output's edge counter did not count the forced update of the power-up self-test:
+    /// edges cannot be told from missed ones, so the output never starts. No acknowledgement
+    /// clears it: only a reset after the fault is fixed.
+    EdgeCounter,
 }
 
 /// How a fault brings the motor to a safe state (the stop categories of IEC 60204-1).
@@ -44,7 +48,9 @@ impl Fault {
     /// output working.
     pub const fn stop_category(self) -> StopCategory {
         match self {
-            Fault::EdgeMissed | Fault::WatchdogReset => StopCategory::Immediate,
+            Fault::EdgeMissed | Fault::WatchdogReset | Fault::EdgeCounter => {
+                StopCategory::Immediate
+            }
             Fault::InvalidSettings | Fault::ClosedLoop => StopCategory::Controlled,
         }
     }
@@ -55,7 +61,13 @@ impl Fault {
             Fault::WatchdogReset => "watchdog-reset",
             Fault::InvalidSettings => "invalid-settings",
             Fault::ClosedLoop => "closed-loop",
+            Fault::EdgeCounter => "edge-counter",
         }
+    }
+
+    /// Whether the button or a reset request clears it: every fault but a failed self-test.
+    pub const fn acknowledgeable(self) -> bool {
+        !matches!(self, Fault::EdgeCounter)
     }
 }
 
@@ -134,12 +146,12 @@ pub struct Supervisor {
 }
 
 impl Supervisor {
-    /// The state after a reset: stopped, or faulted when the watchdog caused the reset.
-    pub const fn new(after_watchdog_reset: bool) -> Self {
-        let state = if after_watchdog_reset {
-            RunState::Faulted(Fault::WatchdogReset)
-        } else {
-            RunState::Stopped
+    /// The state after a reset: stopped, or faulted with what power-up found (the watchdog's
+    /// reset, a failed self-test).
+    pub const fn new(latched: Option<Fault>) -> Self {
+        let state = match latched {
+            Some(fault) => RunState::Faulted(fault),
+            None => RunState::Stopped,
         };
         Self {
             state,
@@ -178,10 +190,15 @@ impl Supervisor {
             (Stopped, SupervisorEvent::ButtonPressed) => (Running, feed),
             (Running, SupervisorEvent::ButtonPressed) => (Stopping, Stop),
             (Stopping, SupervisorEvent::ButtonPressed) => (Running, feed),
-            (Faulted(_), SupervisorEvent::ButtonPressed) => (Stopped, Keep),
+            (Faulted(fault), SupervisorEvent::ButtonPressed) if fault.acknowledgeable() => {
+                (Stopped, Keep)
+            }
             (Stopped | Stopping, SupervisorEvent::StartRequested) => (Running, feed),
             (Running | Stopping, SupervisorEvent::StopRequested) => (Stopping, Stop),
-            (Faulted(_), SupervisorEvent::ResetRequested) => (Stopped, Keep),
+            (Faulted(fault), SupervisorEvent::ResetRequested) if fault.acknowledgeable() => {
+                (Stopped, Keep)
+            }
+            (Faulted(fault), SupervisorEvent::ButtonPressed) => (Faulted(fault), Keep),
             (
                 state,
                 SupervisorEvent::StartRequested
@@ -195,8 +212,9 @@ impl Supervisor {
         request
     }
 
-    /// Latches `fault` (the first cause stays) and chooses its stop: controlled while the plate
-    /// moves and the fault allows it, immediate otherwise.
+    /// Latches `fault` (the first cause stays, unless the new one cannot be acknowledged and
+    /// the first can) and chooses its stop: controlled while the plate moves and the fault
+    /// allows it, immediate otherwise.
     fn fault(&mut self, fault: Fault) -> MotionRequest {
         let moving = self.braking || matches!(self.state, RunState::Running | RunState::Stopping);
         let request = match fault.stop_category() {
@@ -204,7 +222,11 @@ impl Supervisor {
             _ => MotionRequest::Halt,
         };
         self.braking = request == MotionRequest::QuickStop;
-        if !matches!(self.state, RunState::Faulted(_)) {
+        let replaces = match self.state {
+            RunState::Faulted(latched) => latched.acknowledgeable() && !fault.acknowledgeable(),
+            _ => true,
+        };
+        if replaces {
             self.state = RunState::Faulted(fault);
         }
         request

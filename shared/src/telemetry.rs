@@ -269,11 +269,12 @@ const PHASES: [Phase; 4] = [
 ];
 const STAGES: [Stage; 7] = Stage::ALL;
 const TRACK_STATES: [TrackState; 2] = [TrackState::Empty, TrackState::Full];
-const FAULTS: [Fault; 4] = [
+const FAULTS: [Fault; 5] = [
     Fault::EdgeMissed,
     Fault::WatchdogReset,
     Fault::InvalidSettings,
     Fault::ClosedLoop,
+    Fault::EdgeCounter,
 ];
 
 /// The one of `all` whose `name` is `text`, `None` for `-`.

@@ -11,7 +11,7 @@ use SupervisorEvent::{
 
 #[test]
 fn comes_up_stopped_with_the_driver_disabled() {
-    let supervisor = Supervisor::new(false);
+    let supervisor = Supervisor::new(None);
     assert_eq!(supervisor.state(), RunState::Stopped);
     assert!(!supervisor.driver_enabled());
     assert_eq!(supervisor.led(), Led::Off);
@@ -19,7 +19,7 @@ fn comes_up_stopped_with_the_driver_disabled() {
 
 #[test]
 fn comes_up_faulted_after_a_watchdog_reset() {
-    let mut supervisor = Supervisor::new(true);
+    let mut supervisor = Supervisor::new(Some(Fault::WatchdogReset));
     assert_eq!(supervisor.state(), RunState::Faulted(Fault::WatchdogReset));
     assert!(!supervisor.driver_enabled());
     assert_eq!(supervisor.led(), Led::Blink);
@@ -29,7 +29,7 @@ fn comes_up_faulted_after_a_watchdog_reset() {
 
 #[test]
 fn start_soft_stop_and_idle() {
-    let mut supervisor = Supervisor::new(false);
+    let mut supervisor = Supervisor::new(None);
     assert_eq!(supervisor.handle(Press), MotionRequest::Start);
     assert_eq!(supervisor.state(), RunState::Running);
     assert!(supervisor.driver_enabled());
@@ -54,7 +54,7 @@ fn start_soft_stop_and_idle() {
 
 #[test]
 fn a_press_during_the_soft_stop_starts_again() {
-    let mut supervisor = Supervisor::new(false);
+    let mut supervisor = Supervisor::new(None);
     supervisor.handle(Press);
     supervisor.handle(Press);
     assert_eq!(supervisor.handle(Press), MotionRequest::Start);
@@ -63,7 +63,7 @@ fn a_press_during_the_soft_stop_starts_again() {
 
 #[test]
 fn faults_halt_at_once_and_latch_the_first_cause() {
-    let mut supervisor = Supervisor::new(false);
+    let mut supervisor = Supervisor::new(None);
     supervisor.handle(Press);
     let edge = SupervisorEvent::Fault(Fault::EdgeMissed);
     assert_eq!(supervisor.handle(edge), MotionRequest::Halt);
@@ -87,7 +87,7 @@ fn faults_halt_at_once_and_latch_the_first_cause() {
 
 #[test]
 fn a_controlled_fault_finishes_the_cycle_with_the_driver_on_then_disables_it() {
-    let mut supervisor = Supervisor::new(false);
+    let mut supervisor = Supervisor::new(None);
     supervisor.handle(Start);
     let settings = SupervisorEvent::Fault(Fault::InvalidSettings);
     assert_eq!(supervisor.handle(settings), MotionRequest::QuickStop);
@@ -122,7 +122,7 @@ fn a_controlled_fault_finishes_the_cycle_with_the_driver_on_then_disables_it() {
 
 #[test]
 fn a_reset_during_a_controlled_stop_keeps_the_driver_until_idle() {
-    let mut supervisor = Supervisor::new(false);
+    let mut supervisor = Supervisor::new(None);
     supervisor.handle(Press);
     supervisor.handle(SupervisorEvent::Fault(Fault::InvalidSettings));
     supervisor.handle(Reset);
@@ -137,7 +137,7 @@ fn a_reset_during_a_controlled_stop_keeps_the_driver_until_idle() {
 
 #[test]
 fn explicit_commands_start_stop_and_reset() {
-    let mut supervisor = Supervisor::new(false);
+    let mut supervisor = Supervisor::new(None);
     assert_eq!(supervisor.handle(Stop), MotionRequest::Keep);
     assert_eq!(supervisor.handle(Start), MotionRequest::Start);
     assert_eq!(supervisor.handle(Start), MotionRequest::Keep);
@@ -156,7 +156,7 @@ fn explicit_commands_start_stop_and_reset() {
     assert_eq!(supervisor.handle(Start), MotionRequest::Start);
 }
 
-const EVENTS: [SupervisorEvent; 11] = [
+const EVENTS: [SupervisorEvent; 12] = [
     Press,
     Idle,
     Start,
@@ -166,18 +166,20 @@ const EVENTS: [SupervisorEvent; 11] = [
     SupervisorEvent::Fault(Fault::WatchdogReset),
     SupervisorEvent::Fault(Fault::InvalidSettings),
     SupervisorEvent::Fault(Fault::ClosedLoop),
+    SupervisorEvent::Fault(Fault::EdgeCounter),
     Full,
     Empty,
 ];
 
-/// Every sequence of up to six events from both power-up states.
+/// Every sequence of up to six events from every power-up state: stopped, after the
+/// watchdog's reset, after a failed self-test.
 fn for_all_sequences(
     mut check: impl FnMut(&Supervisor, SupervisorEvent, MotionRequest, &Supervisor),
 ) {
     const LENGTH: u32 = 6;
-    for after_watchdog_reset in [false, true] {
+    for latched in [None, Some(Fault::WatchdogReset), Some(Fault::EdgeCounter)] {
         for code in 0..EVENTS.len().pow(LENGTH) {
-            let mut supervisor = Supervisor::new(after_watchdog_reset);
+            let mut supervisor = Supervisor::new(latched);
             let mut rest = code;
             for _ in 0..LENGTH {
                 let event = EVENTS[rest % EVENTS.len()];
@@ -247,10 +249,32 @@ fn a_fault_is_left_only_by_a_press_or_reset_and_only_to_stopped() {
     for_all_sequences(|before, event, _, after| {
         if let RunState::Faulted(first) = before.state() {
             match after.state() {
-                RunState::Faulted(latched) => assert_eq!(latched, first),
-                RunState::Stopped => assert!(event == Press || event == Reset),
+                RunState::Faulted(latched) => assert!(
+                    latched == first
+                        || (first.acknowledgeable()
+                            && !latched.acknowledgeable()
+                            && event == SupervisorEvent::Fault(latched)),
+                    "{first:?} became {latched:?} on {event:?}"
+                ),
+                RunState::Stopped => {
+                    assert!(event == Press || event == Reset);
+                    assert!(first.acknowledgeable(), "{first:?} acknowledged");
+                }
                 other => panic!("left a fault to {other:?}"),
             }
+        }
+    });
+}
+
+/// A failed self-test (the edge counter's) is never left, whatever comes after it, and the
+/// driver is never enabled once it is latched.
+#[test]
+fn a_failed_self_test_stays_whatever_the_operator_does() {
+    for_all_sequences(|before, _, request, after| {
+        if before.state() == RunState::Faulted(Fault::EdgeCounter) {
+            assert_eq!(after.state(), RunState::Faulted(Fault::EdgeCounter));
+            assert!(!after.driver_enabled());
+            assert_ne!(request, MotionRequest::Start);
         }
     });
 }
@@ -260,7 +284,7 @@ fn a_fault_is_left_only_by_a_press_or_reset_and_only_to_stopped() {
 /// paused stays a stop.
 #[test]
 fn a_full_track_pauses_the_feeder_until_it_has_room() {
-    let mut supervisor = Supervisor::new(false);
+    let mut supervisor = Supervisor::new(None);
     assert_eq!(supervisor.handle(Start), MotionRequest::Start);
     assert_eq!(supervisor.handle(Full), MotionRequest::Stop);
     assert!(supervisor.paused());

@@ -361,6 +361,12 @@ impl<'a> Machine<'a> {
         self.board().read(address, self.now()).ok()
     }
 
+    /// Kills the edge counter: from now on (resets included) TIM3 ignores the segment timer's
+    /// TRGO, as a broken internal trigger would.
+    pub fn kill_edge_counter(&mut self) {
+        self.engine.get_data_mut().board.edge_counter_dead = true;
+    }
+
     /// Raises the non-maskable interrupt.
     pub fn nmi(&mut self) {
         self.engine.get_data_mut().board.scs.pend_nmi();

@@ -1,7 +1,8 @@
 //! Fault drills on the G474's own image on the twin, judged on the twin's pins and registers:
 //! after the fault the driver enable (PA10) must go low and stay low, and the command must go to
 //! the zero code (or the DAC off, by a reset) and stay there, within the time the firmware
-//! documents. A panic and an NMI take the safe state's stores at once; a stack overflow (on the
+//! documents. A dead edge counter must be caught by the power-up self-test before anything
+//! runs. A panic and an NMI take the safe state's stores at once; a stack overflow (on the
 //! twin's 1.5 cycles an instruction the recursion outlasts the watchdog), masked interrupts, a
 //! hang and a lockup leave the feeds off, and the independent watchdog resets the board.
 //!
@@ -13,6 +14,7 @@ use std::path::{Path, PathBuf};
 
 use feeder_twin::log::LogTable;
 use feeder_twin::outputs::OutputRecord;
+use feeder_twin::peripherals::Output;
 use feeder_twin::scenario::{drill_run, Drill, DrillOutcome};
 use feeder_twin::{Cycles, Machine, CORE_HZ};
 
@@ -109,5 +111,42 @@ fn a_stack_overflow_masked_interrupts_a_hang_and_a_lockup_end_in_the_watchdogs_r
             log.contains("fault latched: WatchdogReset"),
             "{name}: the board came up faulted\n{log}"
         );
+    }
+}
+
+/// An edge counter that does not count: the power-up self-test catches it, the fault latches
+/// before anything runs, and neither the button nor anything else starts the output.
+#[test]
+#[ignore = "needs the G474 image; run by cargo xtask test"]
+fn a_dead_edge_counter_is_caught_at_power_up_and_nothing_starts() {
+    let elf = std::env::var_os("FEEDER_G474_ELF")
+        .map(PathBuf::from)
+        .expect("FEEDER_G474_ELF names the G474 image");
+    let bytes = std::fs::read(&elf).expect("the image");
+    let table = LogTable::load(&bytes).expect("its defmt table");
+    let record = OutputRecord::default();
+    let mut machine = Machine::load(&elf, Box::new(record.clone())).expect("loads");
+    machine.kill_edge_counter();
+    let mut decoder = table.decoder();
+    let at = |s: f64| (s * CORE_HZ as f64) as Cycles;
+    machine.run_until(at(0.01)).expect("runs");
+    // Two presses: the first would acknowledge a fault that can be, the second start.
+    for press_s in [0.01, 0.2] {
+        machine.run_until(at(press_s)).expect("runs");
+        machine.button(true);
+        machine.run_until(at(press_s + 0.1)).expect("runs");
+        machine.button(false);
+    }
+    machine.run_until(at(0.6)).expect("runs");
+    let log = decoder.lines(&machine.take_log()).join("\n");
+    assert!(log.contains("self-test: the edge counter"), "{log}");
+    assert!(log.contains("fault latched: EdgeCounter"), "{log}");
+    assert!(!log.contains("Stopped -> Running"), "{log}");
+    for change in record.changes() {
+        match change {
+            Output::Enable { on, .. } => assert!(!on, "the driver was enabled\n{log}"),
+            Output::Dac { code, .. } => assert_eq!(code, 2048, "a level\n{log}"),
+            _ => {}
+        }
     }
 }

@@ -48,11 +48,11 @@ pub struct ControlLoop<O, E> {
 }
 
 impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
-    pub fn new(output: O, driver_enable: E, after_watchdog_reset: bool) -> Self {
+    pub fn new(output: O, driver_enable: E, latched_at_power_up: Option<Fault>) -> Self {
         Self {
             output,
             driver_enable,
-            supervisor: Supervisor::new(after_watchdog_reset),
+            supervisor: Supervisor::new(latched_at_power_up),
             phase: Phase::Stopped,
             cycle: 0,
             published: Status::POWER_UP,
@@ -68,9 +68,15 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
     pub async fn run(mut self) -> ! {
         self.report_latched_fault();
         self.publish();
+        // An output that failed its self-test never starts, not even its idle timeline.
+        if let RunState::Faulted(fault) = self.supervisor.state() {
+            if !fault.acknowledgeable() {
+                self.park(fault).await
+            }
+        }
         match self.plan() {
             Some(plan) => self.run_plan(plan).await,
-            None => self.park().await,
+            None => self.park(Fault::InvalidSettings).await,
         }
     }
 
@@ -92,10 +98,11 @@ impl<O: SegmentOutput, E: OutputPin> ControlLoop<O, E> {
         Some(plan)
     }
 
-    /// Invalid settings: stay at zero with the driver disabled; only a reset helps. Beats for the
+    /// Invalid settings, or an output that failed its self-test (`fault`): stay at zero with the
+    /// driver disabled, the output's timer never started; only a reset helps. Beats for the
     /// monitor well within its window, so that the watchdog stays fed.
-    async fn park(mut self) -> ! {
-        self.handle(SupervisorEvent::Fault(Fault::InvalidSettings), None);
+    async fn park(mut self, fault: Fault) -> ! {
+        self.handle(SupervisorEvent::Fault(fault), None);
         self.publish();
         loop {
             HEARTBEAT.fetch_add(1, Ordering::Relaxed);

@@ -32,7 +32,7 @@ pub fn start(spawner: SendSpawner, board: Board<board::Hardware>) {
     let control = ControlLoop::new(
         board.output,
         board.driver_enable,
-        board.after_watchdog_reset,
+        board.latched_at_power_up,
     );
     board.control_spawner.spawn(unwrap!(control_task(control)));
     if Barrier::PRESENT {

@@ -109,6 +109,8 @@ pub struct Board {
     pub watchdog_expired: bool,
     /// TIM2's counter overflowed (an edge of the DAC stage) since last asked.
     edge_came: bool,
+    /// A fault put in on purpose: TIM3 ignores its trigger (a dead edge counter).
+    pub edge_counter_dead: bool,
 }
 
 /// Base addresses (RM0440, "Memory map and register boundary addresses").
@@ -175,6 +177,7 @@ impl Board {
             moves: Vec::new(),
             watchdog_expired: false,
             edge_came: false,
+            edge_counter_dead: false,
         }
     }
 
@@ -182,6 +185,7 @@ impl Board {
     /// reset's cause in RCC_CSR; the outputs go to their reset state at `at`.
     pub fn reset(&self, at: Cycles, by_watchdog: bool) -> Self {
         let mut board = Board::new();
+        board.edge_counter_dead = self.edge_counter_dead;
         if by_watchdog {
             board.rcc = self.rcc.after_watchdog_reset();
         }
@@ -330,7 +334,7 @@ impl Board {
                     forward,
                 });
             }
-            if itr.is_some() && itr == Some(self.tim3.trigger_source()) {
+            if itr.is_some() && itr == Some(self.tim3.trigger_source()) && !self.edge_counter_dead {
                 let counted = self.tim3.trigger_in();
                 self.route_update(TIM3, counted, now);
             }

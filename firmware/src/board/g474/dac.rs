@@ -64,6 +64,11 @@ impl DacStage {
     /// The store of [`Self::SAFE_STATE_WRITES`] that writes the zero code.
     const ZERO_CODE_WRITE: usize = 1;
 
+    /// Whether the power-up self-test saw the edge counter count (`SegmentTimer`).
+    pub fn counts_edges(&self) -> bool {
+        self.timer.counts_edges()
+    }
+
     /// Takes the peripherals of both stages, so that the board builds either the same way; this
     /// one leaves TIM1, PA8 and PA9 in their reset state.
     pub fn new(

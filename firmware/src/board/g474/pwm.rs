@@ -81,6 +81,11 @@ impl PwmStage {
         RegisterWrite::new(TIM1_DIER, 0),
     ];
 
+    /// Whether the power-up self-test saw the edge counter count (`SegmentTimer`).
+    pub fn counts_edges(&self) -> bool {
+        self.timer.counts_edges()
+    }
+
     /// Takes the peripherals of both stages, so that the board builds either the same way; this
     /// one leaves DAC1, PA4 and TIM2 in their reset state.
     pub fn new(

@@ -86,6 +86,8 @@ impl<T: CoreInstance> Handler<T::UpdateInterrupt> for UpdateInterrupt<T> {
 pub struct SegmentTimer<T: GeneralInstance4Channel> {
     timer: Timer<'static, T>,
     _edge_counter: Timer<'static, TIM3>,
+    /// The power-up self-test saw TIM3 count a forced update.
+    counts_edges: bool,
 }
 
 impl<T: GeneralInstance4Channel> SegmentTimer<T> {
@@ -110,10 +112,34 @@ impl<T: GeneralInstance4Channel> SegmentTimer<T> {
         T::UpdateInterrupt::unpend();
         // SAFETY: the handler touches only this timer's flag and the waker.
         unsafe { T::UpdateInterrupt::enable() };
-        Self {
+        let mut segment_timer = Self {
             timer,
             _edge_counter: edge_counter,
+            counts_edges: false,
+        };
+        segment_timer.counts_edges = segment_timer.self_test();
+        segment_timer
+    }
+
+    /// The power-up self-test: a forced update of the stopped timer must reach TIM3 through
+    /// TRGO as one edge, else edges cannot be counted and the output must not start.
+    fn self_test(&mut self) -> bool {
+        let before = edges();
+        self.forced_update();
+        // TIM3 counts the trigger a few timer cycles after the update event.
+        cortex_m::asm::delay(16);
+        let counted = edges() == before.wrapping_add(1);
+        if !counted {
+            defmt::error!(
+                "self-test: the edge counter (TIM3) did not count the segment timer's forced update"
+            );
         }
+        counted
+    }
+
+    /// Whether the power-up self-test saw the edge counter count.
+    pub fn counts_edges(&self) -> bool {
+        self.counts_edges
     }
 
     /// The timer, for its stage's own registers.

@@ -7,6 +7,7 @@ use embassy_stm32::gpio::{self, Level, Pull, Speed};
 use embassy_stm32::interrupt::typelevel::{self, Handler};
 use embassy_stm32::interrupt::{self, InterruptExt, Priority};
 use embassy_stm32::{bind_interrupts, pac};
+use feeder_shared::Fault;
 
 use super::light_barrier::LightBarrier;
 use super::pins::clocks;
@@ -102,6 +103,14 @@ pub fn init(thread_spawner: SendSpawner) -> (SendSpawner, Board<Hardware>) {
         TASK_EXECUTOR.start(interrupt::UART5)
     };
 
+    // A failed self-test outranks the watchdog's reset: it cannot be acknowledged.
+    let latched_at_power_up = if !output.counts_edges() {
+        Some(Fault::EdgeCounter)
+    } else if after_watchdog_reset {
+        Some(Fault::WatchdogReset)
+    } else {
+        None
+    };
     let board = Board {
         output,
         driver_enable,
@@ -111,7 +120,7 @@ pub fn init(thread_spawner: SendSpawner) -> (SendSpawner, Board<Hardware>) {
         operator,
         sensor,
         part_sensor,
-        after_watchdog_reset,
+        latched_at_power_up,
         control_spawner,
         background_spawner: thread_spawner,
     };

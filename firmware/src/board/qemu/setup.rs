@@ -62,7 +62,7 @@ pub fn init() -> (SendSpawner, Board<Hardware>) {
         sensor: super::attach_sensor(),
         part_sensor: operator::part_sensor(),
         // QEMU starts fresh every run.
-        after_watchdog_reset: false,
+        latched_at_power_up: None,
         control_spawner,
         background_spawner,
     };
