@@ -91,6 +91,17 @@ const CFSR_PRECISERR: u32 = 1 << 9;
 const CFSR_BFARVALID: u32 = 1 << 15;
 const CFSR_STKERR: u32 = 1 << 12;
 
+/// The core registers of an exception frame, in their order on the stack (xPSR follows).
+const FRAME_REGISTERS: [RegisterARM; 7] = [
+    RegisterARM::R0,
+    RegisterARM::R1,
+    RegisterARM::R2,
+    RegisterARM::R3,
+    RegisterARM::R12,
+    RegisterARM::LR,
+    RegisterARM::PC,
+];
+
 /// Why the engine stopped a slice.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum SliceEnd {
@@ -623,16 +634,7 @@ impl<'a> Machine<'a> {
                 problem: "the twin models the main stack only".into(),
             });
         }
-        let registers = [
-            RegisterARM::R0,
-            RegisterARM::R1,
-            RegisterARM::R2,
-            RegisterARM::R3,
-            RegisterARM::R12,
-            RegisterARM::LR,
-            RegisterARM::PC,
-        ];
-        let mut frame: Vec<u32> = registers.iter().map(|&r| self.reg(r)).collect();
+        let mut frame: Vec<u32> = FRAME_REGISTERS.iter().map(|&r| self.reg(r)).collect();
         let ipsr = self.engine.get_data().active.last().copied().unwrap_or(0);
         let xpsr = (self.reg(RegisterARM::XPSR) & !0x1FF) | ipsr | 1 << 24;
         frame.push(xpsr);
@@ -708,16 +710,7 @@ impl<'a> Machine<'a> {
                     })?,
             );
         }
-        let registers = [
-            RegisterARM::R0,
-            RegisterARM::R1,
-            RegisterARM::R2,
-            RegisterARM::R3,
-            RegisterARM::R12,
-            RegisterARM::LR,
-            RegisterARM::PC,
-        ];
-        for (register, value) in registers.iter().zip(&frame) {
+        for (register, value) in FRAME_REGISTERS.iter().zip(&frame) {
             self.set_reg(*register, *value)?;
         }
         let xpsr = frame[7];

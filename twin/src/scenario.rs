@@ -66,7 +66,19 @@ struct Log<'d, 'o> {
     feed_before_reset: Option<Cycles>,
 }
 
-impl Log<'_, '_> {
+impl<'d, 'o> Log<'d, 'o> {
+    fn new(decoder: LogDecoder<'d>, out: &'o mut dyn Write) -> Self {
+        Log {
+            decoder,
+            out,
+            timing: None,
+            start_tick: None,
+            segments: Vec::new(),
+            drill_at: None,
+            feed_before_reset: None,
+        }
+    }
+
     fn take(&mut self, machine: &mut Machine) -> io::Result<()> {
         let clock_origin = machine.board().clock_origin().unwrap_or(0);
         for line in self.decoder.lines(&machine.take_log()) {
@@ -137,15 +149,7 @@ pub fn button_run(
     cycles: u64,
     record: &OutputRecord,
 ) -> Result<ButtonOutcome, TwinError> {
-    let mut log = Log {
-        decoder,
-        out,
-        timing: None,
-        start_tick: None,
-        segments: Vec::new(),
-        drill_at: None,
-        feed_before_reset: None,
-    };
+    let mut log = Log::new(decoder, out);
     let judge = |machine: &Machine, log: &Log| {
         let changes = record.changes();
         let zero_code = changes.iter().find_map(|change| match change {
@@ -240,15 +244,7 @@ pub fn drill_run(
     record: &OutputRecord,
     drill: Drill,
 ) -> Result<Option<DrillOutcome>, TwinError> {
-    let mut log = Log {
-        decoder,
-        out,
-        timing: None,
-        start_tick: None,
-        segments: Vec::new(),
-        drill_at: None,
-        feed_before_reset: None,
-    };
+    let mut log = Log::new(decoder, out);
     let mut watchdog_reset = press(machine, &mut log, seconds(FIRST_PRESS_S))?;
     if drill == Drill::Nmi && watchdog_reset.is_none() {
         watchdog_reset = run(machine, &mut log, seconds(NMI_AT_S))?;
