@@ -1,6 +1,6 @@
 //! The machine: the core on the unicorn engine, the board's memories (flash, SRAM with its CCM
 //! alias, system memory), the peripherals behind the bus, virtual time, resets, and sleeping in
-//! WFI and WFE; exceptions are [`exception`]'s, the engine's hooks [`hooks`]'.
+//! WFI and WFE; exceptions are `exception`'s, the engine's hooks `hooks`'.
 
 mod exception;
 mod hooks;

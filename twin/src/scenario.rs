@@ -235,7 +235,7 @@ pub enum Drill {
 const NMI_AT_S: f64 = 1.0;
 
 /// Runs a fault drill: a press starts the feeder, the fault comes, and the outputs are watched
-/// for [`DRILL_WATCH_S`] after it; the decoded log goes to `out`. `None` when the fault never
+/// for `DRILL_WATCH_S` after it; the decoded log goes to `out`. `None` when the fault never
 /// came.
 pub fn drill_run(
     machine: &mut Machine,
