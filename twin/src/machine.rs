@@ -356,6 +356,12 @@ impl<'a> Machine<'a> {
         self.engine.get_data_mut().board.edge_counter_dead = true;
     }
 
+    /// Breaks DMA1's channel `channel` (0-based): its next move and every one after it is a
+    /// transfer error, which disables the channel.
+    pub fn break_dma_channel(&mut self, channel: usize) {
+        self.engine.get_data_mut().board.dma_channel_broken = Some(channel);
+    }
+
     /// Raises the non-maskable interrupt.
     pub fn nmi(&mut self) {
         self.engine.get_data_mut().board.scs.pend_nmi();

@@ -150,3 +150,47 @@ fn a_dead_edge_counter_is_caught_at_power_up_and_nothing_starts() {
         }
     }
 }
+
+/// The encoder's sampling DMA stopped by a transfer error (the twin breaks DMA1 channel 1 once
+/// the closed loop runs): the firmware must notice the channel off rather than hand the
+/// buffer's last counts on as new, and the closed loop must stop with the driver off.
+#[test]
+#[ignore = "needs the G474 encoder image; run by cargo xtask test"]
+fn a_dma_transfer_error_on_the_encoders_channel_stops_the_closed_loop() {
+    let elf = std::env::var_os("FEEDER_G474_ENCODER_ELF")
+        .map(PathBuf::from)
+        .expect("FEEDER_G474_ENCODER_ELF names the encoder image");
+    let bytes = std::fs::read(&elf).expect("the image");
+    let table = LogTable::load(&bytes).expect("its defmt table");
+    let record = OutputRecord::default();
+    let mut machine = Machine::load(&elf, Box::new(record.clone())).expect("loads");
+    let mut decoder = table.decoder();
+    let at = |s: f64| (s * CORE_HZ as f64) as Cycles;
+    machine.run_until(at(0.01)).expect("runs");
+    machine.button(true);
+    machine.run_until(at(0.11)).expect("runs");
+    machine.button(false);
+    machine.run_until(at(0.115)).expect("runs");
+    let broken_at = machine.now();
+    machine.break_dma_channel(0);
+    machine.run_until(at(0.6)).expect("runs");
+    let log = decoder.lines(&machine.take_log()).join("\n");
+    assert!(log.contains("encoder: the sampling DMA stopped"), "{log}");
+    assert!(log.contains("closed loop"), "{log}");
+    // After the break the driver ends disabled and the command at its zero code.
+    let changes = record.changes();
+    let last_enable = changes.iter().rev().find_map(|change| match change {
+        Output::Enable { at, on } if *at >= broken_at => Some(*on),
+        _ => None,
+    });
+    assert_eq!(last_enable, Some(false), "the driver ends disabled\n{log}");
+    let zero = changes.iter().find_map(|change| match change {
+        Output::Dac { code, .. } => Some(*code),
+        _ => None,
+    });
+    let last_code = changes.iter().rev().find_map(|change| match change {
+        Output::Dac { code, .. } => Some(*code),
+        _ => None,
+    });
+    assert_eq!(last_code, zero, "the command ends at the zero code\n{log}");
+}

@@ -45,7 +45,8 @@ pub(super) fn move_items(engine: &mut Unicorn<'_, State>) {
         }
         for item in items {
             let now = engine.get_data().now();
-            let value = read_any(engine, item.from, item.size, now);
+            let broken = engine.get_data().board.dma_channel_broken == Some(item.channel);
+            let value = read_any(engine, item.from, item.size, now).filter(|_| !broken);
             let written = value.and_then(|value| write_any(engine, item.to, item.size, value, now));
             engine.get_data_mut().board.moved(&item, written.is_none());
         }

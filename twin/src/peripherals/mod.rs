@@ -111,6 +111,9 @@ pub struct Board {
     edge_came: bool,
     /// A fault put in on purpose: TIM3 ignores its trigger (a dead edge counter).
     pub edge_counter_dead: bool,
+    /// A fault put in on purpose: every move of this DMA1 channel (0-based) is a transfer
+    /// error.
+    pub dma_channel_broken: Option<usize>,
 }
 
 /// Base addresses (RM0440, "Memory map and register boundary addresses").
@@ -178,6 +181,7 @@ impl Board {
             watchdog_expired: false,
             edge_came: false,
             edge_counter_dead: false,
+            dma_channel_broken: None,
         }
     }
 

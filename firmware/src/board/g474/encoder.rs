@@ -29,6 +29,7 @@
 //! Built but not yet verified on hardware.
 
 use core::cell::{RefCell, UnsafeCell};
+use core::sync::atomic::{AtomicBool, Ordering};
 
 use embassy_stm32::pac;
 use embassy_stm32::pac::bdma::vals::{Dir, Pl, Size};
@@ -305,10 +306,32 @@ struct View {
     capture: Option<u16>,
 }
 
+/// Whether the sampling's DMA has stopped: a transfer error (TEIF) disables its channel, and the
+/// buffers would then hand the last counts on as new ones. Logged the first time.
+fn sampling_failed() -> bool {
+    static REPORTED: AtomicBool = AtomicBool::new(false);
+    let status = pac::DMA1.isr().read();
+    let failed = status.teif(SAMPLE_DMA)
+        || status.teif(CAPTURE_DMA)
+        || !pac::DMA1.ch(SAMPLE_DMA).cr().read().en();
+    if failed && !REPORTED.swap(true, Ordering::Relaxed) {
+        defmt::error!(
+            "encoder: the sampling DMA stopped (transfer error or channel off): no position is \
+             taken from it"
+        );
+    }
+    failed
+}
+
 impl PositionSensor for Encoder {
     const PRESENT: bool = true;
 
+    /// Nothing once the sampling's DMA has stopped ([`sampling_failed`]): the closed loop then
+    /// stops on the missing capture.
     fn take_until(&mut self, tick: u64, out: &mut [PositionSample]) -> usize {
+        if sampling_failed() {
+            return 0;
+        }
         let Some(view) = TIMELINE.lock(|timeline| {
             let timeline = timeline.borrow();
             if tick < timeline.start_tick || out.is_empty() {
