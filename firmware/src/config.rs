@@ -36,14 +36,15 @@ pub fn control_progress_window_us(min_frequency_hz: f64) -> u64 {
 /// How often the control loop beats while parked (invalid settings): well within the window.
 pub const PARK_HEARTBEAT_MS: u64 = 10;
 
-/// How often thread mode (button, LED, console) beats for the monitor, where the monitor watches
-/// it (see `ports::Watchdog::WATCHES_THREAD_MODE`).
-pub const THREAD_HEARTBEAT_MS: u64 = 50;
+/// How often the tasks' executor (button, LED, console: thread mode, or with a position sensor
+/// the task executor) beats for the monitor, where the monitor watches it (see
+/// `ports::Watchdog::WATCHES_TASKS`).
+pub const TASKS_HEARTBEAT_MS: u64 = 50;
 
-/// The longest thread mode may go without a beat: a recipe write blocks it for a page erase and
-/// 256 double-word writes (about 22 + 21 ms, at most 48 ms, DS12288 "Flash memory
+/// The longest the tasks' executor may go without a beat: a recipe write blocks it for a page
+/// erase and 256 double-word writes (about 22 + 21 ms, at most 48 ms, DS12288 "Flash memory
 /// characteristics"), plus a beat period, with room to spare.
-pub const THREAD_PROGRESS_WINDOW_US: u64 = 200_000;
+pub const TASKS_PROGRESS_WINDOW_US: u64 = 200_000;
 
 /// How often the monitor logs the CPU cost of the edges.
 pub const REPORT_PERIOD_US: u64 = 1_000_000;

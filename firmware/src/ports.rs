@@ -57,9 +57,9 @@ pub struct Board<P: Parts> {
 pub trait Watchdog {
     /// How often the monitor checks progress and feeds the watchdog.
     const MONITOR_PERIOD_US: u64;
-    /// The monitor runs on the control executor, above thread mode, and thread mode beats for it:
-    /// the watchdog's timeout is shorter than the longest work in thread mode.
-    const WATCHES_THREAD_MODE: bool;
+    /// The monitor runs on the control executor, above the tasks' executor, which beats for it:
+    /// the watchdog's timeout is shorter than the longest work of a task (a recipe write).
+    const WATCHES_TASKS: bool;
 
     /// Feeds the watchdog unless the board holds the feed back; true if it fed.
     fn feed(&mut self) -> bool;

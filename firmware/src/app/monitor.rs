@@ -16,13 +16,13 @@ type BoardWatchdog = <board::Hardware as Parts>::Watchdog;
 
 /// How often the monitor checks progress and feeds the watchdog.
 const MONITOR_PERIOD_US: u64 = <BoardWatchdog as Watchdog>::MONITOR_PERIOD_US;
-/// Whether the monitor runs above thread mode and watches it (see [`spawn`]).
-const WATCHES_THREAD_MODE: bool = <BoardWatchdog as Watchdog>::WATCHES_THREAD_MODE;
+/// Whether the monitor runs above the tasks' executor and watches it (see [`spawn`]).
+const WATCHES_TASKS: bool = <BoardWatchdog as Watchdog>::WATCHES_TASKS;
 
 /// Counts the control loop's progress (segment starts, or parking ticks).
 pub static HEARTBEAT: AtomicU32 = AtomicU32::new(0);
-/// Counts thread mode's progress (see [`thread_heartbeat_task`]).
-static THREAD_HEARTBEAT: AtomicU32 = AtomicU32::new(0);
+/// Counts the tasks' executor's progress (see [`tasks_heartbeat_task`]).
+static TASKS_HEARTBEAT: AtomicU32 = AtomicU32::new(0);
 /// CPU cost of the work per edge since the last report.
 pub static COST: EdgeCost = EdgeCost::new();
 /// Set when the DWT cycle counter runs, so that edge costs are measured.
@@ -32,13 +32,14 @@ static CYCLE_COUNTER_RUNS: AtomicBool = AtomicBool::new(false);
 const REPORT_EVERY_MONITOR_PERIODS: u32 = (config::REPORT_PERIOD_US / MONITOR_PERIOD_US) as u32;
 
 /// Spawns the monitor. Where the watchdog's timeout ([`config::WATCHDOG_TIMEOUT_US`] on the board)
-/// is shorter than the longest thread-mode work (a recipe write, tens of milliseconds), the monitor
-/// runs on the control executor and thread mode beats for it; otherwise it runs on `spawner` with
-/// the other tasks.
+/// is shorter than the longest work of a task (a recipe write, tens of milliseconds), the monitor
+/// runs on the control executor and the tasks' executor, `spawner`'s (thread mode, or with a
+/// position sensor the task executor), beats for it; otherwise it runs on `spawner` with the
+/// other tasks.
 pub fn spawn(spawner: SendSpawner, control_spawner: SendSpawner, watchdog: BoardWatchdog) {
-    if WATCHES_THREAD_MODE {
+    if WATCHES_TASKS {
         control_spawner.spawn(unwrap!(monitor_task(watchdog)));
-        spawner.spawn(unwrap!(thread_heartbeat_task()));
+        spawner.spawn(unwrap!(tasks_heartbeat_task()));
     } else {
         spawner.spawn(unwrap!(monitor_task(watchdog)));
     }
@@ -49,8 +50,8 @@ pub fn spawn(spawner: SendSpawner, control_spawner: SendSpawner, watchdog: Board
 ///
 /// The control loop beats at every segment start, so it may go a whole segment without one: the
 /// monitor stops feeding (and warns, once) only when it has not beaten for
-/// [`config::control_progress_window_us`] at the configured lowest frequency. Where the monitor runs above thread mode (see
-/// [`spawn`]), thread mode beats for it too.
+/// [`config::control_progress_window_us`] at the configured lowest frequency. Where the monitor
+/// runs above the tasks' executor (see [`spawn`]), that executor beats for it too.
 #[embassy_executor::task]
 async fn monitor_task(mut watchdog: BoardWatchdog) {
     let mut ticker = Ticker::every(Duration::from_micros(MONITOR_PERIOD_US));
@@ -58,17 +59,17 @@ async fn monitor_task(mut watchdog: BoardWatchdog) {
         &HEARTBEAT,
         config::control_progress_window_us(configured::get().limits.min_frequency_hz),
     );
-    let mut thread_mode = WATCHES_THREAD_MODE
-        .then(|| Progress::new(&THREAD_HEARTBEAT, config::THREAD_PROGRESS_WINDOW_US));
+    let mut tasks = WATCHES_TASKS
+        .then(|| Progress::new(&TASKS_HEARTBEAT, config::TASKS_PROGRESS_WINDOW_US));
     let mut periods = 0u32;
     let mut report_start = cycles();
     loop {
         ticker.next().await;
         let control_alive = control.check("control loop");
-        let thread_mode_alive = thread_mode
+        let tasks_alive = tasks
             .as_mut()
-            .is_none_or(|progress| progress.check("thread mode"));
-        if control_alive && thread_mode_alive && watchdog.feed() {
+            .is_none_or(|progress| progress.check("the tasks"));
+        if control_alive && tasks_alive && watchdog.feed() {
             board::after_feed();
         }
         periods += 1;
@@ -121,12 +122,13 @@ impl Progress {
     }
 }
 
-/// Beats for the monitor from thread mode, where the button, the LED and the console run.
+/// Beats for the monitor from the tasks' executor, where the button, the LED and the console
+/// run.
 #[embassy_executor::task]
-async fn thread_heartbeat_task() {
-    let mut ticker = Ticker::every(Duration::from_millis(config::THREAD_HEARTBEAT_MS));
+async fn tasks_heartbeat_task() {
+    let mut ticker = Ticker::every(Duration::from_millis(config::TASKS_HEARTBEAT_MS));
     loop {
-        THREAD_HEARTBEAT.fetch_add(1, Ordering::Relaxed);
+        TASKS_HEARTBEAT.fetch_add(1, Ordering::Relaxed);
         ticker.next().await;
     }
 }

@@ -55,8 +55,9 @@ impl Watchdog for OutputWatchdog {
     /// replayed segment still leaves a feed in time, even with the reset at its earliest (7
     /// counts at the fastest LSI, 0.82 ms).
     const MONITOR_PERIOD_US: u64 = WATCHDOG_TIMEOUT_US as u64 / 4;
-    /// A recipe write blocks thread mode for tens of milliseconds, far longer than the timeout.
-    const WATCHES_THREAD_MODE: bool = true;
+    /// A recipe write blocks the tasks' executor for tens of milliseconds, far longer than the
+    /// timeout.
+    const WATCHES_TASKS: bool = true;
 
     /// Feeds unless the output replays a segment.
     fn feed(&mut self) -> bool {

@@ -107,7 +107,7 @@ impl Watchdog for NoWatchdog {
     /// Progress is only logged, so rarely.
     const MONITOR_PERIOD_US: u64 = 100_000;
     /// Without a watchdog the monitor runs with the other tasks.
-    const WATCHES_THREAD_MODE: bool = false;
+    const WATCHES_TASKS: bool = false;
 
     /// Nothing to feed; the monitor's feed counts as made.
     fn feed(&mut self) -> bool {
