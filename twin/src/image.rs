@@ -116,4 +116,13 @@ impl Image {
     pub fn symbol(&self, name: &str) -> Option<u32> {
         self.symbols.get(name).copied()
     }
+
+    /// The data symbols whose (mangled) names hold `part`, with their addresses.
+    pub fn symbols_containing(&self, part: &str) -> Vec<(&str, u32)> {
+        self.symbols
+            .iter()
+            .filter(|(name, _)| name.contains(part))
+            .map(|(name, &address)| (name.as_str(), address))
+            .collect()
+    }
 }

@@ -390,6 +390,15 @@ impl<'a> Machine<'a> {
         std::mem::take(&mut self.engine.get_data_mut().log)
     }
 
+    /// The image's data symbols whose names hold `part`.
+    pub fn symbols_containing(&self, part: &str) -> Vec<(String, u32)> {
+        self.image
+            .symbols_containing(part)
+            .into_iter()
+            .map(|(name, address)| (name.to_string(), address))
+            .collect()
+    }
+
     /// The function holding `pc`, by its symbol.
     pub fn function(&self, pc: u32) -> String {
         self.image.function(pc).to_string()

@@ -2,9 +2,9 @@
 //! after the fault the driver enable (PA10) must go low and stay low, and the command must go to
 //! the zero code (or the DAC off, by a reset) and stay there, within the time the firmware
 //! documents. A dead edge counter must be caught by the power-up self-test before anything
-//! runs. A panic and an NMI take the safe state's stores at once; a stack overflow (on the
-//! twin's 1.5 cycles an instruction the recursion outlasts the watchdog), masked interrupts, a
-//! hang and a lockup leave the feeds off, and the independent watchdog resets the board.
+//! runs. A panic and an NMI take the safe state's stores at once; masked interrupts, a hang and
+//! a lockup leave the feeds off, and the independent watchdog resets the board; a stack overflow
+//! reaches the HardFault entry's stores (without a stack) or the reset, whichever comes first.
 //!
 //! `FEEDER_G474_DRILLS` names a directory with an image per drill (`panic.elf`, …, built with
 //! `FEEDER_FAULT_DRILL`), `FEEDER_G474_ELF` the image without one (for the NMI); `cargo xtask
@@ -86,18 +86,21 @@ fn an_nmi_takes_the_hardfault_entry_and_its_stores() {
 
 #[test]
 #[ignore = "needs the G474 drill images; run by cargo xtask test"]
-fn a_stack_overflow_masked_interrupts_a_hang_and_a_lockup_end_in_the_watchdogs_reset() {
+fn a_stack_overflow_masked_interrupts_a_hang_and_a_lockup_end_safe_by_the_watchdog() {
     for name in ["stack-overflow", "critical-section", "hang", "lockup"] {
         let (outcome, log) = drill(&drills_dir().join(format!("{name}.elf")), Drill::Firmware);
         assert_safe_within(name, &outcome, WATCHDOG_S, &log);
         let reset = outcome
             .watchdog_reset
             .expect("the watchdog reset the board");
-        assert_eq!(
-            Some(reset),
-            outcome.enable_off_at,
-            "{name}: safe by the reset"
-        );
+        // A stack overflow reaches the HardFault entry's stores when the recursion crosses the
+        // bottom of RAM before the watchdog's reset (on the twin, 16 µs before it); the others
+        // are made safe by the reset itself.
+        let enable_off = outcome.enable_off_at.expect("the driver went off");
+        match name {
+            "stack-overflow" => assert!(enable_off <= reset, "{name}: safe by the reset at latest"),
+            _ => assert_eq!(enable_off, reset, "{name}: safe by the reset"),
+        }
         // 7 to 8 counts of 125 µs after the last feed: a feed reloads the count, not the
         // prescaler's phase.
         let feed = outcome.last_feed.expect("the watchdog was fed before");

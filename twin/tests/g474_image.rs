@@ -117,6 +117,17 @@ fn the_encoder_image_routes_its_sampling_as_reviewed() {
     for (address, value, name) in &expected {
         assert_eq!(machine.register(*address), Some(*value), "{name}");
     }
+    // The sampling's buffers, which DMA writes, in SRAM1 or SRAM2 (below the CCM SRAM's alias
+    // at 0x2001_8000): where the DMA reaches them through the bus matrix.
+    for part in ["encoder7SAMPLES", "encoder8CAPTURES"] {
+        let found = machine.symbols_containing(part);
+        assert_eq!(found.len(), 1, "{part}: {found:?}");
+        let (name, address) = &found[0];
+        assert!(
+            (0x2000_0000..0x2001_8000).contains(address),
+            "{name} at {address:#x}"
+        );
+    }
     let smcr = machine.register(0x4000_0808).expect("TIM4 SMCR");
     assert_eq!(smcr & 0x7, 3, "TIM4 in encoder mode 3: {smcr:#x}");
     let ccmr1 = machine.register(0x4000_0818).expect("TIM4 CCMR1");
