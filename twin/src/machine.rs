@@ -130,6 +130,8 @@ pub struct State {
     worst_edge: EdgeWork,
     /// Edges whose work was measured.
     edges_measured: u64,
+    /// Register writes kept while a trace runs: `(address, value)`, in order.
+    writes: Option<Vec<(u32, u32)>>,
 }
 
 /// The work from an edge to the next preload: what decides how long it takes on the board.
@@ -219,6 +221,7 @@ impl<'a> Machine<'a> {
             edge: None,
             worst_edge: EdgeWork::default(),
             edges_measured: 0,
+            writes: None,
         };
         let mut engine = Unicorn::new_with_data(Arch::ARM, Mode::THUMB | Mode::MCLASS, state)
             .map_err(engine_error("start"))?;
@@ -360,6 +363,16 @@ impl<'a> Machine<'a> {
     /// transfer error, which disables the channel.
     pub fn break_dma_channel(&mut self, channel: usize) {
         self.engine.get_data_mut().board.dma_channel_broken = Some(channel);
+    }
+
+    /// Starts keeping every register write the firmware makes (dropping those kept so far).
+    pub fn trace_writes(&mut self) {
+        self.engine.get_data_mut().writes = Some(Vec::new());
+    }
+
+    /// The register writes kept since [`Machine::trace_writes`], `(address, value)` in order.
+    pub fn traced_writes(&self) -> &[(u32, u32)] {
+        self.engine.get_data().writes.as_deref().unwrap_or(&[])
     }
 
     /// Raises the non-maskable interrupt.

@@ -197,3 +197,35 @@ fn a_dma_transfer_error_on_the_encoders_channel_stops_the_closed_loop() {
     });
     assert_eq!(last_code, zero, "the command ends at the zero code\n{log}");
 }
+
+/// The HardFault entry's stores, as the twin's bus sees them on an NMI while the feeder runs:
+/// the DAC stage's `SAFE_STATE_WRITES` (`firmware/src/board/g474/dac.rs`) before anything else,
+/// in their order: PA10 low through BSRR, the zero code into DHR12R1, TIM2's forced update (its
+/// TRGO latches the code), TIM2 stopped with ARPE and URS kept, its interrupt off.
+#[test]
+#[ignore = "needs the G474 image; run by cargo xtask test"]
+fn the_hardfault_entrys_stores_are_the_safe_state_in_order() {
+    let elf = std::env::var_os("FEEDER_G474_ELF")
+        .map(PathBuf::from)
+        .expect("FEEDER_G474_ELF names the G474 image");
+    let mut machine = Machine::load(&elf, Box::new(OutputRecord::default())).expect("loads");
+    let at = |s: f64| (s * CORE_HZ as f64) as Cycles;
+    machine.run_until(at(0.01)).expect("runs");
+    machine.button(true);
+    machine.run_until(at(0.11)).expect("runs");
+    machine.button(false);
+    machine.run_until(at(1.0)).expect("runs");
+    machine.trace_writes();
+    machine.nmi();
+    machine.run_until(at(1.0001)).expect("runs");
+    let expected = [
+        (0x4800_0018, 1 << 26),
+        (0x5000_0808, 2048),
+        (0x4000_0014, 1),
+        (0x4000_0000, 1 << 7 | 1 << 2),
+        (0x4000_000C, 0),
+    ];
+    let writes = machine.traced_writes();
+    assert!(writes.len() >= expected.len(), "{writes:x?}");
+    assert_eq!(&writes[..expected.len()], &expected, "{writes:x?}");
+}

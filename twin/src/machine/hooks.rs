@@ -178,6 +178,9 @@ pub(super) fn install_hooks(engine: &mut Unicorn<'_, State>) -> Result<(), TwinE
                         let address = (base + offset) as u32;
                         let state = uc.get_data_mut();
                         let now = state.now();
+                        if let Some(writes) = state.writes.as_mut() {
+                            writes.push((address, value as u32));
+                        }
                         if address == TIM2_ARR {
                             if let Some(work) = state.edge.take() {
                                 if work.instructions > state.worst_edge.instructions {
