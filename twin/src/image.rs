@@ -1,7 +1,7 @@
 //! The firmware's release ELF as the board's flash holds it: its loadable segments, its
 //! functions (to name a program counter) and the instructions the twin handles itself.
 
-use std::collections::{BTreeMap, HashSet};
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use object::elf::PT_LOAD;
@@ -31,8 +31,10 @@ pub struct Image {
     functions: BTreeMap<u32, String>,
     /// Data symbols by name: the RTT control block among them.
     symbols: BTreeMap<String, u32>,
-    /// Halfword addresses that hold a hint instruction, by kind.
-    hints: HashSet<(u32, u16)>,
+    /// The hint instruction at each halfword from `hints_from` on, if one is there: one lookup
+    /// per 16-bit instruction executed.
+    hints: Vec<Option<Hint>>,
+    hints_from: u32,
 }
 
 impl Image {
@@ -48,7 +50,7 @@ impl Image {
         let file = ElfFile32::<Endianness>::parse(&*bytes).map_err(|error| problem(&error))?;
         let endian = file.endian();
         let mut segments = Vec::new();
-        let mut hints = HashSet::new();
+        let mut hints: Vec<(u32, Hint)> = Vec::new();
         // Each loadable segment goes where the flash holds it: its physical (load) address,
         // from which the start-up code copies `.data` to RAM.
         for header in file.elf_program_headers() {
@@ -63,12 +65,21 @@ impl Image {
             }
             let load_address = header.p_paddr(endian);
             for (index, pair) in data.chunks_exact(2).enumerate() {
-                let halfword = u16::from_le_bytes([pair[0], pair[1]]);
-                if matches!(halfword, WFI | WFE | SEV) {
-                    hints.insert((load_address + 2 * index as u32, halfword));
-                }
+                let hint = match u16::from_le_bytes([pair[0], pair[1]]) {
+                    WFI => Hint::WaitForInterrupt,
+                    WFE => Hint::WaitForEvent,
+                    SEV => Hint::SendEvent,
+                    _ => continue,
+                };
+                hints.push((load_address + 2 * index as u32, hint));
             }
             segments.push((load_address, data.to_vec()));
+        }
+        let hints_from = hints.iter().map(|&(address, _)| address).min().unwrap_or(0);
+        let hints_to = hints.iter().map(|&(address, _)| address).max().unwrap_or(0);
+        let mut table = vec![None; ((hints_to - hints_from) / 2 + 1) as usize];
+        for (address, hint) in hints {
+            table[((address - hints_from) / 2) as usize] = Some(hint);
         }
         let mut functions = BTreeMap::new();
         let mut symbols = BTreeMap::new();
@@ -88,20 +99,15 @@ impl Image {
             segments,
             functions,
             symbols,
-            hints,
+            hints: table,
+            hints_from,
         })
     }
 
     /// The hint at `address`, where the instruction there is 16 bits long.
     pub fn hint(&self, address: u32) -> Option<Hint> {
-        [
-            (WFI, Hint::WaitForInterrupt),
-            (WFE, Hint::WaitForEvent),
-            (SEV, Hint::SendEvent),
-        ]
-        .into_iter()
-        .find(|(halfword, _)| self.hints.contains(&(address, *halfword)))
-        .map(|(_, hint)| hint)
+        let index = address.checked_sub(self.hints_from)? / 2;
+        self.hints.get(index as usize).copied().flatten()
     }
 
     /// The function that holds `pc`, by its symbol.
