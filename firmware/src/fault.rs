@@ -120,7 +120,8 @@ core::arch::global_asm!(
     report = sym report_hard_fault,
 );
 
-/// The exception's name in the log: HardFault, NMI, or the number of one without a handler.
+/// The exception's name in the log: HardFault, NMI, a configurable fault, or one without a
+/// handler (its number is logged beside it).
 fn exception_name(number: u32) -> &'static str {
     match number {
         2 => "NMI",
