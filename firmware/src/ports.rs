@@ -48,6 +48,11 @@ pub struct Board<P: Parts> {
     pub latched_at_power_up: Option<Fault>,
     /// Spawner of the executor that runs the control loop above the other tasks.
     pub control_spawner: SendSpawner,
+    /// Spawner of the executor that runs the closed loop's course, below the control loop and
+    /// above the other tasks: an operator's command never holds a decision past the segment
+    /// it is due in (a settle segment is 2.5 ms). A board without a position sensor runs no
+    /// course and passes the tasks' spawner.
+    pub loop_spawner: SendSpawner,
     /// Spawner of the executor below every other: long computations (the drive's
     /// identification) that must not hold the closed loop up.
     pub background_spawner: SendSpawner,

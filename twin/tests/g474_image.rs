@@ -137,6 +137,25 @@ fn the_encoder_image_routes_its_sampling_as_reviewed() {
         "TI1 and TI2, filtered over 8 clocks: {ccmr1:#x}"
     );
     assert_priorities(&machine, 28);
+    // The closed loop's course (the loop executor on CORDIC's vector, IRQ 100) one level above
+    // the other tasks (the task executor on UART5's, IRQ 53), the console's commands among them.
+    for (irq, expected, name) in [
+        (100, 0xE0, "CORDIC: the loop executor"),
+        (53, 0xF0, "UART5: the task executor"),
+    ] {
+        let word = machine
+            .register(0xE000_E400 + (irq & !3))
+            .expect("NVIC IPR");
+        assert_eq!(
+            (word >> (8 * (irq & 3))) & 0xFF,
+            expected,
+            "{name}'s priority"
+        );
+        let enabled = machine
+            .register(0xE000_E100 + 4 * (irq / 32))
+            .expect("NVIC ISER");
+        assert_ne!(enabled & (1 << (irq % 32)), 0, "{name} enabled");
+    }
 }
 
 #[test]

@@ -22,8 +22,8 @@ type Barrier = <board::Hardware as Parts>::PartSensor;
 
 /// Spawns the tasks: the control loop on the board's control executor, above the others; the
 /// button, the LED, the monitor and the operator on `spawner` (the monitor where the board's
-/// watchdog needs it); with a position sensor, the closed loop on `spawner` and the drive's
-/// identification on the background executor; with a part sensor, track control on `spawner`.
+/// watchdog needs it); with a position sensor, the closed loop on the board's loop executor
+/// and the drive's identification on the background executor; with a part sensor, track control on `spawner`.
 pub fn start(spawner: SendSpawner, board: Board<board::Hardware>) {
     monitor::enable_cycle_counter();
     board::announce();
@@ -39,7 +39,7 @@ pub fn start(spawner: SendSpawner, board: Board<board::Hardware>) {
         spawner.spawn(unwrap!(track::track_task(board.part_sensor)));
     }
     if configured::get().loop_runs(Sensor::PRESENT) {
-        spawner.spawn(unwrap!(regulate::regulate_task(
+        board.loop_spawner.spawn(unwrap!(regulate::regulate_task(
             board.sensor,
             level_step_mps2
         )));

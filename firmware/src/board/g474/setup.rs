@@ -25,15 +25,19 @@ bind_interrupts!(struct Irqs {
 });
 
 /// With a sensor the application's tasks run on an interrupt executor at the lowest priority,
-/// so that thread mode is free for the background (the drive's identification).
+/// so that thread mode is free for the background (the drive's identification), and the closed
+/// loop's course on one just above them.
 #[cfg(feature = "encoder")]
 static TASK_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
+#[cfg(feature = "encoder")]
+static LOOP_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 
 #[cfg(feature = "encoder")]
 bind_interrupts!(struct Irqs {
     EXTI15_10 => exti::InterruptHandler<typelevel::EXTI15_10>;
     UART4 => ControlExecutor;
     UART5 => TaskExecutor;
+    CORDIC => LoopExecutor;
 });
 
 /// UART5 is unused on this board; its vector runs the task executor.
@@ -45,6 +49,18 @@ impl Handler<typelevel::UART5> for TaskExecutor {
     unsafe fn on_interrupt() {
         // SAFETY: the executor was started on this interrupt in `init`.
         unsafe { TASK_EXECUTOR.on_interrupt() }
+    }
+}
+
+/// The CORDIC unit is unused on this board; its vector runs the loop executor.
+#[cfg(feature = "encoder")]
+struct LoopExecutor;
+
+#[cfg(feature = "encoder")]
+impl Handler<typelevel::CORDIC> for LoopExecutor {
+    unsafe fn on_interrupt() {
+        // SAFETY: the executor was started on this interrupt in `init`.
+        unsafe { LOOP_EXECUTOR.on_interrupt() }
     }
 }
 
@@ -96,11 +112,15 @@ pub fn init(thread_spawner: SendSpawner) -> (SendSpawner, Board<Hardware>) {
     // Thread mode is this board's lowest level: without a sensor it runs the tasks (nothing of
     // the closed loop runs); with one, the drive's identification, below the tasks.
     #[cfg(not(feature = "encoder"))]
-    let task_spawner = thread_spawner;
+    let (task_spawner, loop_spawner) = (thread_spawner, thread_spawner);
     #[cfg(feature = "encoder")]
-    let task_spawner = {
+    let (task_spawner, loop_spawner) = {
         interrupt::UART5.set_priority(Priority::P15);
-        TASK_EXECUTOR.start(interrupt::UART5)
+        interrupt::CORDIC.set_priority(Priority::P14);
+        (
+            TASK_EXECUTOR.start(interrupt::UART5),
+            LOOP_EXECUTOR.start(interrupt::CORDIC),
+        )
     };
 
     // A failed self-test outranks the watchdog's reset: it cannot be acknowledged.
@@ -122,6 +142,7 @@ pub fn init(thread_spawner: SendSpawner) -> (SendSpawner, Board<Hardware>) {
         part_sensor,
         latched_at_power_up,
         control_spawner,
+        loop_spawner,
         background_spawner: thread_spawner,
     };
     (task_spawner, board)

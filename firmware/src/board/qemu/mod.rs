@@ -12,10 +12,11 @@
 //!   instead, with recipes kept in RAM: the feeder waits, stopped, for commands and the emulation
 //!   runs until QEMU is ended. The script's image contains no console, so its run (and its `EVT`
 //!   stream) does not depend on the console's code.
-//! * Executors: all tasks run on three interrupt executors (the control loop above the other
-//!   tasks above the background's long computations) and thread mode spins (the operator's
-//!   `idle`, where a script also provokes its thread-mode faults). QEMU executes `wfe` as a no-op,
-//!   so embassy's thread executor would spin instead of letting `-icount` skip idle time.
+//! * Executors: all tasks run on four interrupt executors (the control loop above the closed
+//!   loop's course above the other tasks above the background's long computations) and thread
+//!   mode spins (the operator's `idle`, where a script also provokes its thread-mode faults).
+//!   QEMU executes `wfe` as a no-op, so embassy's thread executor would spin instead of letting
+//!   `-icount` skip idle time.
 //! * Output registers: the stage's model keeps its state in three words of the machine's FPGA
 //!   block RAM ([`OUTPUT_CODE`], [`OUTPUT_RUN`], [`DRIVER_ENABLE`]), which the image links nothing
 //!   into: fixed addresses, as a peripheral's are, so that the fault stores
@@ -128,7 +129,7 @@ pub fn announce() {
     defmt::info!("feeder firmware up on QEMU mps2-an386: output reported as events, stopped");
 }
 
-/// External interrupts of mps2-an386 used here. 29 to 31 belong to GPIO pins nobody enables.
+/// External interrupts of mps2-an386 used here. 28 to 31 belong to GPIO pins nobody enables.
 #[derive(Clone, Copy)]
 #[repr(u16)]
 enum Irq {
@@ -138,6 +139,7 @@ enum Irq {
     Uart0Tx = 1,
     Timer0 = 8,
     Timer1 = 9,
+    LoopExecutor = 28,
     BackgroundExecutor = 29,
     ControlExecutor = 30,
     TaskExecutor = 31,
@@ -161,6 +163,7 @@ unsafe fn DefaultHandler(irqn: i16) {
         8 => time_driver::on_alarm(),
         9 => time_driver::on_clock_wrap(),
         // SAFETY: each executor was started on its interrupt in `setup::init`.
+        28 => unsafe { setup::LOOP_EXECUTOR.on_interrupt() },
         29 => unsafe { setup::BACKGROUND_EXECUTOR.on_interrupt() },
         30 => unsafe { setup::CONTROL_EXECUTOR.on_interrupt() },
         31 => unsafe { setup::TASK_EXECUTOR.on_interrupt() },

@@ -1,6 +1,6 @@
-//! Bring-up: the MPU guard below RAM, the output registers at rest, the time driver and the three
-//! interrupt executors (timers above the control loop above the other tasks above the
-//! background).
+//! Bring-up: the MPU guard below RAM, the output registers at rest, the time driver and the four
+//! interrupt executors (timers above the control loop above the closed loop's course above the
+//! other tasks above the background).
 
 use cortex_m::peripheral::NVIC;
 use embassy_executor::{InterruptExecutor, SendSpawner};
@@ -15,17 +15,20 @@ use crate::config;
 use crate::output::SegmentOutput;
 use crate::ports::{Board, Operator};
 
-/// Priority of the executor that runs every task but the control loop.
+/// Priority of the executor that runs the closed loop's course, above the operator.
+const LOOP_PRIORITY: u8 = 0x60;
+/// Priority of the executor that runs every task but the control loop and the course.
 pub const TASK_PRIORITY: u8 = 0x80;
 /// Priority of the background executor, below every task.
 const BACKGROUND_PRIORITY: u8 = 0xC0;
 
 pub static CONTROL_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
+pub static LOOP_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 pub static TASK_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 pub static BACKGROUND_EXECUTOR: InterruptExecutor = InterruptExecutor::new();
 
 /// Brings the emulated board up. Returns the spawner for the application's tasks but the control
-/// loop, and the board.
+/// loop and the course, and the board.
 pub fn init() -> (SendSpawner, Board<Hardware>) {
     guard_below_ram();
     register_write(
@@ -41,9 +44,11 @@ pub fn init() -> (SendSpawner, Board<Hardware>) {
         unsafe { NVIC::unmask(irq) };
     }
     set_priority(Irq::ControlExecutor, 0x40);
+    set_priority(Irq::LoopExecutor, LOOP_PRIORITY);
     set_priority(Irq::TaskExecutor, TASK_PRIORITY);
     set_priority(Irq::BackgroundExecutor, BACKGROUND_PRIORITY);
     let control_spawner = CONTROL_EXECUTOR.start(Irq::ControlExecutor);
+    let loop_spawner = LOOP_EXECUTOR.start(Irq::LoopExecutor);
     let task_spawner = TASK_EXECUTOR.start(Irq::TaskExecutor);
     let background_spawner = BACKGROUND_EXECUTOR.start(Irq::BackgroundExecutor);
     #[cfg(feature = "cosim")]
@@ -64,6 +69,7 @@ pub fn init() -> (SendSpawner, Board<Hardware>) {
         // QEMU starts fresh every run.
         latched_at_power_up: None,
         control_spawner,
+        loop_spawner,
         background_spawner,
     };
     (task_spawner, board)
