@@ -57,8 +57,9 @@ pub static BOUNDARY: Signal<CriticalSectionRawMutex, Boundary> = Signal::new();
 pub static RULING: Mutex<CriticalSectionRawMutex, Cell<Option<Ruling>>> =
     Mutex::new(Cell::new(None));
 
-/// The probe to identify, handed to the background task, and its result back.
-static PROBE: AsyncMutex<CriticalSectionRawMutex, Option<Probe>> = AsyncMutex::new(None);
+/// The probe to identify, handed to the background task (copied in place: a probe is several
+/// kilobytes, too many for an interrupt's stack), and its result back.
+static PROBE: AsyncMutex<CriticalSectionRawMutex, Probe> = AsyncMutex::new(Probe::new());
 static PROBE_READY: Signal<CriticalSectionRawMutex, ()> = Signal::new();
 static IDENTIFIED: Signal<CriticalSectionRawMutex, Result<Identified, IdentifyError>> =
     Signal::new();
@@ -146,7 +147,7 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
                 }
                 if decision.identify {
                     if let Some(probe) = course.probe() {
-                        *PROBE.lock().await = Some(probe.clone());
+                        PROBE.lock().await.copy_from(probe);
                         PROBE_READY.signal(());
                     }
                 }
@@ -189,10 +190,7 @@ pub async fn identify_task() {
         match select(PROBE_READY.wait(), FEED_ASKED.wait()).await {
             Either::First(()) => {
                 info!("identifying the drive");
-                let result = match PROBE.lock().await.as_ref() {
-                    Some(probe) => probe.identify(),
-                    None => continue,
-                };
+                let result = PROBE.lock().await.identify();
                 IDENTIFIED.signal(result);
             }
             Either::Second(request) => {

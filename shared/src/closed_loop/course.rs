@@ -87,7 +87,9 @@ pub struct Course {
     /// Why the course stopped, once it has.
     failure: Option<CourseError>,
     probe_step: u16,
-    probe: Option<Probe>,
+    /// The probe, begun at the first held cycle of each start (complete once the stage is
+    /// [`Stage::Identifying`]).
+    probe: Probe,
     probe_cycles: u32,
     identified: Option<Identified>,
     /// The identification handed over, until the course takes it …
@@ -131,7 +133,7 @@ impl Course {
             config,
             stage: Stage::Waiting,
             failure: None,
-            probe: None,
+            probe: Probe::new(),
             probe_cycles: 0,
             identified: None,
             handed: None,
@@ -183,9 +185,7 @@ impl Course {
 
     /// The probe, once complete ([`Decision::identify`]).
     pub fn probe(&self) -> Option<&Probe> {
-        self.probe
-            .as_ref()
-            .filter(|_| self.stage == Stage::Identifying)
+        (self.stage == Stage::Identifying).then_some(&self.probe)
     }
 
     /// The trims of a cycle whose own were not decided: the drive's gains and offset undone as
@@ -343,7 +343,6 @@ impl Course {
                 // A stop (or anything but the held cycles) before the probe is complete: it
                 // begins again at the next held cycle.
                 self.stage = Stage::Waiting;
-                self.probe = None;
                 self.probe_cycles = 0;
                 self.cycle_loop.restart();
                 self.decided = decision.trims;
@@ -357,7 +356,7 @@ impl Course {
                     Some((tick, segments, count)) => (*tick, &segments[..*count]),
                     None => (start.tick, &[][..]),
                 };
-                let mut probe = Probe::new(
+                self.probe.begin(
                     lead_in_tick,
                     start.tick,
                     plan.clock_hz,
@@ -365,9 +364,8 @@ impl Course {
                     self.settled_gain_half_difference,
                 );
                 for segment in lead_in {
-                    probe.keep_segment(*segment);
+                    self.probe.keep_segment(*segment);
                 }
-                self.probe = Some(probe);
             }
             _ => {}
         }
@@ -382,7 +380,8 @@ impl Course {
             };
         }
         self.lead_in = (!idle).then_some((start.tick, commanded, segments.len()));
-        if let (Stage::Probing, Some(probe)) = (self.stage, self.probe.as_mut()) {
+        if self.stage == Stage::Probing {
+            let probe = &mut self.probe;
             for sample in samples {
                 probe.keep_position(*sample);
             }
@@ -511,7 +510,6 @@ impl Course {
         if self.stage != Stage::Settling {
             // A new start from rest: the plate is held where the probe's first cycle starts.
             self.stage = Stage::Settling;
-            self.probe = None;
             self.probe_cycles = 0;
             self.cycle_loop.restart();
             let mut lookahead = ahead.clone();

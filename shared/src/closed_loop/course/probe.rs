@@ -41,13 +41,9 @@ pub struct Probe {
 }
 
 impl Probe {
-    pub(super) fn new(
-        start_tick: u64,
-        latch_tick: u64,
-        clock_hz: u32,
-        resolution_m: f64,
-        gain_half_difference: Option<f64>,
-    ) -> Self {
+    /// A probe with nothing kept, to be begun ([`Probe::begin`]) or copied into
+    /// ([`Probe::copy_from`]).
+    pub const fn new() -> Self {
         let latch = Latch {
             t_s: 0.0,
             position_m: 0.0,
@@ -57,16 +53,52 @@ impl Probe {
             accel_mps2: 0.0,
         };
         Probe {
-            start_tick,
-            latch_tick,
-            clock_hz,
-            resolution_m,
-            gain_half_difference,
+            start_tick: 0,
+            latch_tick: 0,
+            clock_hz: 0,
+            resolution_m: 0.0,
+            gain_half_difference: None,
             positions: [latch; PROBE_POSITIONS_MAX],
             position_count: 0,
             segments: [segment; PROBE_SEGMENTS_MAX],
             segment_count: 0,
         }
+    }
+
+    /// Begins the probe afresh, in place (the course keeps one: a new one on a boundary's
+    /// stack would take its size, several kilobytes, from an interrupt's stack): its lead-in
+    /// from `start_tick`, positions kept from `latch_tick` on, on a clock of `clock_hz` and a
+    /// sensor of `resolution_m`, with the settle's `gain_half_difference`.
+    pub(super) fn begin(
+        &mut self,
+        start_tick: u64,
+        latch_tick: u64,
+        clock_hz: u32,
+        resolution_m: f64,
+        gain_half_difference: Option<f64>,
+    ) {
+        self.start_tick = start_tick;
+        self.latch_tick = latch_tick;
+        self.clock_hz = clock_hz;
+        self.resolution_m = resolution_m;
+        self.gain_half_difference = gain_half_difference;
+        self.position_count = 0;
+        self.segment_count = 0;
+    }
+
+    /// Makes this probe `other`, in place: the part of it kept, no copy on the stack.
+    pub fn copy_from(&mut self, other: &Probe) {
+        self.start_tick = other.start_tick;
+        self.latch_tick = other.latch_tick;
+        self.clock_hz = other.clock_hz;
+        self.resolution_m = other.resolution_m;
+        self.gain_half_difference = other.gain_half_difference;
+        self.position_count = other.position_count;
+        self.positions[..other.position_count]
+            .copy_from_slice(&other.positions[..other.position_count]);
+        self.segment_count = other.segment_count;
+        self.segments[..other.segment_count]
+            .copy_from_slice(&other.segments[..other.segment_count]);
     }
 
     /// Keeps `sample` if it is from the probe's first start on, later than the last one kept
