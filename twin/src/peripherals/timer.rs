@@ -201,11 +201,16 @@ impl Timer {
             .filter(|&channel| self.dier & (1 << (channel + 1)) != 0)
             .filter_map(|channel| {
                 let ccr = self.ccr[channel];
+                let not_done =
+                    |at: &Cycles| self.compared_at[channel].is_none_or(|done| *at > done);
                 let this_period = (ccr > self.count_at_since && ccr <= self.arr_active)
                     .then(|| self.since + u64::from(ccr - self.count_at_since) * tick)
-                    .filter(|&at| self.compared_at[channel].is_none_or(|done| at > done));
+                    .filter(not_done);
+                // A CCR of 0 matches as the counter restarts, at the update itself: once.
                 let at = this_period.or_else(|| {
-                    (ccr <= self.arr_active).then(|| next_update + u64::from(ccr) * tick)
+                    (ccr <= self.arr_active)
+                        .then(|| next_update + u64::from(ccr) * tick)
+                        .filter(not_done)
                 })?;
                 Some((at, channel))
             })
@@ -446,6 +451,25 @@ mod tests {
             Some(0x18000 * 170),
             "the next period's match"
         );
+    }
+
+    /// A CCR of 0 (embassy's time driver sets one for an alarm at a period's start) matches as
+    /// the counter restarts: once, at the update, and then at the next one.
+    #[test]
+    fn a_compare_at_zero_matches_once_at_each_update() {
+        let mut timer = Timer::new(Kind::General, 16);
+        timer.write(ARR, 99, 0).unwrap();
+        timer.write(EGR, EGR_UG, 0).unwrap();
+        timer.write(CCR1, 0, 0).unwrap();
+        timer.write(DIER, 1 << 1, 0).unwrap();
+        timer.write(CR1, CR1_CEN, 0).unwrap();
+        assert_eq!(timer.next_event(), Some(100));
+        timer.event(100);
+        assert_eq!(timer.read(SR, 100), Access::Value(1 << 1 | 1));
+        assert_eq!(timer.next_event(), Some(200), "the next update's match");
+        timer.write(SR, 0, 150).unwrap();
+        timer.event(200);
+        assert_eq!(timer.read(SR, 200), Access::Value(1 << 1 | 1));
     }
 
     #[test]
