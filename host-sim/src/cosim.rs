@@ -6,7 +6,9 @@
 use feeder_emulator::plant_link::Plant;
 use feeder_shared::DacCalibration;
 
-use crate::closed_loop::{JudgedCycle, RunFacts, Verdict, FEED_RATE_CYCLES};
+use crate::closed_loop::{
+    feed_compensation_line, JudgedCycle, RunFacts, Verdict, FEED_RATE_CYCLES,
+};
 use crate::contact::Contact;
 use crate::error::SimError;
 use crate::hil::{parse_line, Event};
@@ -191,7 +193,8 @@ impl PlatePlant {
         &self.levels
     }
 
-    /// Every sample answered, in order.
+    /// Every capture ([`PlatePlant::capture`]; over the link, every sample answered), in
+    /// order.
     pub fn samples(&self) -> &[PlateSample] {
         &self.samples
     }
@@ -219,6 +222,24 @@ impl PlatePlant {
     pub fn error(&self) -> Option<&SimError> {
         self.error.as_ref()
     }
+
+    /// The encoder's count at `tick` (the firmware's, counted on through a restart), the plate
+    /// run there and kept as a [`PlateSample`]: a capture of the count.
+    pub fn capture(&mut self, tick: u64) -> i32 {
+        let plate_tick = tick + self.epoch_ticks;
+        self.advance(plate_tick);
+        let count = self.count();
+        self.samples.push(PlateSample {
+            tick: plate_tick,
+            time_s: self.stepper.time_s(),
+            position_m: self.stepper.plate_position_m(),
+            count,
+            position_integral_ms: self.stepper.position_integral_ms(),
+            part_m: self.stepper.part_position_m(),
+            peak_excursion_m: self.stepper.peak_excursion_m(),
+        });
+        count
+    }
 }
 
 impl Plant for PlatePlant {
@@ -237,19 +258,7 @@ impl Plant for PlatePlant {
     }
 
     fn sample(&mut self, tick: u64) -> i32 {
-        let plate_tick = tick + self.epoch_ticks;
-        self.advance(plate_tick);
-        let position_m = self.stepper.plate_position_m();
-        let count = self.count();
-        self.samples.push(PlateSample {
-            tick: plate_tick,
-            time_s: self.stepper.time_s(),
-            position_m,
-            count,
-            position_integral_ms: self.stepper.position_integral_ms(),
-            part_m: self.stepper.part_position_m(),
-            peak_excursion_m: self.stepper.peak_excursion_m(),
-        });
+        let count = self.capture(tick);
         if self.pending.last().is_none_or(|&(last, _)| last < tick) {
             self.pending.push((tick, count));
         }
@@ -283,15 +292,16 @@ impl Plant for PlatePlant {
     }
 }
 
-/// What the firmware's log says of its closed loop (its `closed loop:`, `drive identified:` and
-/// `plant: cycle` lines).
+/// What the firmware's log says of its closed loop (its `closed loop:` and `drive identified:`
+/// lines, and the `EVT seg` events that begin each cycle).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct LoopLog {
     /// The identified gains `+`, `−` and offset.
     pub identified: Option<[f64; 3]>,
     /// The cycle at which the course released the soft start.
     pub feeding_cycle: Option<u64>,
-    /// The output tick of each cycle start the firmware logged, by cycle.
+    /// The output tick of each cycle start (an idle period's and a settle segment's included)
+    /// the firmware logged, by cycle.
     pub cycle_ticks: Vec<(u64, u64)>,
     /// The course stopped: its message.
     pub stopped: Option<String>,
@@ -354,20 +364,65 @@ impl LoopLog {
                 {
                     found.identified = Some([p, n, e]);
                 }
-            } else if let Some(rest) = line.split("plant: cycle ").nth(1) {
-                let mut words = rest.split_whitespace();
-                let cycle = words.next().and_then(|w| w.parse().ok());
-                let tick = words
-                    .next()
-                    .and_then(|w| w.strip_prefix("tick="))
-                    .and_then(|w| w.parse().ok());
-                if let (Some(cycle), Some(tick)) = (cycle, tick) {
-                    found.cycle_ticks.push((cycle, tick));
+            } else if let Ok(Some(Event::Segment(segment))) = parse_line(line) {
+                let new = found
+                    .cycle_ticks
+                    .last()
+                    .is_none_or(|&(cycle, _)| cycle != segment.cycle);
+                if new {
+                    found.cycle_ticks.push((segment.cycle, segment.actual_tick));
                 }
             }
         }
         found
     }
+}
+
+/// Where the output's ticks (the log's) fall on the plate's: the plate's tick of the output's
+/// tick 0 and the plate's ticks per output tick. Over QEMU's link the plate counts the output's
+/// own ticks ([`Timeline::SAME`]); the G474 twin's plate counts the core's cycles from power-up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Timeline {
+    pub origin: u64,
+    pub plate_ticks_per_tick: u64,
+}
+
+impl Timeline {
+    /// The plate counts the output's ticks.
+    pub const SAME: Timeline = Timeline {
+        origin: 0,
+        plate_ticks_per_tick: 1,
+    };
+
+    /// The plate's tick of the output's `tick`.
+    pub fn plate_tick(&self, tick: u64) -> u64 {
+        self.origin + tick * self.plate_ticks_per_tick
+    }
+}
+
+/// The captures that begin each of the log's cycles: for each cycle start, the first capture
+/// at or after it and before the next (a board that captures at every segment start, or more
+/// often, has one there; QEMU's link captures at cycle starts alone).
+pub fn cycle_starts(
+    captures: &[PlateSample],
+    log: &LoopLog,
+    timeline: Timeline,
+) -> Vec<PlateSample> {
+    let starts: Vec<u64> = log
+        .cycle_ticks
+        .iter()
+        .map(|&(_, tick)| timeline.plate_tick(tick))
+        .collect();
+    starts
+        .iter()
+        .enumerate()
+        .filter_map(|(index, &start)| {
+            let at = captures.partition_point(|capture| capture.tick < start);
+            let capture = captures.get(at)?;
+            let next = starts.get(index + 1).copied().unwrap_or(u64::MAX);
+            (capture.tick < next).then_some(*capture)
+        })
+        .collect()
 }
 
 /// One cycle the plate ran, from two captures.
@@ -423,6 +478,8 @@ pub struct CosimRun<'a> {
     pub end_stop: Option<EndStop>,
     pub peak_excursion_m: f64,
     pub stop_tick: Option<u64>,
+    /// Where the log's ticks (`stop_tick`, the log's cycle starts) fall on the plate's.
+    pub timeline: Timeline,
     pub ramp_cycles: u64,
     pub ideal_feed_rate_mps: f64,
     pub velocity_scale_mps: f64,
@@ -436,14 +493,15 @@ impl CosimRun<'_> {
                 .cycle_ticks
                 .iter()
                 .find(|(c, _)| *c == cycle)
-                .map(|(_, tick)| *tick)
+                .map(|(_, tick)| self.timeline.plate_tick(*tick))
         });
+        let stop_tick = self.stop_tick.map(|tick| self.timeline.plate_tick(tick));
         let fed: Vec<JudgedCycle> = match feeding_tick {
             Some(from) => self
                 .cycles
                 .windows(2)
                 .filter(|w| {
-                    w[0].start_tick >= from && self.stop_tick.is_none_or(|to| w[0].start_tick < to)
+                    w[0].start_tick >= from && stop_tick.is_none_or(|to| w[0].start_tick < to)
                 })
                 .map(|w| {
                     let duration_s = w[1].time_s - w[0].time_s;
@@ -486,14 +544,15 @@ impl CosimRun<'_> {
 }
 
 /// The closed loop of a co-simulated run judged from the firmware's decoded `log` and the
-/// `plate` it drove: the window from the release of the soft start to the stop request (the
-/// log's `EVT stop`), and the ideal plate's feed rate, for `contact`, at the plan in force then
-/// (its last `EVT plan` before the stop).
+/// `plate` it drove, whose ticks fall on the log's as `timeline` says: the window from the
+/// release of the soft start to the stop request (the log's `EVT stop`), and the ideal plate's
+/// feed rate, for `contact`, at the plan in force then (its last `EVT plan` before the stop).
 pub fn judge(
     log: &str,
     plate: &PlatePlant,
     plant: &PlantFile,
     contact: &Contact,
+    timeline: Timeline,
 ) -> Result<(LoopLog, Verdict), SimError> {
     let events: Vec<Event> = log
         .lines()
@@ -517,21 +576,71 @@ pub fn judge(
     ))?;
     let ideal = OperatingPoint::new(spec, *contact, Some(clock_hz))?;
     let loop_log = LoopLog::read(log);
-    let cycles = cycles(plate.samples(), plate.levels());
+    let samples = cycle_starts(plate.samples(), &loop_log, timeline);
+    let cycles = cycles(&samples, plate.levels());
     let verdict = CosimRun {
         log: &loop_log,
-        samples: plate.samples(),
+        samples: &samples,
         cycles: &cycles,
         plant,
         end_stop: plate.end_stop(),
         peak_excursion_m: plate.peak_excursion_m(),
         stop_tick,
+        timeline,
         ramp_cycles: u64::from(ramp_cycles),
         ideal_feed_rate_mps: ideal.steady().feed_rate_mps,
         velocity_scale_mps: ideal.velocity_scale_mps(),
     }
     .judge();
     Ok((loop_log, verdict))
+}
+
+/// The closed loop's report below the run's, a line each (`host-sim cosim`'s and the G474
+/// twin's): the drive identified, the feed's compensation, the release, the start-up's peak, the
+/// mean positions and the feed rate.
+pub fn closed_loop_lines(log: &LoopLog, verdict: &Verdict) -> Vec<String> {
+    let mut lines = Vec::new();
+    if let (Some([p, n, e]), Some([ep, en])) = (log.identified, verdict.gain_errors) {
+        lines.push(format!(
+            "drive             identified gains {p:.5} / {n:.5} ({:+.3} % / {:+.3} %), offset {e:.3} m/s²",
+            ep * 100.0,
+            en * 100.0
+        ));
+    }
+    if let Some(feed) = log.feed {
+        lines.push(feed_compensation_line(
+            feed.amplitude,
+            feed.ideal_mps,
+            feed.limited_mps,
+        ));
+    }
+    if let Some(cycle) = log.feeding_cycle {
+        lines.push(format!(
+            "course            soft start released at cycle {cycle}"
+        ));
+    }
+    lines.push(format!(
+        "start-up          peak |x| {:.1} µm from power-up to the release (bound {:.0} µm)",
+        verdict.startup_peak_m * 1e6,
+        verdict.startup_limit_m * 1e6
+    ));
+    if let Some(worst) = verdict.worst_mean_position_m {
+        lines.push(format!(
+            "mean position     worst |cycle mean| {:.1} µm from the release to the stop, {:.1} µm after the soft start",
+            worst * 1e6,
+            verdict.settled_mean_position_m.unwrap_or(0.0) * 1e6
+        ));
+    }
+    if let Some(rate) = verdict.feed_rate_mps {
+        lines.push(format!(
+            "feed rate         {:.2} mm/s over the last {} cycles before the stop, ideal plate {:.2} mm/s ({:+.2} %)",
+            rate * 1e3,
+            verdict.feed_cycles,
+            verdict.ideal_feed_rate_mps * 1e3,
+            (rate / verdict.ideal_feed_rate_mps - 1.0) * 100.0
+        ));
+    }
+    lines
 }
 
 /// The lines of a decoded firmware log that a golden file keeps: all but the per-segment
@@ -576,5 +685,55 @@ mod tests {
         assert!(streamed
             .iter()
             .all(|&(tick, _)| tick % 250 == 0 && tick <= 20_000));
+    }
+
+    /// A log's cycles begin at the first segment of each cycle number: an idle period, a
+    /// settle segment (a cycle of its own) and a motion cycle of four segments.
+    const LOG: &str = "\
+EVT seg cycle=0 kind=idle planned=0 actual=0 ticks=20000 level=0 step=0 steps=25
+EVT seg cycle=1 kind=settle planned=20000 actual=20000 ticks=2500 level=0 step=0 steps=25
+EVT seg cycle=2 kind=accelerate planned=22500 actual=22500 ticks=5000 level=1 step=1 steps=25
+EVT seg cycle=2 kind=plateau planned=27500 actual=27500 ticks=5000 level=0 step=1 steps=25
+EVT seg cycle=2 kind=reverse planned=32500 actual=32500 ticks=5000 level=-1 step=1 steps=25
+EVT seg cycle=2 kind=return planned=37500 actual=37500 ticks=5000 level=1 step=1 steps=25
+EVT seg cycle=3 kind=idle planned=42500 actual=42500 ticks=20000 level=0 step=0 steps=25
+";
+
+    #[test]
+    fn the_loop_log_takes_each_cycles_start_from_its_first_segment() {
+        let read = LoopLog::read(LOG);
+        assert_eq!(
+            read.cycle_ticks,
+            [(0, 0), (1, 20_000), (2, 22_500), (3, 42_500)]
+        );
+    }
+
+    /// On a board that captures every 250 µs and at every segment start, on a plate that counts
+    /// core cycles (170 per output tick, the output's tick 0 at cycle 1000), each cycle begins at
+    /// the capture on its start; a cycle with no capture before the next one's start has none.
+    #[test]
+    fn a_cycle_starts_at_the_first_capture_on_its_start_tick() {
+        let mut plate = plate();
+        let timeline = Timeline {
+            origin: 1000,
+            plate_ticks_per_tick: 170,
+        };
+        for tick in [0, 500, 20_000, 22_500, 27_500, 30_000, 42_501] {
+            plate.capture(timeline.plate_tick(tick));
+        }
+        let starts: Vec<u64> = cycle_starts(plate.samples(), &LoopLog::read(LOG), timeline)
+            .iter()
+            .map(|capture| capture.tick)
+            .collect();
+        assert_eq!(
+            starts,
+            [0, 20_000, 22_500, 42_501].map(|tick| timeline.plate_tick(tick))
+        );
+        let sparse = &plate.samples()[..2];
+        assert_eq!(
+            cycle_starts(sparse, &LoopLog::read(LOG), timeline).len(),
+            1,
+            "only the idle period's start has a capture"
+        );
     }
 }

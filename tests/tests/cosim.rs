@@ -280,8 +280,14 @@ fn closed_loop_run(
 #[ignore = "needs the closed-loop firmware image in FEEDER_CLOSED_LOOP_ELF"]
 fn the_firmware_holds_the_realistic_plate_for_60_s_of_motion() {
     let (log, plate, file) = closed_loop_run(&["cycles=3000", "new_duty=0.596"]);
-    let (loop_log, verdict) =
-        host_sim::cosim::judge(&log, &plate, &file, &contact()).expect("the run can be judged");
+    let (loop_log, verdict) = host_sim::cosim::judge(
+        &log,
+        &plate,
+        &file,
+        &contact(),
+        host_sim::cosim::Timeline::SAME,
+    )
+    .expect("the run can be judged");
     println!("{loop_log:?}");
     println!("{verdict:?}");
     println!("{}", verdict.line());
@@ -522,8 +528,14 @@ fn lockstep_outcome(file: &host_sim::plate::PlantFile) -> Outcome {
     let PlantRun { run, plant, .. } =
         feeder_emulator::run_with_plant(&closed_loop_elf(), &COMPARED, TIMEOUT, plate_of(file))
             .unwrap_or_else(|error| panic!("the closed-loop run: {error}"));
-    let (log, verdict) =
-        host_sim::cosim::judge(&run.log, &plant, file, &contact()).expect("the run can be judged");
+    let (log, verdict) = host_sim::cosim::judge(
+        &run.log,
+        &plant,
+        file,
+        &contact(),
+        host_sim::cosim::Timeline::SAME,
+    )
+    .expect("the run can be judged");
     Outcome {
         drive: log.identified,
         release_cycle: log.feeding_cycle,

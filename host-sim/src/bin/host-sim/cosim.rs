@@ -11,9 +11,10 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use feeder_emulator::plant_link::{Plant, TICK_HZ};
 use feeder_shared::DacCalibration;
-use host_sim::closed_loop::{feed_compensation_line, Verdict};
+use host_sim::closed_loop::Verdict;
 use host_sim::cosim::{
-    cycles, judge, CosimCycle, LoopLog, PlatePlant, PlateSample, PlateState, RunOut, RunOutcome,
+    closed_loop_lines, cycles, judge, CosimCycle, LoopLog, PlatePlant, PlateSample, PlateState,
+    RunOut, RunOutcome, Timeline,
 };
 use host_sim::plate::{EndStop, PlantFile};
 use host_sim::SimError;
@@ -171,7 +172,13 @@ pub fn run(args: &CosimArgs) -> Result<bool, SimError> {
     let closed_loop = match args.open_loop {
         true => None,
         false => {
-            let (log, verdict) = judge(&run.run.log, plate, &plant_file, &args.contact.contact()?)?;
+            let (log, verdict) = judge(
+                &run.run.log,
+                plate,
+                &plant_file,
+                &args.contact.contact()?,
+                Timeline::SAME,
+            )?;
             Some(ClosedLoopReport { log, verdict })
         }
     };
@@ -341,43 +348,8 @@ fn open_loop_verdict(
 }
 
 fn print_closed_loop(closed: &ClosedLoopReport) {
-    let verdict = &closed.verdict;
-    if let (Some([p, n, e]), Some([ep, en])) = (closed.log.identified, verdict.gain_errors) {
-        say!(
-            "drive             identified gains {p:.5} / {n:.5} ({:+.3} % / {:+.3} %), offset {e:.3} m/s²",
-            ep * 100.0,
-            en * 100.0
-        );
-    }
-    if let Some(feed) = closed.log.feed {
-        say!(
-            "{}",
-            feed_compensation_line(feed.amplitude, feed.ideal_mps, feed.limited_mps)
-        );
-    }
-    if let Some(cycle) = closed.log.feeding_cycle {
-        say!("course            soft start released at cycle {cycle}");
-    }
-    say!(
-        "start-up          peak |x| {:.1} µm from power-up to the release (bound {:.0} µm)",
-        verdict.startup_peak_m * 1e6,
-        verdict.startup_limit_m * 1e6
-    );
-    if let Some(worst) = verdict.worst_mean_position_m {
-        say!(
-            "mean position     worst |cycle mean| {:.1} µm from the release to the stop, {:.1} µm after the soft start",
-            worst * 1e6,
-            verdict.settled_mean_position_m.unwrap_or(0.0) * 1e6
-        );
-    }
-    if let Some(rate) = verdict.feed_rate_mps {
-        say!(
-            "feed rate         {:.2} mm/s over the last {} cycles before the stop, ideal plate {:.2} mm/s ({:+.2} %)",
-            rate * 1e3,
-            verdict.feed_cycles,
-            verdict.ideal_feed_rate_mps * 1e3,
-            (rate / verdict.ideal_feed_rate_mps - 1.0) * 100.0
-        );
+    for line in closed_loop_lines(&closed.log, &closed.verdict) {
+        say!("{line}");
     }
 }
 
