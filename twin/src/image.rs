@@ -37,6 +37,10 @@ pub struct Image {
     hints_from: u32,
 }
 
+/// The symbols of the stack's lowest address and of its top (cortex-m-rt's initial SP).
+const STACK_BOTTOM: &str = "_stack_end";
+const STACK_TOP: &str = "_stack_start";
+
 impl Image {
     pub fn load(path: &Path) -> Result<Self, TwinError> {
         let bytes = std::fs::read(path).map_err(|error| TwinError::Image {
@@ -92,6 +96,10 @@ impl Image {
                 SymbolKind::Data => {
                     symbols.insert(name.to_string(), symbol.address() as u32);
                 }
+                // The linker's bounds of the stack (flip-link's below the data).
+                _ if name == STACK_BOTTOM || name == STACK_TOP => {
+                    symbols.insert(name.to_string(), symbol.address() as u32);
+                }
                 _ => {}
             }
         }
@@ -116,6 +124,13 @@ impl Image {
             .range(..=pc & !1)
             .next_back()
             .map_or("?", |(_, name)| name.as_str())
+    }
+
+    /// The stack's bounds, bottom and top, where the image names them.
+    pub fn stack(&self) -> Option<(u32, u32)> {
+        let bottom = self.symbol(STACK_BOTTOM)?;
+        let top = self.symbol(STACK_TOP)?;
+        (bottom < top).then_some((bottom, top))
     }
 
     /// A data symbol's address.

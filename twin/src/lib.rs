@@ -13,6 +13,7 @@ pub mod log;
 pub mod machine;
 pub mod outputs;
 pub mod peripherals;
+pub mod plant;
 pub mod rtt;
 pub mod scenario;
 

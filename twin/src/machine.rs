@@ -35,6 +35,8 @@ const SRAM12_BYTES: u64 = 96 * 1024;
 const CCM: u64 = 0x1000_0000;
 const CCM_ALIAS: u64 = 0x2001_8000;
 const CCM_BYTES: u64 = 32 * 1024;
+/// TIM4's counter (CNT), the encoder's count.
+const TIM4_CNT: u32 = 0x4000_0824;
 const SYSTEM_MEMORY: u64 = 0x1FFF_0000;
 const SYSTEM_MEMORY_BYTES: u64 = 0x8000;
 /// The flash size register in system memory (KiB) and the device's unique ID.
@@ -128,6 +130,8 @@ pub struct State {
     /// The edge with the most instructions from the edge to the next preload's last store
     /// (TIM2's ARR).
     worst_edge: EdgeWork,
+    /// The lowest stack pointer so far.
+    pub(super) lowest_sp: u32,
     /// Edges whose work was measured.
     edges_measured: u64,
     /// Register writes kept while a trace runs: `(address, value)`, in order.
@@ -163,6 +167,16 @@ impl State {
     /// The core's time.
     pub fn now(&self) -> Cycles {
         self.extra_cycles + self.executed * CYCLES_PER_INSTRUCTION.0 / CYCLES_PER_INSTRUCTION.1
+    }
+
+    /// Before a read of `address` at `now`: where it is TIM4's count, the plate, handed the
+    /// outputs so far, sets it (the core's reads and the DMA's alike).
+    fn before_read(&mut self, address: u32, now: Cycles) {
+        if address & !3 == TIM4_CNT {
+            self.deliver_outputs();
+            let count = self.plate.count(now);
+            self.board.set_encoder(count as u32);
+        }
     }
 
     /// Hands the board's output changes to the plate, in order.
@@ -221,6 +235,7 @@ impl<'a> Machine<'a> {
             edge: None,
             worst_edge: EdgeWork::default(),
             edges_measured: 0,
+            lowest_sp: u32::MAX,
             writes: None,
         };
         let mut engine = Unicorn::new_with_data(Arch::ARM, Mode::THUMB | Mode::MCLASS, state)
@@ -282,6 +297,15 @@ impl<'a> Machine<'a> {
         };
         machine.reset_core()?;
         Ok(machine)
+    }
+
+    /// The deepest the stack has reached since the image was loaded (the lowest stack pointer
+    /// any instruction ran with, or an exception frame was pushed at), and its size, bytes;
+    /// beyond the size it overflowed. `None` where the image does not name its stack's bounds.
+    pub fn stack_use(&self) -> Option<(u32, u32)> {
+        let (bottom, top) = self.image.stack()?;
+        let lowest = self.engine.get_data().lowest_sp.min(top);
+        Some((top.wrapping_sub(lowest), top - bottom))
     }
 
     /// The core's reset: SP and PC from the vector table at 0, thread mode, no exception.

@@ -84,22 +84,34 @@ fn level_sign(change: &Output, zero_code: u32) -> Option<(Cycles, i8)> {
     }
 }
 
+/// What a segment's level on the output may be.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Levels {
+    /// The plan's: a level of the segment's sign (zero for a zero level).
+    Planned,
+    /// A closed loop's trims on the plan's: a `±a` level keeps its sign, a zero level (an idle
+    /// period's, a settle segment's, a cycle's plateau) carries the loop's bias, of either sign
+    /// or none; every segment still takes a level on its tick.
+    Trimmed,
+}
+
 /// Checks `changes` against `segments` on a timeline whose tick 0 is core time `origin` and
 /// whose ticks last `cycles_per_tick` core cycles, with `zero_code` the DAC's code of zero
-/// acceleration.
+/// acceleration and `levels` what a segment's level may be.
 pub fn check(
     changes: &[Output],
     segments: &[SegmentEvent],
     origin: Cycles,
     cycles_per_tick: Cycles,
     zero_code: u32,
+    levels: Levels,
 ) -> OutputCheck {
-    let levels: Vec<(Cycles, i8)> = changes
+    let signs: Vec<(Cycles, i8)> = changes
         .iter()
         .filter_map(|change| level_sign(change, zero_code))
         .collect();
     let sign_at = |at: Cycles| {
-        levels
+        signs
             .iter()
             .take_while(|(when, _)| *when <= at)
             .last()
@@ -111,7 +123,8 @@ pub fn check(
         let at = origin + segment.actual_tick * cycles_per_tick;
         starts.insert(at);
         let sign = sign_at(at);
-        if sign == Some(segment.level) {
+        let biased = levels == Levels::Trimmed && segment.level == 0;
+        if sign == Some(segment.level) || (biased && sign.is_some()) {
             check.matched += 1;
         } else {
             check.problems.push(format!(
@@ -126,7 +139,7 @@ pub fn check(
     }
     // A change at no segment's start that drives a level: the power-up zero and a halt's zero
     // are no such change.
-    check.stray = levels
+    check.stray = signs
         .iter()
         .filter(|(at, sign)| !starts.contains(at) && *sign != 0)
         .count();
@@ -169,21 +182,48 @@ mod tests {
                 code: 1000,
             },
         ];
-        let found = check(&changes, &[segment(100, 1)], 1000, 1, 2048);
+        let found = check(&changes, &[segment(100, 1)], 1000, 1, 2048, Levels::Planned);
         assert_eq!(
             (found.matched, found.problems.len(), found.stray),
             (1, 0, 1)
         );
-        let late = check(&changes, &[segment(99, 1)], 1000, 1, 2048);
+        let late = check(&changes, &[segment(99, 1)], 1000, 1, 2048, Levels::Planned);
         assert_eq!(
             late.matched, 0,
             "the code came a tick after the segment's start"
         );
-        let wrong = check(&changes, &[segment(250, 1)], 1000, 1, 2048);
+        let wrong = check(&changes, &[segment(250, 1)], 1000, 1, 2048, Levels::Planned);
         assert_eq!(
             wrong.problems.len(),
             1,
             "a negative code for a positive level"
+        );
+    }
+
+    /// Under a closed loop a zero level carries the loop's bias, of either sign; a `±a` level
+    /// of the wrong sign, and a segment on whose tick the output holds nothing yet, still fail.
+    #[test]
+    fn a_trimmed_zero_level_may_carry_a_bias_but_a_trimmed_a_keeps_its_sign() {
+        let changes = [
+            Output::Dac {
+                at: 1000,
+                code: 2050,
+            },
+            Output::Dac {
+                at: 1100,
+                code: 1000,
+            },
+        ];
+        let found = check(&changes, &[segment(0, 0)], 1000, 1, 2048, Levels::Trimmed);
+        assert_eq!(found.matched, 1, "{:?}", found.problems);
+        let planned = check(&changes, &[segment(0, 0)], 1000, 1, 2048, Levels::Planned);
+        assert_eq!(planned.matched, 0, "a bias is no planned zero");
+        let wrong = check(&changes, &[segment(100, 1)], 1000, 1, 2048, Levels::Trimmed);
+        assert_eq!(wrong.matched, 0, "a negative code for a trimmed +a");
+        let early = check(&changes, &[segment(0, 0)], 999, 1, 2048, Levels::Trimmed);
+        assert_eq!(
+            early.matched, 0,
+            "nothing on the output at the segment's tick"
         );
     }
 
@@ -202,9 +242,16 @@ mod tests {
             },
         ];
         // 20 kHz ticks: 8 500 core cycles each.
-        let found = check(&changes, &[segment(0, 0), segment(2, -1)], 1000, 8500, 0);
+        let found = check(
+            &changes,
+            &[segment(0, 0), segment(2, -1)],
+            1000,
+            8500,
+            0,
+            Levels::Planned,
+        );
         assert_eq!((found.matched, found.stray), (2, 0), "{:?}", found.problems);
-        let wrong = check(&changes, &[segment(2, 1)], 1000, 8500, 0);
+        let wrong = check(&changes, &[segment(2, 1)], 1000, 8500, 0, Levels::Planned);
         assert_eq!(wrong.matched, 0, "backward for a forward level");
     }
 }

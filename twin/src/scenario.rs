@@ -10,7 +10,7 @@ use feeder_shared::event::{parse_line, Event, SegmentEvent};
 
 use crate::log::LogDecoder;
 use crate::machine::{Machine, Stop};
-use crate::outputs::{self, OutputCheck, OutputRecord};
+use crate::outputs::{self, Levels, OutputCheck, OutputRecord};
 use crate::peripherals::Output;
 use crate::{Cycles, TwinError, CORE_HZ};
 
@@ -141,13 +141,15 @@ fn press(machine: &mut Machine, log: &mut Log, at: Cycles) -> Result<Option<Cycl
 }
 
 /// Runs the button scenario for `cycles` motion cycles, the decoded log to `out`; `record` is
-/// what the board's outputs did (the plate `machine` was loaded with).
+/// what the board's outputs did (the plate `machine` was loaded with, or kept beside it), and
+/// `levels` what a segment's level may be on them.
 pub fn button_run(
     machine: &mut Machine,
     decoder: LogDecoder,
     out: &mut dyn Write,
     cycles: u64,
     record: &OutputRecord,
+    levels: Levels,
 ) -> Result<ButtonOutcome, TwinError> {
     let mut log = Log::new(decoder, out);
     let judge = |machine: &Machine, log: &Log| {
@@ -162,6 +164,7 @@ pub fn button_run(
             machine.board().output_origin().unwrap_or(0),
             log.timing.map_or(1, |timing| timing.cycles_per_tick),
             zero_code.unwrap_or(0),
+            levels,
         )
     };
     let failed = |machine: &Machine, log: &Log, reset| ButtonOutcome {

@@ -5,8 +5,9 @@
 
 use std::path::PathBuf;
 
+use feeder_shared::plan::EDGE_WORK_INSTRUCTIONS;
 use feeder_twin::log::LogTable;
-use feeder_twin::outputs::OutputRecord;
+use feeder_twin::outputs::{Levels, OutputRecord};
 use feeder_twin::scenario::button_run;
 use feeder_twin::{Machine, CORE_HZ};
 
@@ -167,7 +168,15 @@ fn a_button_run_latches_every_segment_on_its_tick() {
     let record = OutputRecord::default();
     let mut machine = Machine::load(&elf, Box::new(record.clone())).expect("loads");
     let mut log = Vec::new();
-    let outcome = button_run(&mut machine, table.decoder(), &mut log, 20, &record).expect("runs");
+    let outcome = button_run(
+        &mut machine,
+        table.decoder(),
+        &mut log,
+        20,
+        &record,
+        Levels::Planned,
+    )
+    .expect("runs");
     let text = String::from_utf8(log).expect("text");
     assert!(outcome.completed, "{text}");
     assert!(
@@ -191,4 +200,16 @@ fn a_button_run_latches_every_segment_on_its_tick() {
         .lines()
         .last()
         .is_some_and(|line| line.starts_with("EVT end tick=")));
+    // The worst edge's work, from the edge to the next preload, within what the segment floor
+    // gives an edge: `EDGE_WORK_INSTRUCTIONS`, and at the firmware's 1.5 cycles an instruction
+    // (`board/g474/segment_timer.rs`) its cycles even with no hit in the ART accelerator.
+    let (work, edges) = machine.edge_work();
+    assert!(edges > 4 * 20, "{edges} edges measured");
+    let wait_states = u64::from(machine.board().flash_wait_states());
+    let cycles = work.cycles_without_cache(wait_states);
+    assert!(
+        work.instructions as f64 <= EDGE_WORK_INSTRUCTIONS
+            && cycles as f64 <= 1.5 * EDGE_WORK_INSTRUCTIONS,
+        "{work:?}: at most {cycles} cycles"
+    );
 }

@@ -34,7 +34,9 @@ pub struct RunArgs {
     features: Vec<String>,
     /// Drive a real plate from this plant file (host-sim/plants/) instead: the QEMU image with
     /// the plant's encoder, running the closed loop, in lockstep with `host-sim cosim`, which
-    /// reports the plate's motion and ends with `closed loop: PASSED` or `FAILED (…)`.
+    /// reports the plate's motion and ends with `closed loop: PASSED` or `FAILED (…)`; with
+    /// `--board g474`, the G474's encoder image on the twin with the plate on its pins, judged
+    /// alike.
     #[arg(long, value_name = "FILE")]
     plant: Option<PathBuf>,
     /// With --plant: the image without an encoder, whose command runs as planned, with no
@@ -92,14 +94,17 @@ fn checked_scenario(words: &[String], closed_loop: bool) -> Result<Scenario> {
 /// standard output; the prediction, the builds and the run's progress go to standard error.
 pub fn run(args: &RunArgs) -> Result {
     if args.board == BoardChoice::G474 {
-        if args.plant.is_some() {
+        if args.open_loop || !args.hil_flags.is_empty() && args.plant.is_some() {
             return Err(Failure::Refused(
-                "--plant runs the closed loop under QEMU; the twin has no encoder model to close \
-                 it on yet"
+                "--plant on the twin runs the encoder image's closed loop, judged by the twin \
+                 itself: it takes neither --open-loop nor flags after --"
                     .into(),
             ));
         }
-        return twin::run(&args.scenario, &args.features, &args.hil_flags);
+        return match &args.plant {
+            Some(plant) => twin::run_plant(plant, &args.scenario, &args.features),
+            None => twin::run(&args.scenario, &args.features, &args.hil_flags),
+        };
     }
     if !args.features.is_empty() {
         return Err(Failure::Refused(

@@ -58,9 +58,9 @@ pub fn test() -> Result {
 }
 
 /// The G474's own image on the register-level twin: the twin's models, the register values
-/// the review checked, a button run checked on the twin's DAC, the fault drills judged on the
-/// twin's pins, and the README's `--board g474` run judged by `host-sim hil`, with the DAC and
-/// with the PWM stage.
+/// the review checked, a button run checked on the twin's DAC, the encoder image's closed loop
+/// on `realistic.toml`'s plate, the fault drills judged on the twin's pins, and the README's
+/// `--board g474` run judged by `host-sim hil`, with the DAC and with the PWM stage.
 fn g474_twin() -> Result {
     let drills = twin::build_drills()?;
     let encoder = twin::build_image(&["encoder"])?;

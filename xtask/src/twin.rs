@@ -1,12 +1,14 @@
 //! `cargo xtask run --board g474`: the NUCLEO-G474RE's own release image (with the event
 //! stream, `hil-trace`) on the register-level twin (`twin/`, built apart: its CPU engine is
 //! GPL), as an operator with the user button runs it, checked edge by edge by `host-sim hil`;
-//! the twin checks every segment on its DAC's output itself.
+//! the twin checks every segment on its DAC's output itself. With `--plant`, the encoder image
+//! closes its loop on the plant file's plate on the twin's pins, and the twin judges it.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
 use feeder_shared::scenario::{parse_setting, ScenarioSetting};
+use host_sim::plate::PlantFile;
 
 use crate::command::{
     cargo, exec, firmware_cargo, firmware_dir, host_sim, root, shown, THUMB_TARGET,
@@ -16,6 +18,10 @@ use crate::tools;
 
 /// Motion cycles of the button's run when the scenario names none.
 const DEFAULT_CYCLES: u32 = 200;
+/// … and of the closed loop's run on a plant file: the course releases the soft start after
+/// about 530 cycles on `realistic.toml`, and the verdict's feed rate takes the last 50 before
+/// the stop.
+const PLANT_CYCLES: u32 = 700;
 
 /// The target directory every G474 image for the twin is built in: they differ in the
 /// firmware's own features only, so the dependencies are built once.
@@ -114,10 +120,10 @@ pub fn build_twin() -> Result<PathBuf> {
         .join("feeder-twin"))
 }
 
-/// The motion cycles of `words`: the button's run takes `cycles=N` alone (a board without a
-/// console has no operator for the rest).
-fn button_cycles(words: &[String]) -> Result<u32> {
-    let mut cycles = DEFAULT_CYCLES;
+/// The motion cycles of `words` (`default` where they name none): the button's run takes
+/// `cycles=N` alone (a board without a console has no operator for the rest).
+fn button_cycles(words: &[String], default: u32) -> Result<u32> {
+    let mut cycles = default;
     for word in words {
         match parse_setting(word).map_err(|error| Failure::Refused(error.to_string()))? {
             ScenarioSetting::Cycles(n) => cycles = n,
@@ -132,14 +138,14 @@ fn button_cycles(words: &[String]) -> Result<u32> {
     Ok(cycles)
 }
 
-/// Features of the G474 image the twin runs: the PWM stage; the encoder's image runs only its
-/// register checks here (the twin has no plate to close its loop on).
+/// Features of the G474 image the twin runs without a plate: the PWM stage (the encoder's image
+/// runs with one, `run_plant`).
 const TWIN_FEATURES: [&str; 1] = ["output-pwm"];
 
 /// The run of the image with `features`: the twin's log piped into `host-sim hil` (with
 /// `hil_flags`).
 pub fn run(scenario: &[String], features: &[String], hil_flags: &[String]) -> Result {
-    let cycles = button_cycles(scenario)?;
+    let cycles = button_cycles(scenario, DEFAULT_CYCLES)?;
     if let Some(other) = features
         .iter()
         .find(|f| !TWIN_FEATURES.contains(&f.as_str()))
@@ -188,6 +194,41 @@ pub fn run(scenario: &[String], features: &[String], hil_flags: &[String]) -> Re
     Ok(())
 }
 
+/// The encoder image (with `features` besides) on the twin with the plate of `plant` on its
+/// pins, for `cycles=N` of the scenario (700 where it names none): the twin's report ends with
+/// the closed loop's verdict, its decoded log in target/twin-plant-run.log.
+pub fn run_plant(plant: &Path, scenario: &[String], features: &[String]) -> Result {
+    PlantFile::from_path(plant).map_err(|error| Failure::Refused(error.to_string()))?;
+    let cycles = button_cycles(scenario, PLANT_CYCLES)?;
+    if let Some(other) = features.first() {
+        return Err(Failure::Refused(format!(
+            "the twin closes the loop on the encoder image with its DAC; not with {other}"
+        )));
+    }
+    tools::ensure_linker()?;
+    let elf = build_image(&["encoder"])?;
+    let twin = build_twin()?;
+    let log = root().join("target").join("twin-plant-run.log");
+    let mut run = Command::new(&twin);
+    run.arg(&elf)
+        .args(["--cycles", &cycles.to_string(), "--plant"])
+        .arg(std::path::absolute(plant).map_err(|error| error.to_string())?)
+        .arg("--log")
+        .arg(&log);
+    eprintln!(
+        "\nThe G474 encoder image on the twin, its loop closed on {}:\nxtask: running {}",
+        plant.display(),
+        shown(&run)
+    );
+    let status = run
+        .status()
+        .map_err(|error| format!("cannot run the twin: {error}"))?;
+    if !status.success() {
+        return Err(format!("the closed loop on the twin failed ({status})").into());
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -195,9 +236,15 @@ mod tests {
     #[test]
     fn the_button_run_takes_cycles_alone() {
         let words = |w: &[&str]| w.iter().map(|s| s.to_string()).collect::<Vec<_>>();
-        assert_eq!(button_cycles(&words(&[])).ok(), Some(DEFAULT_CYCLES));
-        assert_eq!(button_cycles(&words(&["cycles=40"])).ok(), Some(40));
-        let refused = button_cycles(&words(&["cycles=40", "freq_hz=100"]));
+        assert_eq!(
+            button_cycles(&words(&[]), DEFAULT_CYCLES).ok(),
+            Some(DEFAULT_CYCLES)
+        );
+        assert_eq!(
+            button_cycles(&words(&["cycles=40"]), DEFAULT_CYCLES).ok(),
+            Some(40)
+        );
+        let refused = button_cycles(&words(&["cycles=40", "freq_hz=100"]), DEFAULT_CYCLES);
         assert!(
             matches!(&refused, Err(Failure::Refused(why)) if why.contains("freq_hz=100")),
             "{:?}",

@@ -118,6 +118,8 @@ impl Machine<'_> {
             top -= 4;
             frame[7] |= 1 << 9;
         }
+        let state = self.engine.get_data_mut();
+        state.lowest_sp = state.lowest_sp.min(top);
         // A frame that cannot be stacked is a bus fault on stacking (STKERR): the handler is
         // entered all the same, the stack pointer moved, the frame not written.
         let stacked = (0..frame.len() as u32).all(|index| {

@@ -2,7 +2,7 @@
 //! budget, the work per edge), the peripherals' registers, flash reads, refused accesses and
 //! CPU exceptions; the DMA's moves, and memory as the RTT reader sees it.
 
-use unicorn_engine::{HookType, Unicorn};
+use unicorn_engine::{HookType, RegisterARM, Unicorn};
 
 use super::{
     engine_error, SliceEnd, State, FLASH, FLASH_BYTES, PERIPHERALS, PERIPHERALS_BYTES, PRIVATE,
@@ -60,7 +60,9 @@ fn is_register(address: u32) -> bool {
 
 fn read_any(engine: &mut Unicorn<'_, State>, address: u32, size: u32, now: Cycles) -> Option<u32> {
     if is_register(address) {
-        let word = engine.get_data_mut().board.read(address & !3, now).ok()?;
+        let state = engine.get_data_mut();
+        state.before_read(address, now);
+        let word = state.board.read(address & !3, now).ok()?;
         return Some(narrow(word, address, size));
     }
     let mut bytes = [0u8; 4];
@@ -115,7 +117,9 @@ pub(super) fn install_hooks(engine: &mut Unicorn<'_, State>) -> Result<(), TwinE
     let hook = engine_error("install its hooks");
     engine
         .add_code_hook(0, u64::MAX, |uc, address, size| {
+            let sp = uc.reg_read(RegisterARM::SP).unwrap_or(u64::MAX) as u32;
             let state = uc.get_data_mut();
+            state.lowest_sp = state.lowest_sp.min(sp);
             let address = address as u32;
             if state.executed >= state.budget {
                 state.end = Some(SliceEnd::Budget);
@@ -154,11 +158,7 @@ pub(super) fn install_hooks(engine: &mut Unicorn<'_, State>) -> Result<(), TwinE
                         let address = (base + offset) as u32;
                         let state = uc.get_data_mut();
                         let now = state.now();
-                        if address & !3 == 0x4000_0824 {
-                            state.deliver_outputs();
-                            let count = state.plate.count(now);
-                            state.board.set_encoder(count as u32);
-                        }
+                        state.before_read(address, now);
                         match state.board.read(address & !3, now) {
                             Ok(word) => u64::from(narrow(word, address, size as u32)),
                             Err(refused) => {
