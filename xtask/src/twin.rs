@@ -251,8 +251,13 @@ mod tests {
             refused.err().map(|f| f.to_string())
         );
         assert!(matches!(
-            button_cycles(&words(&["cycles=x"])),
+            button_cycles(&words(&["cycles=x"]), DEFAULT_CYCLES),
             Err(Failure::Refused(_))
         ));
+        assert_eq!(
+            button_cycles(&words(&[]), PLANT_CYCLES).ok(),
+            Some(PLANT_CYCLES),
+            "a plant's run without cycles=N runs long enough to be judged"
+        );
     }
 }
