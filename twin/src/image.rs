@@ -23,6 +23,23 @@ pub enum Hint {
     SendEvent,
 }
 
+/// A 16-bit instruction the twin watches for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Watched {
+    /// One the twin carries out itself.
+    Hint(Hint),
+    /// `IT` with the number of instructions its block makes conditional (1 to 4).
+    IfThen { instructions: u8 },
+}
+
+/// The `IT` instruction's encoding: 0xBF, then firstcond and a mask that is not zero.
+fn if_then(halfword: u16) -> Option<Watched> {
+    let mask = halfword & 0xF;
+    (halfword & 0xFF00 == 0xBF00 && mask != 0).then(|| Watched::IfThen {
+        instructions: 4 - mask.trailing_zeros() as u8,
+    })
+}
+
 /// A loaded image.
 pub struct Image {
     /// `(address, bytes)` of every loadable segment with file contents.
@@ -31,9 +48,9 @@ pub struct Image {
     functions: BTreeMap<u32, String>,
     /// Data symbols by name: the RTT control block among them.
     symbols: BTreeMap<String, u32>,
-    /// The hint instruction at each halfword from `hints_from` on, if one is there: one lookup
+    /// The watched instruction at each halfword from `hints_from` on, if one is there: one lookup
     /// per 16-bit instruction executed.
-    hints: Vec<Option<Hint>>,
+    hints: Vec<Option<Watched>>,
     hints_from: u32,
 }
 
@@ -54,7 +71,7 @@ impl Image {
         let file = ElfFile32::<Endianness>::parse(&*bytes).map_err(|error| problem(&error))?;
         let endian = file.endian();
         let mut segments = Vec::new();
-        let mut hints: Vec<(u32, Hint)> = Vec::new();
+        let mut hints: Vec<(u32, Watched)> = Vec::new();
         // Each loadable segment goes where the flash holds it: its physical (load) address,
         // from which the start-up code copies `.data` to RAM.
         for header in file.elf_program_headers() {
@@ -69,11 +86,15 @@ impl Image {
             }
             let load_address = header.p_paddr(endian);
             for (index, pair) in data.chunks_exact(2).enumerate() {
-                let hint = match u16::from_le_bytes([pair[0], pair[1]]) {
-                    WFI => Hint::WaitForInterrupt,
-                    WFE => Hint::WaitForEvent,
-                    SEV => Hint::SendEvent,
-                    _ => continue,
+                let halfword = u16::from_le_bytes([pair[0], pair[1]]);
+                let hint = match halfword {
+                    WFI => Watched::Hint(Hint::WaitForInterrupt),
+                    WFE => Watched::Hint(Hint::WaitForEvent),
+                    SEV => Watched::Hint(Hint::SendEvent),
+                    _ => match if_then(halfword) {
+                        Some(watched) => watched,
+                        None => continue,
+                    },
                 };
                 hints.push((load_address + 2 * index as u32, hint));
             }
@@ -112,8 +133,8 @@ impl Image {
         })
     }
 
-    /// The hint at `address`, where the instruction there is 16 bits long.
-    pub fn hint(&self, address: u32) -> Option<Hint> {
+    /// The watched instruction at `address`, where the instruction there is 16 bits long.
+    pub fn watched(&self, address: u32) -> Option<Watched> {
         let index = address.checked_sub(self.hints_from)? / 2;
         self.hints.get(index as usize).copied().flatten()
     }
@@ -145,5 +166,28 @@ impl Image {
             .filter(|(name, _)| name.contains(part))
             .map(|(name, &address)| (name.as_str(), address))
             .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// IT's mask: its trailing one ends the block, after 1 to 4 instructions (ARMv7-M ARM,
+    /// A7.7.38); a mask of zero is a hint (NOP, YIELD, WFE, WFI, SEV), no IT.
+    #[test]
+    fn an_if_then_block_is_as_long_as_its_mask_says() {
+        let length = |halfword| match if_then(halfword) {
+            Some(Watched::IfThen { instructions }) => Some(instructions),
+            _ => None,
+        };
+        assert_eq!(length(0xBF48), Some(1), "IT MI");
+        assert_eq!(length(0xBF4C), Some(2), "ITE MI");
+        assert_eq!(length(0xBF1A), Some(3), "ITTE NE");
+        assert_eq!(length(0xBF01), Some(4), "ITTTT EQ");
+        for hint in [0xBF00, 0xBF10, WFE, WFI, SEV] {
+            assert_eq!(length(hint), None, "{hint:#06x}");
+        }
+        assert_eq!(length(0x4C48), None, "no IT at all");
     }
 }

@@ -35,6 +35,8 @@ const SRAM12_BYTES: u64 = 96 * 1024;
 const CCM: u64 = 0x1000_0000;
 const CCM_ALIAS: u64 = 0x2001_8000;
 const CCM_BYTES: u64 = 32 * 1024;
+/// xPSR's IT bits (EPSR.IT[1:0] at 26:25, IT[7:2] at 15:10).
+const XPSR_IT: u32 = 0x0600_FC00;
 /// TIM4's counter (CNT), the encoder's count.
 const TIM4_CNT: u32 = 0x4000_0824;
 const SYSTEM_MEMORY: u64 = 0x1FFF_0000;
@@ -130,6 +132,8 @@ pub struct State {
     /// The edge with the most instructions from the edge to the next preload's last store
     /// (TIM2's ARR).
     worst_edge: EdgeWork,
+    /// Instructions until an IT block is over, counting the first after it.
+    if_then_left: u8,
     /// The lowest stack pointer so far.
     pub(super) lowest_sp: u32,
     /// Edges whose work was measured.
@@ -236,6 +240,7 @@ impl<'a> Machine<'a> {
             worst_edge: EdgeWork::default(),
             edges_measured: 0,
             lowest_sp: u32::MAX,
+            if_then_left: 0,
             writes: None,
         };
         let mut engine = Unicorn::new_with_data(Arch::ARM, Mode::THUMB | Mode::MCLASS, state)
@@ -365,6 +370,18 @@ impl<'a> Machine<'a> {
             .get_data_mut()
             .board
             .drive_pin(2, 13, Some(pressed));
+    }
+
+    /// Sends `bytes` to the board's console (LPUART1's RX) from now on, a frame each.
+    pub fn serial_send(&mut self, bytes: &[u8]) {
+        let now = self.now();
+        self.engine.get_data_mut().board.serial_receive(bytes, now);
+    }
+
+    /// What the board's console has sent (LPUART1's TX) by now, since last taken.
+    pub fn serial_take(&mut self) -> Vec<u8> {
+        let now = self.now();
+        self.engine.get_data_mut().board.serial_take(now)
     }
 
     /// The stack pointer.

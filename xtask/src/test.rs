@@ -59,11 +59,13 @@ pub fn test() -> Result {
 
 /// The G474's own image on the register-level twin: the twin's models, the register values
 /// the review checked, a button run checked on the twin's DAC, the encoder image's closed loop
-/// on `realistic.toml`'s plate, the fault drills judged on the twin's pins, and the README's
+/// on `realistic.toml`'s plate, the console image's replies on LPUART1, the fault drills judged
+/// on the twin's pins, and the README's
 /// `--board g474` run judged by `host-sim hil`, with the DAC and with the PWM stage.
 fn g474_twin() -> Result {
     let drills = twin::build_drills()?;
     let encoder = twin::build_image(&["encoder"])?;
+    let console = twin::build_image(&["console"])?;
     let image = twin::build_image(&[])?;
     twin::build_twin()?;
     exec(
@@ -74,6 +76,7 @@ fn g474_twin() -> Result {
             .env("FEEDER_G474_ELF", &image)
             .env("FEEDER_G474_DRILLS", &drills)
             .env("FEEDER_G474_ENCODER_ELF", &encoder)
+            .env("FEEDER_G474_CONSOLE_ELF", &console)
             .env_remove("CARGO_TARGET_DIR"),
     )?;
     twin::run(&["cycles=100".to_string()], &[], &[])?;

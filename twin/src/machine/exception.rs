@@ -5,7 +5,7 @@
 
 use unicorn_engine::RegisterARM;
 
-use super::{engine_error, Machine, ENTRY_CYCLES, RETURN_CYCLES};
+use super::{engine_error, Machine, ENTRY_CYCLES, RETURN_CYCLES, XPSR_IT};
 use crate::peripherals::scs::HARD_FAULT;
 use crate::TwinError;
 
@@ -143,6 +143,10 @@ impl Machine<'_> {
         };
         self.set_reg(RegisterARM::SP, top)?;
         self.set_reg(RegisterARM::LR, exc_return)?;
+        // The handler starts outside any IT block (EPSR.IT = 0); the interrupted one's state
+        // is in the frame, and its return restores it.
+        let live = self.reg(RegisterARM::XPSR);
+        self.set_reg(RegisterARM::XPSR, live & !XPSR_IT)?;
         self.set_reg(RegisterARM::CONTROL, control & !4)?;
         self.set_reg(RegisterARM::PC, handler & !1)?;
         let state = self.engine.get_data_mut();

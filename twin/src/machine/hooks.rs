@@ -6,8 +6,9 @@ use unicorn_engine::{HookType, RegisterARM, Unicorn};
 
 use super::{
     engine_error, SliceEnd, State, FLASH, FLASH_BYTES, PERIPHERALS, PERIPHERALS_BYTES, PRIVATE,
-    PRIVATE_BYTES, TIM2_ARR,
+    PRIVATE_BYTES, TIM2_ARR, XPSR_IT,
 };
+use crate::image::Watched;
 use crate::peripherals::scs::Request;
 use crate::peripherals::{Board, Cycles};
 use crate::rtt::Memory;
@@ -133,18 +134,37 @@ pub(super) fn install_hooks(engine: &mut Unicorn<'_, State>) -> Result<(), TwinE
                 let _ = uc.emu_stop();
                 return;
             }
-            if size == 2 {
-                if let Some(hint) = state.image.hint(address) {
+            let block_over = match (size, state.image.watched(address)) {
+                (2, Some(Watched::Hint(hint))) => {
                     state.end = Some(SliceEnd::Hint(hint, address));
                     let _ = uc.emu_stop();
                     return;
                 }
-            }
+                (2, Some(Watched::IfThen { instructions })) => {
+                    state.if_then_left = instructions + 1;
+                    false
+                }
+                _ if state.if_then_left > 0 => {
+                    state.if_then_left -= 1;
+                    state.if_then_left == 0
+                }
+                _ => false,
+            };
             state.pc = address;
             state.executed += 1;
             if let Some(work) = state.edge.as_mut() {
                 work.instructions += 1;
                 work.code_bytes += u64::from(size);
+            }
+            // The engine keeps a finished IT block's state in its register file, where the
+            // next indirect branch looks its target's translation up with it: the target's
+            // first instructions then run as if the block went on (a function's push
+            // skipped). The first instruction after the block clears it.
+            if block_over {
+                let xpsr = uc.reg_read(RegisterARM::XPSR).unwrap_or(0);
+                if xpsr & u64::from(XPSR_IT) != 0 {
+                    let _ = uc.reg_write(RegisterARM::XPSR, xpsr & !u64::from(XPSR_IT));
+                }
             }
         })
         .map_err(&hook)?;

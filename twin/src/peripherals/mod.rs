@@ -8,6 +8,7 @@ mod dma;
 mod exti;
 mod gpio;
 mod iwdg;
+mod lpuart;
 mod rcc;
 mod registers;
 pub mod scs;
@@ -19,6 +20,7 @@ use dma::{Dma, Dmamux, Move, REQUEST_TIM1_UP, REQUEST_TIM2_UP, REQUEST_TIM6_UP};
 use exti::Exti;
 use gpio::Port;
 use iwdg::Iwdg;
+use lpuart::Lpuart;
 use rcc::Rcc;
 use registers::RegisterFile;
 use scs::{Request, Scs};
@@ -51,6 +53,7 @@ pub mod irq {
     pub const TIM3: usize = 29;
     pub const TIM4: usize = 30;
     pub const TIM6_DAC: usize = 54;
+    pub const LPUART1: usize = 91;
 }
 
 /// Something the outside world sees change: a pin or the analog output.
@@ -93,12 +96,16 @@ pub struct Board {
     dma: Dma,
     dmamux: Dmamux,
     iwdg: Iwdg,
+    lpuart1: Lpuart,
     tim1: Timer,
     tim2: Timer,
     tim3: Timer,
     tim4: Timer,
     tim6: Timer,
     tim15: Timer,
+    /// The latest time the board was brought to (an access, an event): the time of the
+    /// interrupt lines raised without one given.
+    now: Cycles,
     /// The driver enable's level as last reported.
     enable_on: bool,
     /// Changes on the outputs, in time order, until taken.
@@ -123,6 +130,7 @@ const TIM4: u32 = 0x4000_0800;
 const TIM6: u32 = 0x4000_1000;
 const IWDG: u32 = 0x4000_3000;
 const PWR: u32 = 0x4000_7000;
+const LPUART1: u32 = 0x4000_8000;
 const SYSCFG: u32 = 0x4001_0000;
 const EXTI: u32 = 0x4001_0400;
 const TIM1: u32 = 0x4001_2C00;
@@ -169,12 +177,14 @@ impl Board {
             dma: Dma::new(),
             dmamux: Dmamux::new(),
             iwdg: Iwdg::new(),
+            lpuart1: Lpuart::default(),
             tim1: Timer::new(Kind::Advanced, 16),
             tim2: Timer::new(Kind::General, 32),
             tim3: Timer::new(Kind::General, 16),
             tim4: Timer::new(Kind::General, 16),
             tim6: Timer::new(Kind::Basic, 16),
             tim15: Timer::new(Kind::General, 16),
+            now: 0,
             enable_on: false,
             outputs: Vec::new(),
             moves: Vec::new(),
@@ -208,6 +218,7 @@ impl Board {
             TIM6 => self.tim6.read(offset, now),
             TIM15 => self.tim15.read(offset, now),
             IWDG => self.iwdg.read(offset),
+            LPUART1 => self.lpuart1.read(offset, now),
             PWR => self.pwr.read(offset),
             SYSCFG => self.syscfg.read(offset),
             EXTI => self.exti.read(offset),
@@ -233,6 +244,7 @@ impl Board {
     /// of the machine.
     pub fn write(&mut self, address: u32, value: u32, now: Cycles) -> Result<Request, Refused> {
         let refused = Err(Refused { address });
+        self.now = self.now.max(now);
         let (base, offset) = (address & !(BLOCK - 1), address & (BLOCK - 1));
         let mut request = Request::Evaluate;
         let written = match base {
@@ -247,6 +259,7 @@ impl Board {
                 true
             }
             IWDG => self.iwdg.write(offset, value, now),
+            LPUART1 => self.lpuart1.write(offset, value, now),
             PWR => self.pwr.write(offset, value),
             SYSCFG => self.syscfg.write(offset, value),
             EXTI => self.exti.write(offset, value),
@@ -366,6 +379,7 @@ impl Board {
             (irq::EXTI15_10, self.exti.interrupts() & 0xFC00 != 0),
             (irq::DMA1_CHANNEL1, self.dma.interrupt_line(0)),
             (irq::DMA1_CHANNEL2, self.dma.interrupt_line(1)),
+            (irq::LPUART1, self.lpuart1.interrupt_line(self.now)),
         ];
         for (line, up) in lines {
             if up {
@@ -383,6 +397,7 @@ impl Board {
             self.tim4.next_event(),
             self.tim6.next_event(),
             self.tim15.next_event(),
+            self.lpuart1.next_event(self.now),
             self.iwdg.expiry(),
         ]
         .into_iter()
@@ -393,6 +408,7 @@ impl Board {
     /// Runs every event up to and including `now`, in time order.
     pub fn advance(&mut self, now: Cycles) {
         while let Some(at) = self.next_event().filter(|&at| at <= now) {
+            self.now = self.now.max(at);
             if self.iwdg.expiry() == Some(at) {
                 self.watchdog_expired = true;
                 return;
@@ -409,6 +425,7 @@ impl Board {
             }
             self.raise_lines();
         }
+        self.now = self.now.max(now);
     }
 
     /// Whether an edge (TIM2's overflow) came since last asked.
@@ -449,6 +466,20 @@ impl Board {
             self.exti.edge(pin, after);
             self.raise_lines();
         }
+    }
+
+    /// `bytes` arrive on LPUART1's RX (PA3, the ST-LINK's virtual COM port) from `at` on.
+    pub fn serial_receive(&mut self, bytes: &[u8], at: Cycles) {
+        self.lpuart1.receive(bytes, at);
+    }
+
+    /// The bytes LPUART1 has sent on TX (PA2) by `now`, since last taken.
+    pub fn serial_take(&mut self, now: Cycles) -> Vec<u8> {
+        self.lpuart1
+            .take_sent(now)
+            .into_iter()
+            .map(|(_, byte)| byte)
+            .collect()
     }
 
     /// The encoder's count, as the plate sets it on TIM4 (encoder mode).
