@@ -94,7 +94,7 @@ fn checked_scenario(words: &[String], closed_loop: bool) -> Result<Scenario> {
 /// standard output; the prediction, the builds and the run's progress go to standard error.
 pub fn run(args: &RunArgs) -> Result {
     if args.board == BoardChoice::G474 {
-        if args.open_loop || !args.hil_flags.is_empty() && args.plant.is_some() {
+        if args.plant.is_some() && (args.open_loop || !args.hil_flags.is_empty()) {
             return Err(Failure::Refused(
                 "--plant on the twin runs the encoder image's closed loop, judged by the twin \
                  itself: it takes neither --open-loop nor flags after --"
