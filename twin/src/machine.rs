@@ -133,7 +133,7 @@ pub struct State {
     /// (TIM2's ARR).
     worst_edge: EdgeWork,
     /// Instructions until an IT block is over, counting the first after it.
-    if_then_left: u8,
+    pub(super) if_then_left: u8,
     /// The lowest stack pointer so far.
     pub(super) lowest_sp: u32,
     /// Edges whose work was measured.

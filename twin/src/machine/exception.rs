@@ -35,6 +35,18 @@ const FRAME_REGISTERS: [RegisterARM; 7] = [
     RegisterARM::PC,
 ];
 
+/// The IT block an xPSR is in: its instructions left, counting the first after it (the hook's
+/// count), 0 outside one. IT[3:0]'s lowest set bit moves up one an instruction, so it is at bit
+/// `4 - n` with `n` instructions left (ARMv7-M ARM, A7.3.3).
+fn if_then_left(xpsr: u32) -> u8 {
+    let low = ((xpsr >> 25) & 3) | (((xpsr >> 10) & 3) << 2);
+    if low == 0 {
+        0
+    } else {
+        5 - low.trailing_zeros() as u8
+    }
+}
+
 impl Machine<'_> {
     /// A fault of the instruction at the current `pc` (ARMv7-M ARM, B1.5.14): escalated to
     /// HardFault, with its cause in CFSR (and the address in BFAR); where the execution
@@ -147,6 +159,7 @@ impl Machine<'_> {
         // is in the frame, and its return restores it.
         let live = self.reg(RegisterARM::XPSR);
         self.set_reg(RegisterARM::XPSR, live & !XPSR_IT)?;
+        self.engine.get_data_mut().if_then_left = 0;
         self.set_reg(RegisterARM::CONTROL, control & !4)?;
         self.set_reg(RegisterARM::PC, handler & !1)?;
         let state = self.engine.get_data_mut();
@@ -188,6 +201,7 @@ impl Machine<'_> {
         }
         let xpsr = frame[7];
         self.set_reg(RegisterARM::XPSR, xpsr & !0x1FF)?;
+        self.engine.get_data_mut().if_then_left = if_then_left(xpsr);
         if floating {
             for index in 0..16 {
                 self.set_reg_s(index, frame[8 + index as usize])?;
@@ -212,5 +226,25 @@ impl Machine<'_> {
         self.engine
             .reg_write(RegisterARM::S0 as i32 + index as i32, u64::from(value))
             .map_err(engine_error("set a floating-point register"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An xPSR with ITSTATE `it` (IT[1:0] at 26:25, IT[7:2] at 15:10).
+    fn xpsr(it: u32) -> u32 {
+        1 << 24 | (it & 3) << 25 | (it >> 2) << 10
+    }
+
+    #[test]
+    fn an_interrupted_if_then_block_counts_on_from_where_it_stopped() {
+        // ITTE NE (firstcond 0001, mask 1010): three instructions, then one more with
+        // each shift of IT[4:0] one fewer.
+        assert_eq!(if_then_left(xpsr(0x1A)), 4, "three left, and the one after");
+        assert_eq!(if_then_left(xpsr(0x14)), 3);
+        assert_eq!(if_then_left(xpsr(0x08)), 2, "the last of the block");
+        assert_eq!(if_then_left(xpsr(0)), 0, "outside a block");
     }
 }

@@ -119,6 +119,17 @@ pub(super) fn install_hooks(engine: &mut Unicorn<'_, State>) -> Result<(), TwinE
     engine
         .add_code_hook(0, u64::MAX, |uc, address, size| {
             let sp = uc.reg_read(RegisterARM::SP).unwrap_or(u64::MAX) as u32;
+            // The engine keeps a finished IT block's state in its register file, where the
+            // next indirect branch (or the next slice's start) looks its target's translation
+            // up with it: the target's first instructions then run as if the block went on (a
+            // function's push skipped). At the first instruction after the block it goes,
+            // before anything can stop the slice here.
+            if uc.get_data().if_then_left == 1 {
+                let xpsr = uc.reg_read(RegisterARM::XPSR).unwrap_or(0);
+                if xpsr & u64::from(XPSR_IT) != 0 {
+                    let _ = uc.reg_write(RegisterARM::XPSR, xpsr & !u64::from(XPSR_IT));
+                }
+            }
             let state = uc.get_data_mut();
             state.lowest_sp = state.lowest_sp.min(sp);
             let address = address as u32;
@@ -134,7 +145,7 @@ pub(super) fn install_hooks(engine: &mut Unicorn<'_, State>) -> Result<(), TwinE
                 let _ = uc.emu_stop();
                 return;
             }
-            let block_over = match (size, state.image.watched(address)) {
+            match (size, state.image.watched(address)) {
                 (2, Some(Watched::Hint(hint))) => {
                     state.end = Some(SliceEnd::Hint(hint, address));
                     let _ = uc.emu_stop();
@@ -142,29 +153,14 @@ pub(super) fn install_hooks(engine: &mut Unicorn<'_, State>) -> Result<(), TwinE
                 }
                 (2, Some(Watched::IfThen { instructions })) => {
                     state.if_then_left = instructions + 1;
-                    false
                 }
-                _ if state.if_then_left > 0 => {
-                    state.if_then_left -= 1;
-                    state.if_then_left == 0
-                }
-                _ => false,
-            };
+                _ => state.if_then_left = state.if_then_left.saturating_sub(1),
+            }
             state.pc = address;
             state.executed += 1;
             if let Some(work) = state.edge.as_mut() {
                 work.instructions += 1;
                 work.code_bytes += u64::from(size);
-            }
-            // The engine keeps a finished IT block's state in its register file, where the
-            // next indirect branch looks its target's translation up with it: the target's
-            // first instructions then run as if the block went on (a function's push
-            // skipped). The first instruction after the block clears it.
-            if block_over {
-                let xpsr = uc.reg_read(RegisterARM::XPSR).unwrap_or(0);
-                if xpsr & u64::from(XPSR_IT) != 0 {
-                    let _ = uc.reg_write(RegisterARM::XPSR, xpsr & !u64::from(XPSR_IT));
-                }
             }
         })
         .map_err(&hook)?;
