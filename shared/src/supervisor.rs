@@ -28,6 +28,10 @@ pub enum Fault {
     /// edges cannot be told from missed ones, so the output never starts. No acknowledgement
     /// clears it: only a reset after the fault is fixed.
     EdgeCounter,
+    /// The line's master (Modbus, or the console where its watchdog is on) fell silent for
+    /// longer than the configured link timeout while the feeder ran: a soft stop, latched so
+    /// that the feeder does not run again until it is told to.
+    LinkLost,
 }
 
 /// How a fault brings the motor to a safe state (the stop categories of IEC 60204-1).
@@ -40,6 +44,9 @@ pub enum StopCategory {
     /// Category 1: the output still works, so the cycle in progress runs to its end, where the
     /// plate is at rest, and only then is the command zero and the driver disabled.
     Controlled,
+    /// Category 1 with the soft stop's ramp: nothing is wrong with the output or the plate, so
+    /// the amplitude ramps down as after a stop request, and then the driver is disabled.
+    Soft,
 }
 
 impl Fault {
@@ -52,6 +59,30 @@ impl Fault {
                 StopCategory::Immediate
             }
             Fault::InvalidSettings | Fault::ClosedLoop => StopCategory::Controlled,
+            Fault::LinkLost => StopCategory::Soft,
+        }
+    }
+
+    /// Every fault, in the order of their codes ([`Fault::code`]).
+    pub const ALL: [Fault; 6] = [
+        Fault::EdgeMissed,
+        Fault::WatchdogReset,
+        Fault::InvalidSettings,
+        Fault::ClosedLoop,
+        Fault::EdgeCounter,
+        Fault::LinkLost,
+    ];
+
+    /// The fault's stable number on the line (Modbus input register `fault`): 1 and up, in the
+    /// order of [`Fault::ALL`]; 0 is no fault.
+    pub const fn code(self) -> u16 {
+        match self {
+            Fault::EdgeMissed => 1,
+            Fault::WatchdogReset => 2,
+            Fault::InvalidSettings => 3,
+            Fault::ClosedLoop => 4,
+            Fault::EdgeCounter => 5,
+            Fault::LinkLost => 6,
         }
     }
 
@@ -62,6 +93,7 @@ impl Fault {
             Fault::InvalidSettings => "invalid-settings",
             Fault::ClosedLoop => "closed-loop",
             Fault::EdgeCounter => "edge-counter",
+            Fault::LinkLost => "link-lost",
         }
     }
 
@@ -219,9 +251,10 @@ impl Supervisor {
         let moving = self.braking || matches!(self.state, RunState::Running | RunState::Stopping);
         let request = match fault.stop_category() {
             StopCategory::Controlled if moving => MotionRequest::QuickStop,
+            StopCategory::Soft if moving => MotionRequest::Stop,
             _ => MotionRequest::Halt,
         };
-        self.braking = request == MotionRequest::QuickStop;
+        self.braking = matches!(request, MotionRequest::QuickStop | MotionRequest::Stop);
         let replaces = match self.state {
             RunState::Faulted(latched) => latched.acknowledgeable() && !fault.acknowledgeable(),
             _ => true,

@@ -269,13 +269,7 @@ const PHASES: [Phase; 4] = [
 ];
 const STAGES: [Stage; 7] = Stage::ALL;
 const TRACK_STATES: [TrackState; 2] = [TrackState::Empty, TrackState::Full];
-const FAULTS: [Fault; 5] = [
-    Fault::EdgeMissed,
-    Fault::WatchdogReset,
-    Fault::InvalidSettings,
-    Fault::ClosedLoop,
-    Fault::EdgeCounter,
-];
+const FAULTS: [Fault; 6] = Fault::ALL;
 
 /// The one of `all` whose `name` is `text`, `None` for `-`.
 fn word<T: Copy>(

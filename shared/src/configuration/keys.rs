@@ -28,6 +28,11 @@ pub enum Key {
     StartStroke,
     StartAccel,
     StartRamp,
+    ModbusAddress,
+    ModbusBaud,
+    ModbusParity,
+    LinkTimeout,
+    ConsoleWatchdog,
 }
 
 /// A configuration value in the key's console unit.
@@ -43,8 +48,8 @@ pub enum KeyValue {
 pub enum ValueKind {
     /// A number, with an optional unit among `units`.
     Number { units: &'static [&'static str] },
-    /// A whole number from 0 to `max`.
-    Whole { max: u16 },
+    /// A whole number from `min` to `max`.
+    Whole { min: u32, max: u32 },
     /// One of two words, for false and true.
     Switch { off: &'static str, on: &'static str },
 }
@@ -89,12 +94,22 @@ const fn number(
 }
 
 const fn whole(keyword: &'static str, what: &'static str, max: u16, output: bool) -> Spec {
+    whole_in(keyword, "", what, (0, max as u32), output)
+}
+
+const fn whole_in(
+    keyword: &'static str,
+    unit: &'static str,
+    what: &'static str,
+    (min, max): (u32, u32),
+    output: bool,
+) -> Spec {
     Spec {
         keyword,
-        unit: "",
+        unit,
         what,
-        kind: ValueKind::Whole { max },
-        min: 0.0,
+        kind: ValueKind::Whole { min, max },
+        min: min as f64,
         max: max as f64,
         output,
     }
@@ -105,6 +120,7 @@ const fn switch(
     what: &'static str,
     off: &'static str,
     on: &'static str,
+    output: bool,
 ) -> Spec {
     Spec {
         keyword,
@@ -113,13 +129,13 @@ const fn switch(
         kind: ValueKind::Switch { off, on },
         min: 0.0,
         max: 1.0,
-        output: true,
+        output,
     }
 }
 
 impl Key {
     /// Every key, in the order `config list` shows them.
-    pub const ALL: [Key; 19] = [
+    pub const ALL: [Key; 24] = [
         Key::DacZero,
         Key::DacScale,
         Key::DacMargin,
@@ -139,6 +155,11 @@ impl Key {
         Key::StartStroke,
         Key::StartAccel,
         Key::StartRamp,
+        Key::ModbusAddress,
+        Key::ModbusBaud,
+        Key::ModbusParity,
+        Key::LinkTimeout,
+        Key::ConsoleWatchdog,
     ];
 
     const fn spec(self) -> Spec {
@@ -207,9 +228,9 @@ impl Key {
                 true,
             ),
             Key::EncoderDirection => {
-                switch("encoder_dir", "forward or reversed", "forward", "reversed")
+                switch("encoder_dir", "forward or reversed", "forward", "reversed", true)
             }
-            Key::ClosedLoop => switch("closed_loop", "on or off", "off", "on"),
+            Key::ClosedLoop => switch("closed_loop", "on or off", "off", "on", true),
             Key::PartMu => number(
                 "part_mu",
                 "",
@@ -267,6 +288,41 @@ impl Key {
                 false,
             ),
             Key::StartRamp => whole("start_ramp", "the start-up ramp in cycles", u16::MAX, false),
+            Key::ModbusAddress => whole_in(
+                "modbus_address",
+                "",
+                "the Modbus slave address",
+                (1, 247),
+                false,
+            ),
+            Key::ModbusBaud => whole_in(
+                "modbus_baud",
+                " baud",
+                "the Modbus port's rate in baud",
+                (1200, 115_200),
+                false,
+            ),
+            Key::ModbusParity => switch(
+                "modbus_parity",
+                "even (8E1) or none (8N2)",
+                "none",
+                "even",
+                false,
+            ),
+            Key::LinkTimeout => whole_in(
+                "link_timeout_ms",
+                " ms",
+                "the link watchdog's silence in ms, 0 for off",
+                (0, 60_000),
+                false,
+            ),
+            Key::ConsoleWatchdog => switch(
+                "console_watchdog",
+                "on or off",
+                "off",
+                "on",
+                false,
+            ),
         }
     }
 
@@ -370,6 +426,11 @@ impl Key {
                 Drive::Stroke { .. } => None,
             },
             Key::StartRamp => number(f64::from(c.startup.ramp_cycles)),
+            Key::ModbusAddress => number(f64::from(c.line.modbus_address)),
+            Key::ModbusBaud => number(f64::from(c.line.baud)),
+            Key::ModbusParity => Some(KeyValue::Switch(c.line.parity_even)),
+            Key::LinkTimeout => number(f64::from(c.line.link_timeout_ms)),
+            Key::ConsoleWatchdog => Some(KeyValue::Switch(c.line.console_watchdog)),
         }
     }
 
@@ -412,6 +473,11 @@ impl Key {
             }
             Key::StartAccel => c.startup.drive = Drive::Accel { accel_mps2: number },
             Key::StartRamp => c.startup.ramp_cycles = number as u16,
+            Key::ModbusAddress => c.line.modbus_address = number as u8,
+            Key::ModbusBaud => c.line.baud = number as u32,
+            Key::ModbusParity => c.line.parity_even = on,
+            Key::LinkTimeout => c.line.link_timeout_ms = number as u16,
+            Key::ConsoleWatchdog => c.line.console_watchdog = on,
         }
         Ok(c)
     }

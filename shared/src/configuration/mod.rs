@@ -54,6 +54,37 @@ impl EncoderSetup {
     }
 }
 
+/// The production line's link: the Modbus RTU port and the link watchdog.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LineSetup {
+    /// The board's Modbus slave address, 1 to 247.
+    pub modbus_address: u8,
+    /// The Modbus port's rate, baud.
+    pub baud: u32,
+    /// Even parity and one stop bit (8E1, Modbus's default); otherwise no parity and two stop
+    /// bits (8N2), so that a character is 11 bits either way.
+    pub parity_even: bool,
+    /// The longest silence of a link that drives the feeder before a soft stop, ms; 0 turns
+    /// the link watchdog off.
+    pub link_timeout_ms: u16,
+    /// The watchdog watches the console too (a console that starts the feeder must then speak
+    /// at least every `link_timeout_ms`).
+    pub console_watchdog: bool,
+}
+
+impl LineSetup {
+    /// Address 1 at 19200 baud 8E1 (Modbus's defaults), the watchdog at 2 s for Modbus and off
+    /// for the console.
+    pub const DEFAULT: LineSetup = LineSetup {
+        modbus_address: 1,
+        baud: 19_200,
+        parity_even: true,
+        link_timeout_ms: 2_000,
+        console_watchdog: false,
+    };
+}
+
 /// Which output stage a board drives; it decides which calibration bounds the drive limits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -93,13 +124,15 @@ pub struct Configuration {
     pub track: TrackConfig,
     /// The operator's settings at power-up.
     pub startup: Settings,
+    /// The line's link: Modbus port and link watchdog.
+    pub line: LineSetup,
 }
 
 impl Configuration {
     /// The compiled defaults: shared's documented calibrations, the machine's limits
     /// ([`MACHINE_LIMITS`]), a 1 µm encoder counting up, the closed loop on, μ = 0.3
     /// ([`Friction::CONFIGURED`]), a track full after 0.5 s blocked and empty after 1 s clear,
-    /// and [`Settings::DEFAULT`].
+    /// [`Settings::DEFAULT`] and [`LineSetup::DEFAULT`].
     pub const DEFAULT: Configuration = Configuration {
         dac: DacCalibration::DEFAULT,
         pwm: PwmCalibration::DEFAULT,
@@ -112,6 +145,7 @@ impl Configuration {
             empty_after_s: 1.0,
         },
         startup: Settings::DEFAULT,
+        line: LineSetup::DEFAULT,
     };
 
     /// The part's friction, under standard gravity.

@@ -18,15 +18,20 @@
 //! |     72 |    8 | part friction coefficient μ (`f64`)                          |
 //! |     80 |   16 | track full after, empty after, s (`f64` each)                |
 //! |     96 |   24 | start-up frequency (Hz), duty, stroke (m) or acceleration (m/s²) |
-//! |    120 |    4 | reserved, zero                                               |
-//! |    124 |    4 | CRC-32 (IEEE, reflected) of bytes 0..124                     |
+//! |    120 |    1 | Modbus slave address                                         |
+//! |    121 |    1 | line flags: bit 0 no parity (8N2), bit 1 console watchdog on |
+//! |    122 |    2 | link timeout, ms (0: off)                                    |
+//! |    124 |    4 | Modbus rate, baud                                            |
+//! |    128 |    4 | reserved, zero                                               |
+//! |    132 |    4 | CRC-32 (IEEE, reflected) of bytes 0..132                     |
 //!
-//! Erased flash (all `0xFF`) reads as no record. A record of another layout version is refused
-//! by name ([`RecordError::UnsupportedVersion`]): version 1 is the first layout, so there is
-//! none older to migrate. A record that decodes is still checked as a whole before it is used
-//! ([`load`]).
+//! Erased flash (all `0xFF`) reads as no record. Layout 1, the first, was 128 bytes long with
+//! zeros at 120..124 and its CRC at 124: it is read with the line's settings at their defaults
+//! ([`LineSetup::DEFAULT`]), so a board keeps its calibration across the update. A record of
+//! any other layout version is refused by name ([`RecordError::UnsupportedVersion`]). A record
+//! that decodes is still checked as a whole before it is used ([`load`]).
 
-use super::{BoardFacts, ConfigError, Configuration, EncoderSetup};
+use super::{BoardFacts, ConfigError, Configuration, EncoderSetup, LineSetup};
 use crate::closed_loop::TrackConfig;
 use crate::drive::{DacCalibration, PwmCalibration};
 use crate::recipe::{crc32, RecordError};
@@ -34,13 +39,19 @@ use crate::settings::Settings;
 use crate::waveform::{Drive, Limits};
 
 /// Size of the record in bytes.
-pub const RECORD_LEN: usize = 128;
+pub const RECORD_LEN: usize = 136;
 /// First four bytes of the record.
 pub const MAGIC: [u8; 4] = *b"FDCF";
 /// The layout this code writes and reads.
-pub const FORMAT_VERSION: u16 = 1;
+pub const FORMAT_VERSION: u16 = 2;
+/// The first layout, still read: without the line's settings.
+const FIRST_VERSION: u16 = 1;
+/// The first layout's length.
+const FIRST_LEN: usize = 128;
 
 const CRC_AT: usize = RECORD_LEN - 4;
+const LINE_NO_PARITY: u8 = 1;
+const LINE_CONSOLE_WATCHDOG: u8 = 2;
 const FLAG_REVERSED: u8 = 1;
 const FLAG_CLOSED_LOOP: u8 = 2;
 const DRIVE_STROKE: u8 = 0;
@@ -149,6 +160,15 @@ pub fn encode(configuration: &Configuration) -> [u8; RECORD_LEN] {
     out.f64(c.startup.frequency_hz);
     out.f64(c.startup.duty);
     out.f64(drive_value);
+    let line_flags = if c.line.parity_even { 0 } else { LINE_NO_PARITY }
+        | if c.line.console_watchdog {
+            LINE_CONSOLE_WATCHDOG
+        } else {
+            0
+        };
+    out.put(&[c.line.modbus_address, line_flags]);
+    out.u16(c.line.link_timeout_ms);
+    out.put(&c.line.baud.to_le_bytes());
     let crc = crc32(&out.record[..CRC_AT]);
     out.at = CRC_AT;
     out.put(&crc.to_le_bytes());
@@ -165,15 +185,18 @@ pub fn decode(record: &[u8; RECORD_LEN]) -> Result<Configuration, RecordError> {
         return Err(RecordError::BadMagic);
     }
     let version = input.u16();
-    if version != FORMAT_VERSION {
-        return Err(RecordError::UnsupportedVersion { found: version });
-    }
-    let stored = u32::from_le_bytes(Reader { record, at: CRC_AT }.take());
-    let computed = crc32(&record[..CRC_AT]);
+    let length = match version {
+        FORMAT_VERSION => RECORD_LEN,
+        FIRST_VERSION => FIRST_LEN,
+        found => return Err(RecordError::UnsupportedVersion { found }),
+    };
+    let crc_at = length - 4;
+    let stored = u32::from_le_bytes(Reader { record, at: crc_at }.take());
+    let computed = crc32(&record[..crc_at]);
     if stored != computed {
         return Err(RecordError::CrcMismatch { stored, computed });
     }
-    if usize::from(input.u16()) != RECORD_LEN {
+    if usize::from(input.u16()) != length {
         return Err(RecordError::Malformed);
     }
     let zero_code = input.u16();
@@ -210,6 +233,23 @@ pub fn decode(record: &[u8; RECORD_LEN]) -> Result<Configuration, RecordError> {
         },
         _ => return Err(RecordError::Malformed),
     };
+    let line = match version {
+        FIRST_VERSION => LineSetup::DEFAULT,
+        _ => {
+            let modbus_address = input.u8();
+            let line_flags = input.u8();
+            if line_flags & !(LINE_NO_PARITY | LINE_CONSOLE_WATCHDOG) != 0 {
+                return Err(RecordError::Malformed);
+            }
+            LineSetup {
+                modbus_address,
+                parity_even: line_flags & LINE_NO_PARITY == 0,
+                console_watchdog: line_flags & LINE_CONSOLE_WATCHDOG != 0,
+                link_timeout_ms: input.u16(),
+                baud: input.u32(),
+            }
+        }
+    };
     if input.u32() != 0 {
         return Err(RecordError::Malformed);
     }
@@ -237,6 +277,7 @@ pub fn decode(record: &[u8; RECORD_LEN]) -> Result<Configuration, RecordError> {
             drive,
             ramp_cycles,
         },
+        line,
     })
 }
 

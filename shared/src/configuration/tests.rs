@@ -108,7 +108,7 @@ fn every_key_reads_back_what_was_set_in_its_console_unit() {
             ValueKind::Switch { .. } => {
                 KeyValue::Switch(key.get(&Configuration::DEFAULT) != Some(KeyValue::Switch(true)))
             }
-            ValueKind::Whole { .. } => KeyValue::Number(7.0),
+            ValueKind::Whole { min, max } => KeyValue::Number(f64::from(min.max(7).min(max))),
             ValueKind::Number { .. } => {
                 let (min, max) = range(key);
                 KeyValue::Number(min + 0.375 * (max - min))
@@ -159,7 +159,7 @@ fn the_record_puts_each_field_at_its_documented_offset() {
     let bytes = record::encode(&Configuration::DEFAULT);
     assert_eq!(&bytes[0..4], b"FDCF");
     assert_eq!(bytes[4..6], FORMAT_VERSION.to_le_bytes());
-    assert_eq!(bytes[6..8], 128u16.to_le_bytes());
+    assert_eq!(bytes[6..8], 136u16.to_le_bytes());
     assert_eq!(bytes[8..10], 2048u16.to_le_bytes());
     assert_eq!(bytes[10..12], 249u16.to_le_bytes());
     assert_eq!(bytes[12..14], 25u16.to_le_bytes());
@@ -168,10 +168,70 @@ fn the_record_puts_each_field_at_its_documented_offset() {
     assert_eq!(bytes[16..24], 8.0f64.to_le_bytes());
     assert_eq!(bytes[48..56], 200.0f64.to_le_bytes());
     assert_eq!(bytes[112..120], 2.5e-3f64.to_le_bytes());
-    assert_eq!(bytes[120..124], [0; 4]);
+    assert_eq!(bytes[120], 1, "Modbus address");
+    assert_eq!(bytes[121], 0, "8E1, console watchdog off");
+    assert_eq!(bytes[122..124], 2000u16.to_le_bytes());
+    assert_eq!(bytes[124..128], 19_200u32.to_le_bytes());
+    assert_eq!(bytes[128..132], [0; 4]);
     assert_eq!(
-        bytes[124..128],
-        crate::recipe::crc32(&bytes[..124]).to_le_bytes()
+        bytes[132..136],
+        crate::recipe::crc32(&bytes[..132]).to_le_bytes()
+    );
+}
+
+/// A record of the first layout as it was written: 128 bytes, zeros at 120..124, its CRC at
+/// 124, then the rest of the page erased.
+fn first_layout(configuration: &Configuration) -> [u8; RECORD_LEN] {
+    let mut bytes = record::encode(configuration);
+    bytes[4..6].copy_from_slice(&1u16.to_le_bytes());
+    bytes[6..8].copy_from_slice(&128u16.to_le_bytes());
+    bytes[120..124].fill(0);
+    let crc = crate::recipe::crc32(&bytes[..124]);
+    bytes[124..128].copy_from_slice(&crc.to_le_bytes());
+    bytes[128..].fill(0xff);
+    bytes
+}
+
+#[test]
+fn a_first_layout_record_keeps_its_calibration_and_takes_the_line_defaults() {
+    let calibrated = Key::DacZero
+        .set(&Configuration::DEFAULT, KeyValue::Number(2040.0))
+        .and_then(|c| Key::ModbusAddress.set(&c, KeyValue::Number(17.0)))
+        .unwrap();
+    let read = record::load(&first_layout(&calibrated), &DAC_LOOP).unwrap();
+    assert_eq!(read.dac.zero_code, 2040);
+    assert_eq!(read.line, LineSetup::DEFAULT);
+    let mut corrupt = first_layout(&calibrated);
+    corrupt[20] ^= 1;
+    assert!(matches!(
+        record::decode(&corrupt),
+        Err(RecordError::CrcMismatch { .. })
+    ));
+}
+
+#[test]
+fn the_line_settings_survive_the_record() {
+    let mut c = Configuration::DEFAULT;
+    for (key, value) in [
+        (Key::ModbusAddress, KeyValue::Number(247.0)),
+        (Key::ModbusBaud, KeyValue::Number(115_200.0)),
+        (Key::ModbusParity, KeyValue::Switch(false)),
+        (Key::LinkTimeout, KeyValue::Number(0.0)),
+        (Key::ConsoleWatchdog, KeyValue::Switch(true)),
+    ] {
+        c = key.set(&c, value).unwrap();
+    }
+    assert_eq!(record::load(&record::encode(&c), &DAC_LOOP), Ok(c));
+    assert_eq!(
+        Key::ModbusAddress.set(&c, KeyValue::Number(0.0)),
+        Err(ConfigError::new(
+            Key::ModbusAddress,
+            Problem::OutOfRange {
+                value: 0.0,
+                min: 1.0,
+                max: 247.0
+            }
+        ))
     );
 }
 
@@ -183,10 +243,10 @@ fn erased_flash_other_layouts_and_refused_records_are_named() {
         Err(LoadError::Record(RecordError::Empty))
     );
     let mut newer = record::encode(&Configuration::DEFAULT);
-    newer[4..6].copy_from_slice(&2u16.to_le_bytes());
+    newer[4..6].copy_from_slice(&3u16.to_le_bytes());
     assert_eq!(
         record::decode(&newer),
-        Err(RecordError::UnsupportedVersion { found: 2 })
+        Err(RecordError::UnsupportedVersion { found: 3 })
     );
     let stored = record::encode(&Configuration::DEFAULT);
     assert_eq!(
@@ -202,7 +262,7 @@ fn erased_flash_other_layouts_and_refused_records_are_named() {
 fn configurations() -> impl Strategy<Value = Configuration> {
     let values = Key::ALL.map(|key| match key.kind() {
         ValueKind::Switch { .. } => any::<bool>().prop_map(KeyValue::Switch).boxed(),
-        ValueKind::Whole { max } => (0..=max)
+        ValueKind::Whole { min, max } => (min..=max)
             .prop_map(|n| KeyValue::Number(f64::from(n)))
             .boxed(),
         ValueKind::Number { .. } => (0.0f64..=1.0).prop_map(KeyValue::Number).boxed(),

@@ -315,12 +315,12 @@ fn key_value<'a>(
             },
             words,
         )?)),
-        ValueKind::Whole { max } => {
+        ValueKind::Whole { min, max } => {
             let value = Value {
                 what: key.what(),
-                units: &["counts", "cycles"],
+                units: &["counts", "cycles", "baud", "ms"],
             };
-            Ok(KeyValue::Number(f64::from(whole(value, words, max)?)))
+            Ok(KeyValue::Number(f64::from(whole_in(value, words, min, max)?)))
         }
         ValueKind::Switch { off, on } => {
             let word = words
@@ -353,15 +353,26 @@ fn whole<'a>(
     words: &mut impl Iterator<Item = &'a str>,
     max: u16,
 ) -> Result<u16, ReplyError> {
+    // In range of a u16 by construction.
+    whole_in(value, words, 0, max.into()).map(|whole| whole as u16)
+}
+
+/// A whole number in `min..=max`.
+fn whole_in<'a>(
+    value: Value,
+    words: &mut impl Iterator<Item = &'a str>,
+    min: u32,
+    max: u32,
+) -> Result<u32, ReplyError> {
     let number = number(value, words)?;
-    if !(0.0..=f64::from(max)).contains(&number) {
+    if !(f64::from(min)..=f64::from(max)).contains(&number) {
         return Err(ReplyError::OutOfRange {
             what: value.what,
-            min: 0,
-            max: max.into(),
+            min,
+            max,
         });
     }
-    let whole = number as u16;
+    let whole = number as u32;
     if f64::from(whole) != number {
         return Err(ReplyError::NotWholeNumber { what: value.what });
     }

@@ -32,7 +32,8 @@ fn the_list_shows_every_key_in_its_console_unit() {
         "OK config dac_zero=2048 dac_counts_per_mps2=8 dac_margin=249 pwm_full_mps2=250 \
          min_freq_hz=50 max_freq_hz=100 max_accel_mps2=200 max_stroke_mm=5 encoder_um=1 \
          encoder_dir=forward closed_loop=on part_mu=0.3 track_full_s=0.5 track_empty_s=1 \
-         start_freq_hz=50 start_duty=0.586 start_stroke_mm=2.5 start_ramp=25"
+         start_freq_hz=50 start_duty=0.586 start_stroke_mm=2.5 start_ramp=25 modbus_address=1 \
+         modbus_baud=19200 modbus_parity=even link_timeout_ms=2000 console_watchdog=off"
     );
 }
 
