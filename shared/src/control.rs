@@ -31,7 +31,7 @@ use crate::protocol::{Command, ConfigCommand, Reply, ReplyError, Status};
 use crate::recipe::{self, RecipeSlot, RecordError, RECIPE_SLOTS, RECORD_LEN};
 use crate::scheduler::Phase;
 use crate::settings::{Applied, Machine, Settings};
-use crate::supervisor::{Fault, RunState};
+use crate::supervisor::{Fault, RunState, SupervisorEvent};
 use crate::waveform::WaveformSpec;
 
 /// Cycles (or idle periods) after which a queued motion request shows in the snapshot: the
@@ -108,12 +108,26 @@ pub enum Action {
     },
 }
 
+impl Action {
+    /// The supervisor's request this action makes, for the motion actions.
+    pub const fn request(&self) -> Option<SupervisorEvent> {
+        match self {
+            Action::Start => Some(SupervisorEvent::StartRequested),
+            Action::Stop => Some(SupervisorEvent::StopRequested),
+            Action::Reset => Some(SupervisorEvent::ResetRequested),
+            _ => None,
+        }
+    }
+}
+
 /// The answer to one command line.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Outcome {
     /// The one reply line, without its terminator.
     pub reply: Reply,
     pub action: Action,
+    /// Why the command was refused, where it was: the reply's `ERR` line says the same.
+    pub refusal: Option<ReplyError>,
 }
 
 impl Outcome {
@@ -121,11 +135,29 @@ impl Outcome {
         Outcome {
             reply,
             action: Action::None,
+            refusal: None,
         }
     }
 
     fn error(error: ReplyError) -> Self {
-        Self::reply(Reply::error(&error))
+        Outcome {
+            refusal: Some(error),
+            ..Self::reply(Reply::error(&error))
+        }
+    }
+
+    fn act(reply: Reply, action: Action) -> Self {
+        Outcome {
+            action,
+            ..Self::reply(reply)
+        }
+    }
+
+    fn answer(answer: Result<Reply, ReplyError>) -> Self {
+        match answer {
+            Ok(reply) => Self::reply(reply),
+            Err(error) => Self::error(error),
+        }
     }
 }
 
@@ -157,6 +189,8 @@ pub struct Controller {
     /// The last motion request and the snapshot's cycle count when it was issued.
     issued: Option<(Issued, u64)>,
     configured: Option<Configured>,
+    /// The recipe whose settings are the operator's, until a `set` changes them.
+    recipe: Option<RecipeSlot>,
 }
 
 impl Controller {
@@ -168,6 +202,7 @@ impl Controller {
             applied: settings.validate(&machine)?,
             issued: None,
             configured: None,
+            recipe: None,
         })
     }
 
@@ -196,6 +231,7 @@ impl Controller {
                 running: configuration,
                 edited: configuration,
             }),
+            recipe: None,
         })
     }
 
@@ -248,7 +284,10 @@ impl Controller {
             Command::Status => Outcome::reply(Reply::status(&self.status(snapshot))),
             Command::Get(param) => Outcome::reply(Reply::get(param, &self.status(snapshot))),
             Command::Set(setting) => match self.applied.settings.apply(setting, &self.machine) {
-                Ok(applied) => self.adopt(applied, Reply::applied(&applied)),
+                Ok(applied) => {
+                    self.recipe = None;
+                    self.adopt(applied, Reply::applied(&applied))
+                }
                 Err(error) => Outcome::error(error.into()),
             },
             Command::RecipeSave(_) if !self.stopped(snapshot) => {
@@ -263,7 +302,10 @@ impl Controller {
             }
             Command::RecipeLoad(slot) => {
                 match recipe::load(&store.read(slot), slot, &self.machine) {
-                    Ok(applied) => self.adopt(applied, Reply::recipe_loaded(slot, &applied)),
+                    Ok(applied) => {
+                        self.recipe = Some(slot);
+                        self.adopt(applied, Reply::recipe_loaded(slot, &applied))
+                    }
                     Err(issue) => Outcome::error(ReplyError::RecipeUnusable { slot, issue }),
                 }
             }
@@ -276,18 +318,15 @@ impl Controller {
             }
             Command::Help => Outcome::reply(Reply::help()),
             Command::Restart if !self.stopped(snapshot) => Outcome::error(ReplyError::NotStopped),
-            Command::Restart => Outcome {
-                reply: Reply::ok(format_args!("restarting")),
-                action: Action::Restart,
-            },
-            Command::Telemetry(on) => Outcome {
-                reply: Reply::ok(format_args!("telemetry {}", if on { "on" } else { "off" })),
-                action: Action::Telemetry(on),
-            },
+            Command::Restart => Outcome::act(Reply::ok(format_args!("restarting")), Action::Restart),
+            Command::Telemetry(on) => Outcome::act(
+                Reply::ok(format_args!("telemetry {}", if on { "on" } else { "off" })),
+                Action::Telemetry(on),
+            ),
             Command::Config(command) => {
                 let stopped = self.stopped(snapshot);
                 match self.configured.as_mut() {
-                    Some(configured) => Outcome::reply(configured.execute(command, stopped, store)),
+                    Some(configured) => Outcome::answer(configured.execute(command, stopped, store)),
                     None => Outcome::error(ReplyError::NoConfiguration),
                 }
             }
@@ -317,14 +356,14 @@ impl Controller {
     /// Makes `applied` the operator's settings and asks the control loop to run them.
     fn adopt(&mut self, applied: Applied, reply: Reply) -> Outcome {
         self.applied = applied;
-        Outcome {
+        Outcome::act(
             reply,
-            action: Action::Configure {
+            Action::Configure {
                 spec: applied.settings.spec(),
                 plan: applied.plan,
                 ramp_cycles: applied.settings.ramp_cycles,
             },
-        }
+        )
     }
 
     fn issue(&mut self, issued: Issued, snapshot: &Snapshot, what: &str) -> Outcome {
@@ -334,10 +373,7 @@ impl Controller {
             Issued::Stop => Action::Stop,
             Issued::Reset => Action::Reset,
         };
-        Outcome {
-            reply: Reply::ok(format_args!("{}", what)),
-            action,
-        }
+        Outcome::act(Reply::ok(format_args!("{}", what)), action)
     }
 
     /// A fault is latched and no `reset` is on its way.
@@ -353,7 +389,13 @@ impl Controller {
         idle && !matches!(self.issued, Some((Issued::Start | Issued::Stop, _)))
     }
 
-    fn status(&self, snapshot: &Snapshot) -> Status<Fault> {
+    /// The recipe loaded last, while no `set` has changed its settings.
+    pub fn recipe(&self) -> Option<RecipeSlot> {
+        self.recipe
+    }
+
+    /// What `status` reports, from the feeder's `snapshot`.
+    pub fn status(&self, snapshot: &Snapshot) -> Status<Fault> {
         Status {
             phase: snapshot.phase,
             fault: match snapshot.state {
@@ -378,31 +420,31 @@ impl Configured {
         command: ConfigCommand,
         stopped: bool,
         store: &mut S,
-    ) -> Reply {
+    ) -> Result<Reply, ReplyError> {
         match command {
-            ConfigCommand::List => Reply::config_list(&self.edited),
-            ConfigCommand::Get(key) => Reply::config_value(key, &self.edited),
+            ConfigCommand::List => Ok(Reply::config_list(&self.edited)),
+            ConfigCommand::Get(key) => Ok(Reply::config_value(key, &self.edited)),
             ConfigCommand::Set(key, _) if key.changes_output() && !stopped => {
-                Reply::error(&ReplyError::NotStopped)
+                Err(ReplyError::NotStopped)
             }
             ConfigCommand::Set(key, value) => match key.set(&self.edited, value) {
                 Ok(edited) => {
                     self.edited = edited;
-                    Reply::config_set(key, &self.edited)
+                    Ok(Reply::config_set(key, &self.edited))
                 }
-                Err(error) => Reply::error(&ReplyError::ConfigRefused(error)),
+                Err(error) => Err(ReplyError::ConfigRefused(error)),
             },
-            ConfigCommand::Save if !stopped => Reply::error(&ReplyError::NotStopped),
+            ConfigCommand::Save if !stopped => Err(ReplyError::NotStopped),
             ConfigCommand::Save => match self.edited.check(&self.board) {
-                Err(error) => Reply::error(&ReplyError::ConfigRefused(error)),
+                Err(error) => Err(ReplyError::ConfigRefused(error)),
                 Ok(()) => match store.write_configuration(&config_record::encode(&self.edited)) {
-                    Ok(()) => Reply::config_saved(self.edited != self.running),
-                    Err(_) => Reply::error(&ReplyError::StorageFailed),
+                    Ok(()) => Ok(Reply::config_saved(self.edited != self.running)),
+                    Err(_) => Err(ReplyError::StorageFailed),
                 },
             },
             ConfigCommand::Defaults => {
                 self.edited = self.defaults;
-                Reply::config_defaults()
+                Ok(Reply::config_defaults())
             }
         }
     }

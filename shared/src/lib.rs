@@ -19,6 +19,8 @@ pub mod control;
 pub mod drive;
 pub mod error;
 pub mod event;
+pub mod line;
+pub mod modbus;
 pub mod model;
 pub mod number;
 pub mod plan;
