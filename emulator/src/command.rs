@@ -20,20 +20,28 @@ pub const ICOUNT_SHIFT: u32 = feeder_shared::scenario::QEMU_ICOUNT_SHIFT;
 /// Virtual time per instruction under [`ICOUNT_SHIFT`], in nanoseconds.
 pub const NS_PER_INSTRUCTION: u32 = 1 << ICOUNT_SHIFT;
 
-/// Where QEMU connects the board's UART0 (the serial console of the console image).
+/// Where QEMU connects the board's UART0 (the serial console of the console image) and UART1
+/// (its Modbus RTU port).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Serial {
     /// Not connected: the scripted image has no console.
     None,
-    /// A TCP server on this loopback port that a client may connect to at any time.
+    /// The console on a TCP server on this loopback port that a client may connect to at any
+    /// time; the Modbus port not connected.
     Tcp { port: u16 },
+    /// The console and the Modbus port each on a TCP server on loopback: a Modbus master
+    /// connects to `modbus` and speaks RTU frames over it.
+    Lines { console: u16, modbus: u16 },
 }
 
 impl Serial {
-    fn backend(self) -> String {
+    /// The `-serial` backends, UART0's first.
+    fn backends(self) -> Vec<String> {
+        let tcp = |port: u16| format!("tcp:127.0.0.1:{port},server=on,wait=off");
         match self {
-            Serial::None => "none".into(),
-            Serial::Tcp { port } => format!("tcp:127.0.0.1:{port},server=on,wait=off"),
+            Serial::None => vec!["none".into()],
+            Serial::Tcp { port } => vec![tcp(port)],
+            Serial::Lines { console, modbus } => vec![tcp(console), tcp(modbus)],
         }
     }
 }
@@ -44,8 +52,11 @@ pub fn command<S: AsRef<str>>(elf: &Path, scenario: &[S], serial: Serial) -> Com
     let mut command = Command::new(QEMU);
     command
         .args(["-machine", MACHINE, "-cpu", CPU])
-        .args(["-display", "none", "-monitor", "none"])
-        .args(["-serial", &serial.backend()])
+        .args(["-display", "none", "-monitor", "none"]);
+    for backend in serial.backends() {
+        command.args(["-serial", &backend]);
+    }
+    command
         .args(["-semihosting-config", &semihosting(scenario)])
         .args(["-icount", &format!("shift={ICOUNT_SHIFT}")])
         .arg("-kernel")
@@ -114,6 +125,32 @@ mod tests {
         assert_eq!(
             arguments[serial + 1],
             "tcp:127.0.0.1:4444,server=on,wait=off"
+        );
+    }
+
+    #[test]
+    fn the_modbus_port_is_the_second_serial_backend() {
+        let command = command(
+            Path::new("fw.elf"),
+            &[] as &[&str],
+            Serial::Lines {
+                console: 4444,
+                modbus: 5020,
+            },
+        );
+        let arguments = arguments(&command);
+        let backends: Vec<&String> = arguments
+            .iter()
+            .zip(arguments.iter().skip(1))
+            .filter(|(flag, _)| *flag == "-serial")
+            .map(|(_, backend)| backend)
+            .collect();
+        assert_eq!(
+            backends,
+            [
+                "tcp:127.0.0.1:4444,server=on,wait=off",
+                "tcp:127.0.0.1:5020,server=on,wait=off"
+            ]
         );
     }
 

@@ -14,6 +14,8 @@ mod configured;
 #[cfg(feature = "console")]
 mod console;
 mod fault;
+#[cfg(feature = "console")]
+mod line;
 mod mailbox;
 mod output;
 mod ports;

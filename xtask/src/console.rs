@@ -7,10 +7,11 @@
 //! With `--plant FILE` the console image with the plant's encoder runs the closed loop in
 //! lockstep with that plate (and a part of the configured μ on it); with `--script FILE` a
 //! command script runs headless instead of the prompt (`feeder-ctl script`), its telemetry
-//! recorded to CSV with `--record FILE`.
+//! recorded to CSV with `--record FILE`. With `--modbus 127.0.0.1:PORT` the board's Modbus RTU
+//! port listens there too (RTU frames over TCP), for a Modbus master beside the prompt.
 
 use std::fs::File;
-use std::net::{TcpListener, TcpStream};
+use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::process::Stdio;
 use std::thread;
@@ -67,6 +68,10 @@ pub struct ConsoleArgs {
     /// With --script: records the telemetry to this CSV file, one row per record.
     #[arg(long, value_name = "FILE", requires = "script")]
     record: Option<PathBuf>,
+    /// Puts the board's Modbus RTU port (its second UART) on this loopback address, RTU frames
+    /// over TCP, for a Modbus master (a PLC's software, a client library).
+    #[arg(long, value_name = "127.0.0.1:PORT")]
+    modbus: Option<SocketAddr>,
 }
 
 /// Builds and runs everything, hands the terminal to `feeder-ctl` (or runs the script), then
@@ -82,6 +87,7 @@ pub fn console(args: &ConsoleArgs) -> Result {
             Failure::Refused(format!("cannot read {}: {error}", script.display()))
         })?;
     }
+    let modbus = args.modbus.map(modbus_port).transpose()?;
     tools::ensure_linker()?;
     tools::ensure_emulation()?;
     let image = match plant {
@@ -97,11 +103,15 @@ pub fn console(args: &ConsoleArgs) -> Result {
     ]))?;
     let log = log_path();
     let operator = {
-        let mut feeder = Feeder::start(&elf, &log, plant.as_ref())?;
+        let mut feeder = Feeder::start(&elf, &log, plant.as_ref(), modbus)?;
         eprintln!(
-            "xtask: the feeder runs under QEMU, its console on {}, its log in {} and its flash \
-             in {}{}",
+            "xtask: the feeder runs under QEMU, its console on {}{}, its log in {} and its \
+             flash in {}{}",
             address(feeder.port),
+            match modbus {
+                Some(port) => format!(", its Modbus RTU port on {} (slave 1)", address(port)),
+                None => String::new(),
+            },
             log.display(),
             board_dir()?.join(FLASH_FILE).display(),
             match &args.script {
@@ -168,10 +178,22 @@ struct Feeder {
 
 impl Feeder {
     /// Starts the console image `elf` with its decoded log going to `log`, in lockstep with the
-    /// plate of `plant` where there is one, and waits until its serial port accepts
-    /// connections.
-    fn start(elf: &Path, log: &Path, plant: Option<&PlantFile>) -> Result<Self> {
+    /// plate of `plant` where there is one, its Modbus port on loopback port `modbus` where
+    /// asked, and waits until its serial port accepts connections.
+    fn start(
+        elf: &Path,
+        log: &Path,
+        plant: Option<&PlantFile>,
+        modbus: Option<u16>,
+    ) -> Result<Self> {
         let port = free_port()?;
+        let serial = match modbus {
+            Some(modbus) => Serial::Lines {
+                console: port,
+                modbus,
+            },
+            None => Serial::Tcp { port },
+        };
         let file = File::create(log)
             .map_err(|error| format!("cannot create {}: {error}", log.display()))?;
         let dir = board_dir()?;
@@ -180,7 +202,7 @@ impl Feeder {
                 Board::start(
                     elf,
                     &[] as &[&str],
-                    Serial::Tcp { port },
+                    serial,
                     Stdio::from(file),
                     &dir,
                 )
@@ -196,7 +218,7 @@ impl Feeder {
                 let (board, link) = Board::start_with_plant(
                     elf,
                     &[] as &[&str],
-                    Serial::Tcp { port },
+                    serial,
                     Stdio::from(file),
                     plate,
                     Some(&dir),
@@ -249,6 +271,19 @@ impl Feeder {
         }
         Ok(())
     }
+}
+
+/// The loopback port of `--modbus`: QEMU's serial servers listen on loopback only.
+fn modbus_port(address: SocketAddr) -> Result<u16> {
+    if !address.ip().is_loopback() || address.port() == 0 {
+        return Err(Failure::Refused(format!(
+            "--modbus {address}: give a loopback address with a port, such as 127.0.0.1:5020"
+        )));
+    }
+    TcpListener::bind(address).map_err(|error| {
+        Failure::Refused(format!("--modbus {address}: the port is not free: {error}"))
+    })?;
+    Ok(address.port())
 }
 
 /// The console's address on the loopback port `port`, as `feeder-ctl --tcp` takes it.

@@ -8,8 +8,8 @@
 //!   preload slack and measures the work per edge on the 25 MHz timer ([`edge_work`]: 40 ns,
 //!   which `-icount shift=4` makes 2.5 instructions).
 //! * Operator: a script read from the semihosting command line (`script`) instead of B1; with
-//!   the `console` feature, the serial console on UART0 (`console`, `uart`, QEMU's `-serial`)
-//!   instead, with recipes kept in RAM: the feeder waits, stopped, for commands and the emulation
+//!   the `console` feature, the serial console on UART0 and the Modbus port on UART1
+//!   (`console`, `uart`, QEMU's first and second `-serial`) instead, with recipes kept in RAM: the feeder waits, stopped, for commands and the emulation
 //!   runs until QEMU is ended. The script's image contains no console, so its run (and its `EVT`
 //!   stream) does not depend on the console's code.
 //! * Executors: all tasks run on four interrupt executors (the control loop above the closed
@@ -137,6 +137,10 @@ enum Irq {
     Uart0Rx = 0,
     #[cfg(feature = "console")]
     Uart0Tx = 1,
+    #[cfg(feature = "console")]
+    Uart1Rx = 2,
+    #[cfg(feature = "console")]
+    Uart1Tx = 3,
     Timer0 = 8,
     Timer1 = 9,
     LoopExecutor = 28,
@@ -157,9 +161,13 @@ unsafe impl InterruptNumber for Irq {
 unsafe fn DefaultHandler(irqn: i16) {
     match irqn {
         #[cfg(feature = "console")]
-        0 => uart::on_receive(),
+        0 => uart::on_receive(uart::Port::Console),
         #[cfg(feature = "console")]
-        1 => uart::on_transmit(),
+        1 => uart::on_transmit(uart::Port::Console),
+        #[cfg(feature = "console")]
+        2 => uart::on_receive(uart::Port::Modbus),
+        #[cfg(feature = "console")]
+        3 => uart::on_transmit(uart::Port::Modbus),
         8 => time_driver::on_alarm(),
         9 => time_driver::on_clock_wrap(),
         // SAFETY: each executor was started on its interrupt in `setup::init`.

@@ -1,9 +1,10 @@
-//! UART0 of mps2-an386 (CMSDK APB UART at 0x4000_4000, RX interrupt 0, TX interrupt 1) as the
-//! console's byte stream. QEMU connects it to its `-serial` backend.
+//! The CMSDK APB UARTs of mps2-an386 as byte streams: UART0 (0x4000_4000, RX interrupt 0, TX 1)
+//! for the console, UART1 (0x4000_5000, RX interrupt 2, TX 3) for the Modbus port. QEMU
+//! connects each to a `-serial` backend, in order.
 //!
-//! The UART holds one received byte; QEMU keeps the rest in the backend until the firmware has
-//! read it, so nothing is lost while the console is busy. The interrupts only wake the console
-//! task, which moves the bytes itself.
+//! A UART holds one received byte; QEMU keeps the rest in the backend until the firmware has
+//! read it, so nothing is lost while the task is busy. The interrupts only wake the task, which
+//! moves the bytes itself.
 
 use core::convert::Infallible;
 use core::future::poll_fn;
@@ -15,7 +16,6 @@ use embassy_sync::waitqueue::AtomicWaker;
 use super::setup::TASK_PRIORITY;
 use super::{register_read, register_write, set_priority, Irq};
 
-const BASE: usize = 0x4000_4000;
 const DATA: usize = 0x00;
 const STATE: usize = 0x04;
 const CTRL: usize = 0x08;
@@ -35,47 +35,72 @@ const INT_RX: u32 = 1 << 1;
 /// 115200 baud from the 25 MHz peripheral clock (QEMU does not pace the bytes).
 const BAUD_DIVISOR: u32 = 25_000_000 / 115_200;
 
-static RX_WAKER: AtomicWaker = AtomicWaker::new();
-static TX_WAKER: AtomicWaker = AtomicWaker::new();
-
-fn read(offset: usize) -> u32 {
-    register_read(BASE + offset)
+/// One of the machine's UARTs: its registers and interrupts.
+#[derive(Clone, Copy)]
+pub enum Port {
+    /// UART0: the console.
+    Console = 0,
+    /// UART1: the Modbus port.
+    Modbus = 1,
 }
 
-fn write(offset: usize, value: u32) {
-    register_write(BASE + offset, value)
+impl Port {
+    const fn base(self) -> usize {
+        match self {
+            Port::Console => 0x4000_4000,
+            Port::Modbus => 0x4000_5000,
+        }
+    }
+
+    const fn interrupts(self) -> [Irq; 2] {
+        match self {
+            Port::Console => [Irq::Uart0Rx, Irq::Uart0Tx],
+            Port::Modbus => [Irq::Uart1Rx, Irq::Uart1Tx],
+        }
+    }
+
+    fn read(self, offset: usize) -> u32 {
+        register_read(self.base() + offset)
+    }
+
+    fn write(self, offset: usize, value: u32) {
+        register_write(self.base() + offset, value)
+    }
 }
 
-/// RX interrupt: a byte has arrived.
-pub fn on_receive() {
-    write(INTSTATUS, INT_RX);
-    RX_WAKER.wake();
+static RX_WAKERS: [AtomicWaker; 2] = [AtomicWaker::new(), AtomicWaker::new()];
+static TX_WAKERS: [AtomicWaker; 2] = [AtomicWaker::new(), AtomicWaker::new()];
+
+/// RX interrupt of `port`: a byte has arrived.
+pub fn on_receive(port: Port) {
+    port.write(INTSTATUS, INT_RX);
+    RX_WAKERS[port as usize].wake();
 }
 
-/// TX interrupt: the transmitter has room again.
-pub fn on_transmit() {
-    write(INTSTATUS, INT_TX);
-    TX_WAKER.wake();
+/// TX interrupt of `port`: the transmitter has room again.
+pub fn on_transmit(port: Port) {
+    port.write(INTSTATUS, INT_TX);
+    TX_WAKERS[port as usize].wake();
 }
 
-/// The console's end of UART0.
-pub struct Uart(());
+/// The task's end of one UART.
+pub struct Uart(Port);
 
 impl Uart {
-    /// Enables UART0 with both interrupts at the priority of the task executor, so that the
-    /// handlers and the console task never preempt each other.
-    pub fn new() -> Self {
-        write(BAUDDIV, BAUD_DIVISOR);
-        write(
+    /// Enables `port` with both interrupts at the priority of the task executor, so that the
+    /// handlers and the task never preempt each other.
+    pub fn new(port: Port) -> Self {
+        port.write(BAUDDIV, BAUD_DIVISOR);
+        port.write(
             CTRL,
             CTRL_TX_ENABLE | CTRL_RX_ENABLE | CTRL_TX_INTERRUPT | CTRL_RX_INTERRUPT,
         );
-        for irq in [Irq::Uart0Rx, Irq::Uart0Tx] {
+        for irq in port.interrupts() {
             set_priority(irq, TASK_PRIORITY);
             // SAFETY: both handlers only clear their flag and wake a waker.
             unsafe { NVIC::unmask(irq) };
         }
-        Uart(())
+        Uart(port)
     }
 }
 
@@ -85,14 +110,15 @@ impl embedded_io_async::ErrorType for Uart {
 
 impl embedded_io_async::Read for Uart {
     async fn read(&mut self, buffer: &mut [u8]) -> Result<usize, Infallible> {
+        let port = self.0;
         poll_fn(|cx| {
-            RX_WAKER.register(cx.waker());
+            RX_WAKERS[port as usize].register(cx.waker());
             let mut received = 0;
             for slot in buffer.iter_mut() {
-                if read(STATE) & STATE_RX_FULL == 0 {
+                if port.read(STATE) & STATE_RX_FULL == 0 {
                     break;
                 }
-                *slot = read(DATA) as u8;
+                *slot = port.read(DATA) as u8;
                 received += 1;
             }
             if received > 0 || buffer.is_empty() {
@@ -107,14 +133,15 @@ impl embedded_io_async::Read for Uart {
 
 impl embedded_io_async::Write for Uart {
     async fn write(&mut self, bytes: &[u8]) -> Result<usize, Infallible> {
+        let port = self.0;
         poll_fn(|cx| {
-            TX_WAKER.register(cx.waker());
+            TX_WAKERS[port as usize].register(cx.waker());
             let mut sent = 0;
             for &byte in bytes {
-                if read(STATE) & STATE_TX_FULL != 0 {
+                if port.read(STATE) & STATE_TX_FULL != 0 {
                     break;
                 }
-                write(DATA, u32::from(byte));
+                port.write(DATA, u32::from(byte));
                 sent += 1;
             }
             if sent > 0 || bytes.is_empty() {
@@ -127,9 +154,10 @@ impl embedded_io_async::Write for Uart {
     }
 
     async fn flush(&mut self) -> Result<(), Infallible> {
+        let port = self.0;
         poll_fn(|cx| {
-            TX_WAKER.register(cx.waker());
-            if read(STATE) & STATE_TX_FULL == 0 {
+            TX_WAKERS[port as usize].register(cx.waker());
+            if port.read(STATE) & STATE_TX_FULL == 0 {
                 Poll::Ready(Ok(()))
             } else {
                 Poll::Pending
