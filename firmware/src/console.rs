@@ -17,12 +17,12 @@ use embedded_io_async::{Read, Write};
 use feeder_shared::line::LinkWatchdog;
 use feeder_shared::telemetry::{Pacer, MAX_LINE_BYTES};
 use feeder_shared::{
-    Action, ConfigurationStore, Controller, LineAssembler, RecipeStore, Snapshot, TickClock,
+    Action, ConfigurationStore, Controller, LineAssembler, RecipeStore, TickClock,
 };
 
-use crate::app::regulate::probe_step;
 use crate::line::{expire, DiscreteLines, Lines, ModbusLink, ModbusPort};
-use crate::mailbox::{ReadyPlan, NEXT_PLAN, REQUESTS};
+use crate::mailbox::dispatch;
+use crate::status::snapshot;
 use crate::{config, configured, status};
 
 /// Bytes taken from a port per read.
@@ -169,29 +169,6 @@ fn wake_after_ms(telemetry: bool, lines: bool, deadlines_ms: [Option<u64>; 2]) -
     periodic.into_iter().chain(deadlines).flatten().min()
 }
 
-/// Hands `action` to the control loop: a motion request to its queue, a planned waveform to its
-/// mailbox (the newest replaces one not yet taken).
-pub async fn dispatch(action: Action) {
-    if let Some(request) = action.request() {
-        REQUESTS.send(request).await;
-    }
-    if let Action::Configure {
-        spec,
-        plan,
-        ramp_cycles,
-    } = action
-    {
-        NEXT_PLAN.lock(|next| {
-            next.set(Some(ReadyPlan {
-                spec,
-                plan,
-                ramp_cycles,
-                hold_step: probe_step(ramp_cycles),
-            }))
-        })
-    }
-}
-
 /// Telemetry on the link: on or off, the pacing of its lines and the cycle reported last.
 #[derive(Clone, Copy)]
 struct Telemetry {
@@ -226,18 +203,5 @@ impl Telemetry {
         if port.write_all(line.as_bytes()).await.is_err() {
             warn!("console: transmit error, telemetry line lost");
         }
-    }
-}
-
-/// The feeder as the control loop last published it.
-pub fn snapshot() -> Snapshot {
-    let status = status::get();
-    Snapshot {
-        state: status.state,
-        phase: status.phase,
-        uptime_ms: embassy_time::Instant::now().as_millis(),
-        cycles: status.cycle,
-        closed_loop: status::closed_loop(),
-        track: status::track(),
     }
 }

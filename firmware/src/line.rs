@@ -1,7 +1,7 @@
 //! The production line's links beside the console: the Modbus RTU port and the discrete lines
 //! (release and recipe-select inputs, ready and fault outputs), each with the shared rules
 //! (`feeder_shared::modbus`, `feeder_shared::line`). The operator's task
-//! ([`crate::console::serve`]) owns the one controller they all act through.
+//! (`crate::console::serve`) owns the one controller they all act through.
 
 use defmt::{info, warn};
 use embassy_time::Instant;
@@ -12,8 +12,8 @@ use feeder_shared::line::{LineInputs, LineOutputs, LinkWatchdog, RecipeSelect};
 use feeder_shared::modbus::{FrameAssembler, Response, Server};
 use feeder_shared::{ConfigurationStore, Controller, RecipeStore, RunState, SupervisorEvent};
 
-use crate::console::{dispatch, snapshot};
-use crate::status;
+use crate::mailbox::dispatch;
+use crate::status::{self, snapshot};
 
 /// The Modbus RTU port of a board: its byte stream and the silence that ends a frame on it.
 pub struct ModbusPort<M> {

@@ -62,3 +62,27 @@ impl ReadyPlan {
         })
     }
 }
+
+/// Hands an operator's `action` to the control loop: a motion request to [`REQUESTS`], a
+/// planned waveform to [`NEXT_PLAN`] (the newest replaces one not yet taken).
+#[cfg(feature = "console")]
+pub async fn dispatch(action: feeder_shared::Action) {
+    if let Some(request) = action.request() {
+        REQUESTS.send(request).await;
+    }
+    if let feeder_shared::Action::Configure {
+        spec,
+        plan,
+        ramp_cycles,
+    } = action
+    {
+        NEXT_PLAN.lock(|next| {
+            next.set(Some(ReadyPlan {
+                spec,
+                plan,
+                ramp_cycles,
+                hold_step: probe_step(ramp_cycles),
+            }))
+        })
+    }
+}

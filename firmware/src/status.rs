@@ -77,3 +77,17 @@ pub fn publish_track(report: TrackReport) {
 pub fn track() -> Option<TrackReport> {
     TRACK.lock(Cell::get)
 }
+
+/// The feeder as the control loop last published it, as the operator's controller reads it.
+#[cfg(feature = "console")]
+pub fn snapshot() -> feeder_shared::Snapshot {
+    let status = get();
+    feeder_shared::Snapshot {
+        state: status.state,
+        phase: status.phase,
+        uptime_ms: embassy_time::Instant::now().as_millis(),
+        cycles: status.cycle,
+        closed_loop: closed_loop(),
+        track: track(),
+    }
+}
