@@ -318,7 +318,9 @@ impl Controller {
             }
             Command::Help => Outcome::reply(Reply::help()),
             Command::Restart if !self.stopped(snapshot) => Outcome::error(ReplyError::NotStopped),
-            Command::Restart => Outcome::act(Reply::ok(format_args!("restarting")), Action::Restart),
+            Command::Restart => {
+                Outcome::act(Reply::ok(format_args!("restarting")), Action::Restart)
+            }
             Command::Telemetry(on) => Outcome::act(
                 Reply::ok(format_args!("telemetry {}", if on { "on" } else { "off" })),
                 Action::Telemetry(on),
@@ -326,7 +328,9 @@ impl Controller {
             Command::Config(command) => {
                 let stopped = self.stopped(snapshot);
                 match self.configured.as_mut() {
-                    Some(configured) => Outcome::answer(configured.execute(command, stopped, store)),
+                    Some(configured) => {
+                        Outcome::answer(configured.execute(command, stopped, store))
+                    }
                     None => Outcome::error(ReplyError::NoConfiguration),
                 }
             }

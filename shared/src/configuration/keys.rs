@@ -227,9 +227,13 @@ impl Key {
                 (0.001, 100.0),
                 true,
             ),
-            Key::EncoderDirection => {
-                switch("encoder_dir", "forward or reversed", "forward", "reversed", true)
-            }
+            Key::EncoderDirection => switch(
+                "encoder_dir",
+                "forward or reversed",
+                "forward",
+                "reversed",
+                true,
+            ),
             Key::ClosedLoop => switch("closed_loop", "on or off", "off", "on", true),
             Key::PartMu => number(
                 "part_mu",
@@ -316,13 +320,7 @@ impl Key {
                 (0, 60_000),
                 false,
             ),
-            Key::ConsoleWatchdog => switch(
-                "console_watchdog",
-                "on or off",
-                "off",
-                "on",
-                false,
-            ),
+            Key::ConsoleWatchdog => switch("console_watchdog", "on or off", "off", "on", false),
         }
     }
 

@@ -160,12 +160,15 @@ pub fn encode(configuration: &Configuration) -> [u8; RECORD_LEN] {
     out.f64(c.startup.frequency_hz);
     out.f64(c.startup.duty);
     out.f64(drive_value);
-    let line_flags = if c.line.parity_even { 0 } else { LINE_NO_PARITY }
-        | if c.line.console_watchdog {
-            LINE_CONSOLE_WATCHDOG
-        } else {
-            0
-        };
+    let line_flags = if c.line.parity_even {
+        0
+    } else {
+        LINE_NO_PARITY
+    } | if c.line.console_watchdog {
+        LINE_CONSOLE_WATCHDOG
+    } else {
+        0
+    };
     out.put(&[c.line.modbus_address, line_flags]);
     out.u16(c.line.link_timeout_ms);
     out.put(&c.line.baud.to_le_bytes());

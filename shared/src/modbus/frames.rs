@@ -16,7 +16,7 @@ pub const fn frame_gap_us(baud: u32) -> u64 {
         1_750
     } else {
         // 3.5 characters of 11 bits: 38.5 bit times.
-        (38_500_000 + baud as u64 - 1) / baud as u64
+        38_500_000u64.div_ceil(baud as u64)
     }
 }
 

@@ -234,7 +234,12 @@ impl Input {
 
     pub const fn spec(self) -> Spec {
         match self {
-            Input::State => spec(0, "state", "0 stopped, 1 running, 2 stopping, 3 faulted", 1.0),
+            Input::State => spec(
+                0,
+                "state",
+                "0 stopped, 1 running, 2 stopping, 3 faulted",
+                1.0,
+            ),
             Input::Fault => spec(1, "fault", "fault code, 0 none", 1.0),
             Input::Refusal => spec(2, "refusal", "console ERR code, 0 none", 1.0),
             Input::RefusedRegister => spec(3, "refused_register", "holding address", 1.0),

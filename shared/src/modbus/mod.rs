@@ -6,8 +6,8 @@
 //! request into its response and the actions it makes). Frames are parsed and answered by
 //! `rmodbus`.
 
-pub mod map;
 mod frames;
+pub mod map;
 mod server;
 
 pub use frames::{frame_gap_us, FrameAssembler, MAX_FRAME_BYTES};

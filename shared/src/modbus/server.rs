@@ -9,6 +9,7 @@
 //! registers `refusal` and `refused_register`. A frame that fails its CRC or its shape gets no
 //! answer, as the serial line specification asks.
 
+use rmodbus::consts::ModbusFunction;
 use rmodbus::server::{ModbusFrame, Read, Write};
 use rmodbus::{ErrorKind, ModbusProto};
 
@@ -91,8 +92,9 @@ impl Server {
         response: &mut Response,
     ) -> Exchange {
         let mut exchange = Exchange::NONE;
+        let unanswerable = self.unanswerable(request);
         let mut frame = ModbusFrame::new(self.address, request, ModbusProto::Rtu, response);
-        if frame.parse().is_err() {
+        if unanswerable || frame.parse().is_err() {
             response.clear();
             exchange.broken = true;
             return exchange;
@@ -103,9 +105,14 @@ impl Server {
             (true, true) => {
                 let func = frame.func;
                 let read = match frame.get_external_read() {
-                    Ok(Read::Words(words)) => {
-                        read_words(func, words.address, words.buf, controller, snapshot, &self.link)
-                    }
+                    Ok(Read::Words(words)) => read_words(
+                        func,
+                        words.address,
+                        words.buf,
+                        controller,
+                        snapshot,
+                        &self.link,
+                    ),
                     Ok(Read::Bits(_)) => Err(ErrorKind::IllegalFunction),
                     Err(error) => Err(error),
                 };
@@ -146,6 +153,21 @@ impl Server {
             self.answered = self.answered.saturating_add(1);
         }
         exchange
+    }
+
+    /// A request for this slave with a function code `rmodbus` does not know that is no frame:
+    /// `rmodbus` answers such a code with exception 01 without checking the CRC, and a code from
+    /// 0x80 on (an exception response's, never a request's) has no exception code to answer
+    /// with (`rmodbus` adds 0x80 to it, which overflows).
+    fn unanswerable(&self, request: &[u8]) -> bool {
+        match *request {
+            [unit, function, ..]
+                if unit == self.address && ModbusFunction::try_from(function).is_err() =>
+            {
+                function >= 0x80 || !crc_holds(request)
+            }
+            _ => false,
+        }
     }
 
     /// Executes the console's command of every register from `address` on, on a copy of the
@@ -195,6 +217,17 @@ impl Server {
     }
 }
 
+/// The RTU frame's CRC, computed bitwise (no table in flash).
+const CRC: crc::Crc<u16, crc::NoTable> = crc::Crc::<u16, crc::NoTable>::new(&crc::CRC_16_MODBUS);
+
+/// `frame` ends in the CRC of the bytes before it, low byte first.
+fn crc_holds(frame: &[u8]) -> bool {
+    match frame.len().checked_sub(2) {
+        Some(body) if body >= 2 => CRC.checksum(&frame[..body]).to_le_bytes() == frame[body..],
+        _ => false,
+    }
+}
+
 /// What an accepted write asks of the control loop.
 struct Written {
     requests: heapless::Vec<SupervisorEvent, { Holding::ALL.len() }>,
@@ -220,14 +253,13 @@ fn words_of(
 
 /// Fills `buffer` with the registers from `first` on: holding or input, as `func` reads.
 fn read_words(
-    func: rmodbus::consts::ModbusFunction,
+    func: ModbusFunction,
     first: u16,
     buffer: &mut [u8],
     controller: &Controller,
     snapshot: &Snapshot,
     link: &LinkState,
 ) -> Result<(), ErrorKind> {
-    use rmodbus::consts::ModbusFunction;
     if buffer.is_empty() {
         return Err(ErrorKind::IllegalDataValue);
     }

@@ -320,7 +320,9 @@ fn key_value<'a>(
                 what: key.what(),
                 units: &["counts", "cycles", "baud", "ms"],
             };
-            Ok(KeyValue::Number(f64::from(whole_in(value, words, min, max)?)))
+            Ok(KeyValue::Number(f64::from(whole_in(
+                value, words, min, max,
+            )?)))
         }
         ValueKind::Switch { off, on } => {
             let word = words
