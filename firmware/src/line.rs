@@ -4,7 +4,8 @@
 //! (`crate::console::serve`) owns the one controller they all act through.
 
 use defmt::{info, warn};
-use embassy_time::Instant;
+use embassy_futures::select::{select, Either};
+use embassy_time::{Instant, Timer};
 use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_io_async::{Read, Write};
 use feeder_shared::configuration::LineSetup;
@@ -23,8 +24,16 @@ pub struct ModbusPort<M> {
 }
 
 /// The Modbus link: frames in, answers out, its link watchdog.
+///
+/// A byte's time is not when the task reads it: bytes wait in the port's buffer while the task
+/// does other work, and a frame read in two parts would look cut by a silence that never was.
+/// So the frame assembler runs on a line clock that advances only across a silence the task
+/// has seen itself, waiting on the port with nothing arriving for the frame gap.
 pub struct ModbusLink<M> {
     port: M,
+    gap_us: u64,
+    /// The line clock, µs: the silences seen so far, each one frame gap long.
+    line_us: u64,
     assembler: FrameAssembler,
     server: Server,
     watchdog: LinkWatchdog,
@@ -43,6 +52,8 @@ impl<M: Read + Write> ModbusLink<M> {
         );
         Self {
             port: port.port,
+            gap_us: port.gap_us,
+            line_us: 0,
             assembler: FrameAssembler::new(port.gap_us),
             server: Server::new(setup.modbus_address),
             watchdog: LinkWatchdog::new(setup.link_timeout_ms),
@@ -50,15 +61,30 @@ impl<M: Read + Write> ModbusLink<M> {
         }
     }
 
-    /// Waits for bytes from the master.
+    /// Waits for bytes from the master; a frame gap of silence while part of a frame is held
+    /// ends it.
     pub async fn receive(&mut self, chunk: &mut [u8]) -> usize {
-        match self.port.read(chunk).await {
-            Ok(received) => received,
-            Err(_) => {
-                warn!("modbus: receive error, partial frame dropped");
-                self.assembler.discard();
-                0
-            }
+        loop {
+            let read = match self.assembler.pending() {
+                true => match select(self.port.read(chunk), Timer::after_micros(self.gap_us)).await
+                {
+                    Either::First(read) => read,
+                    Either::Second(()) => {
+                        self.line_us += self.gap_us + 1;
+                        self.assembler.silence(self.line_us);
+                        continue;
+                    }
+                },
+                false => self.port.read(chunk).await,
+            };
+            return match read {
+                Ok(received) => received,
+                Err(_) => {
+                    warn!("modbus: receive error, partial frame dropped");
+                    self.assembler.discard();
+                    0
+                }
+            };
         }
     }
 
@@ -71,7 +97,7 @@ impl<M: Read + Write> ModbusLink<M> {
     ) {
         for &byte in bytes {
             let now = Instant::now();
-            let Some(request) = self.assembler.push(byte, now.as_micros()) else {
+            let Some(request) = self.assembler.push(byte, self.line_us) else {
                 continue;
             };
             let exchange =

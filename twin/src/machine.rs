@@ -384,6 +384,30 @@ impl<'a> Machine<'a> {
         self.engine.get_data_mut().board.serial_take(now)
     }
 
+    /// Sends `bytes` to the board's RS-485 port (USART1's RX) from now on, a character each.
+    pub fn rs485_send(&mut self, bytes: &[u8]) {
+        let now = self.now();
+        self.engine.get_data_mut().board.rs485_receive(bytes, now);
+    }
+
+    /// What the board has sent on its RS-485 port (USART1's TX) by now, since last taken: each
+    /// byte with the time its last stop bit ended.
+    pub fn rs485_take(&mut self) -> Vec<(Cycles, u8)> {
+        let now = self.now();
+        self.engine.get_data_mut().board.rs485_take(now)
+    }
+
+    /// Drives pin `pin` of port `port` (0 for A) from outside at `level`, `None` to release it.
+    pub fn drive_pin(&mut self, port: usize, pin: u32, level: Option<bool>) {
+        self.engine.get_data_mut().board.drive_pin(port, pin, level);
+    }
+
+    /// The level on pin `pin` of port `port` (0 for A) now, as the outside sees it (an output's
+    /// level, USART1's driver enable on PA12).
+    pub fn pin(&self, port: usize, pin: u32) -> bool {
+        self.board().pin_level(port, pin, self.now())
+    }
+
     /// The stack pointer.
     pub fn stack_pointer(&self) -> u32 {
         self.reg(RegisterARM::SP)

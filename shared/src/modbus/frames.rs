@@ -93,6 +93,12 @@ impl FrameAssembler {
         self.dropped = self.dropped.saturating_add(1);
     }
 
+    /// A partial frame is held, or bytes are being ignored until a silence: a silence now
+    /// would change something.
+    pub const fn pending(&self) -> bool {
+        self.len > 0 || self.discarding
+    }
+
     /// Frames and partial frames dropped so far.
     pub const fn dropped(&self) -> u32 {
         self.dropped

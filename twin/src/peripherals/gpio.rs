@@ -65,6 +65,11 @@ impl Port {
         }
     }
 
+    /// The alternate function `pin` is switched to (AFRL, AFRH), if it is in that mode.
+    pub fn alternate(&self, pin: u32) -> Option<u32> {
+        (self.mode(pin) == 2).then(|| (self.afr[pin as usize / 8] >> (4 * (pin % 8))) & 0xF)
+    }
+
     /// Whether `pin` is a push-pull output driving high.
     pub fn drives_high(&self, pin: u32) -> bool {
         self.mode(pin) == 1 && self.odr & (1 << pin) != 0
@@ -127,6 +132,15 @@ mod tests {
         assert!(!port.drives_high(10));
         // PA13 and PA15 keep their reset pull-ups (the debug port's).
         assert_eq!(port.read(IDR), Access::Value(1 << 13 | 1 << 15));
+    }
+
+    #[test]
+    fn a_pin_in_its_alternate_function_names_it() {
+        let mut port = Port::new('A');
+        assert_eq!(port.alternate(12), None, "PA12 analog at reset");
+        port.write(MODER, 0xABFF_FFFF & !(3 << 24) | 2 << 24);
+        port.write(AFRH, 7 << 16);
+        assert_eq!(port.alternate(12), Some(7));
     }
 
     #[test]

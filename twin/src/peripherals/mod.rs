@@ -8,24 +8,24 @@ mod dma;
 mod exti;
 mod gpio;
 mod iwdg;
-mod lpuart;
 mod rcc;
 mod registers;
 pub mod scs;
 mod system;
 mod timer;
+mod usart;
 
 use dac::{Dac, TSEL_TIM2_TRGO};
 use dma::{Dma, Dmamux, Move, REQUEST_TIM1_UP, REQUEST_TIM2_UP, REQUEST_TIM6_UP};
 use exti::Exti;
 use gpio::Port;
 use iwdg::Iwdg;
-use lpuart::Lpuart;
 use rcc::Rcc;
 use registers::RegisterFile;
 use scs::{Request, Scs};
 use system::FlashInterface;
 use timer::{Kind, Timer, Update};
+use usart::Usart;
 
 /// The core's clock: every bus and timer here runs at it (RM0440, 170 MHz with boost).
 pub const CORE_HZ: u64 = 170_000_000;
@@ -53,6 +53,7 @@ pub mod irq {
     pub const TIM3: usize = 29;
     pub const TIM4: usize = 30;
     pub const TIM6_DAC: usize = 54;
+    pub const USART1: usize = 37;
     pub const LPUART1: usize = 91;
 }
 
@@ -96,7 +97,8 @@ pub struct Board {
     dma: Dma,
     dmamux: Dmamux,
     iwdg: Iwdg,
-    lpuart1: Lpuart,
+    lpuart1: Usart,
+    usart1: Usart,
     tim1: Timer,
     tim2: Timer,
     tim3: Timer,
@@ -134,6 +136,7 @@ const LPUART1: u32 = 0x4000_8000;
 const SYSCFG: u32 = 0x4001_0000;
 const EXTI: u32 = 0x4001_0400;
 const TIM1: u32 = 0x4001_2C00;
+const USART1: u32 = 0x4001_3800;
 const TIM15: u32 = 0x4001_4000;
 const DMA1: u32 = 0x4002_0000;
 const DMAMUX1: u32 = 0x4002_0800;
@@ -177,7 +180,8 @@ impl Board {
             dma: Dma::new(),
             dmamux: Dmamux::new(),
             iwdg: Iwdg::new(),
-            lpuart1: Lpuart::default(),
+            lpuart1: Usart::new(usart::Kind::Lpuart),
+            usart1: Usart::new(usart::Kind::Usart),
             tim1: Timer::new(Kind::Advanced, 16),
             tim2: Timer::new(Kind::General, 32),
             tim3: Timer::new(Kind::General, 16),
@@ -219,6 +223,7 @@ impl Board {
             TIM15 => self.tim15.read(offset, now),
             IWDG => self.iwdg.read(offset),
             LPUART1 => self.lpuart1.read(offset, now),
+            USART1 => self.usart1.read(offset, now),
             PWR => self.pwr.read(offset),
             SYSCFG => self.syscfg.read(offset),
             EXTI => self.exti.read(offset),
@@ -260,6 +265,7 @@ impl Board {
             }
             IWDG => self.iwdg.write(offset, value, now),
             LPUART1 => self.lpuart1.write(offset, value, now),
+            USART1 => self.usart1.write(offset, value, now),
             PWR => self.pwr.write(offset, value),
             SYSCFG => self.syscfg.write(offset, value),
             EXTI => self.exti.write(offset, value),
@@ -380,6 +386,7 @@ impl Board {
             (irq::DMA1_CHANNEL1, self.dma.interrupt_line(0)),
             (irq::DMA1_CHANNEL2, self.dma.interrupt_line(1)),
             (irq::LPUART1, self.lpuart1.interrupt_line(self.now)),
+            (irq::USART1, self.usart1.interrupt_line(self.now)),
         ];
         for (line, up) in lines {
             if up {
@@ -398,6 +405,7 @@ impl Board {
             self.tim6.next_event(),
             self.tim15.next_event(),
             self.lpuart1.next_event(self.now),
+            self.usart1.next_event(self.now),
             self.iwdg.expiry(),
         ]
         .into_iter()
@@ -480,6 +488,28 @@ impl Board {
             .into_iter()
             .map(|(_, byte)| byte)
             .collect()
+    }
+
+    /// `bytes` arrive on USART1's RX (PC5, from the RS-485 transceiver) from `at` on.
+    pub fn rs485_receive(&mut self, bytes: &[u8], at: Cycles) {
+        self.usart1.receive(bytes, at);
+    }
+
+    /// The bytes USART1 has sent on TX (PC4, to the RS-485 transceiver) by `now`, each with the
+    /// time its last stop bit ended, since last taken.
+    pub fn rs485_take(&mut self, now: Cycles) -> Vec<(Cycles, u8)> {
+        self.usart1.take_sent(now)
+    }
+
+    /// The level on pin `pin` of port `port` (0 for A) at `now`, as the outside sees it: what
+    /// an output drives, what a modelled peripheral drives on a pin in its alternate function
+    /// (USART1's DE on PA12, AF7), else what drives it from outside or its pull.
+    pub fn pin_level(&self, port: usize, pin: u32, now: Cycles) -> bool {
+        let gpio = &self.ports[port];
+        match (port, pin, gpio.alternate(pin)) {
+            (0, 12, Some(7)) => self.usart1.driver_enable(now),
+            _ => gpio.level(pin),
+        }
     }
 
     /// The encoder's count, as the plate sets it on TIM4 (encoder mode).

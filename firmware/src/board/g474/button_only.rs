@@ -1,5 +1,6 @@
-//! No operator but B1 (without the `console` feature): LPUART1 stays as reset left it; the
-//! configuration saved in flash (by a console image) is read at power-up.
+//! No operator but B1 (without the `console` feature): LPUART1, USART1 and the discrete lines'
+//! pins stay as reset left them; the configuration saved in flash (by a console image) is read
+//! at power-up.
 
 use embassy_executor::SendSpawner;
 use embassy_stm32::flash::Flash;
@@ -9,6 +10,7 @@ use feeder_shared::configuration::Configuration;
 use feeder_shared::TickClock;
 
 use super::flash_store::FlashStore;
+use super::pins::LinePins;
 use crate::{configured, ports};
 
 /// The button, which the application serves, is the only operator.
@@ -23,6 +25,7 @@ impl Operator {
         _tx: Peri<'static, PA2>,
         _rx: Peri<'static, PA3>,
         flash: Peri<'static, FLASH>,
+        _line: LinePins,
     ) -> Self {
         Self {
             store: FlashStore::new(Flash::new_blocking(flash)),

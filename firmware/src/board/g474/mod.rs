@@ -1,22 +1,35 @@
 //! NUCLEO-G474RE: clocks, pins, the output stage, the edge counter, the watchdog and the safe
 //! state.
 //!
-//! | Signal                      | Pin  | Nucleo header |
-//! |-----------------------------|------|---------------|
-//! | analog command (DAC1 ch1)   | PA4  | A2            |
-//! | PWM magnitude (TIM1 CH1)    | PA8  | D7            |
-//! | direction (TIM1 CH2)        | PA9  | D8            |
-//! | driver enable (high = on)   | PA10 | D2            |
-//! | feed pulses (enable keeper) | PB5  | D4            |
-//! | start/stop button B1        | PC13 | —             |
-//! | status LED LD2              | PA5  | D13           |
-//! | console TX (LPUART1)        | PA2  | ST-LINK VCP   |
-//! | console RX (LPUART1)        | PA3  | ST-LINK VCP   |
-//! | encoder A (TIM4 CH1)        | PB6  | D10           |
-//! | encoder B (TIM4 CH2)        | PB7  | CN7 pin 21    |
+//! | Signal                      | Pin  | Nucleo header   |
+//! |-----------------------------|------|-----------------|
+//! | analog command (DAC1 ch1)   | PA4  | A2              |
+//! | PWM magnitude (TIM1 CH1)    | PA8  | D7              |
+//! | direction (TIM1 CH2)        | PA9  | D8              |
+//! | driver enable (high = on)   | PA10 | D2              |
+//! | feed pulses (enable keeper) | PB5  | D4              |
+//! | start/stop button B1        | PC13 | —               |
+//! | status LED LD2              | PA5  | D13             |
+//! | console TX (LPUART1)        | PA2  | ST-LINK VCP     |
+//! | console RX (LPUART1)        | PA3  | ST-LINK VCP     |
+//! | encoder A (TIM4 CH1)        | PB6  | D10             |
+//! | encoder B (TIM4 CH2)        | PB7  | CN7 pin 21      |
+//! | light barrier (part sensor) | PB10 | D6              |
+//! | Modbus TX (USART1, RS-485)  | PC4  | D1, CN10 pin 34 |
+//! | Modbus RX (USART1, RS-485)  | PC5  | D0, CN10 pin 6  |
+//! | Modbus driver enable (DE)   | PA12 | CN10 pin 12     |
+//! | release input               | PC0  | A5, CN7 pin 38  |
+//! | recipe select bit 0 input   | PC2  | CN7 pin 35      |
+//! | recipe select bit 1 input   | PC3  | CN7 pin 37      |
+//! | ready output                | PC6  | CN10 pin 4      |
+//! | fault output                | PC8  | CN10 pin 2      |
 //!
 //! The operator's console runs on LPUART1 (115200 8N1), which the NUCLEO routes to the ST-LINK's
-//! virtual COM port; the configuration and the recipes live in flash ([`flash_store`]).
+//! virtual COM port; the configuration and the recipes live in flash ([`flash_store`]). Beside
+//! it the console image serves the production line (`docs/production-line.md`): a Modbus RTU
+//! slave on USART1 to an RS-485 transceiver, whose driver enable is the UART's own (DE on PA12),
+//! at the configuration's rate and parity (8E1, or 8N2), and the discrete lines, plain inputs
+//! with pull-downs and push-pull outputs, low from power-up until the task sets them.
 //!
 //! With `--features encoder` the closed loop runs on a quadrature encoder on TIM4, sampled by DMA
 //! on TIM6 and on the segment timer's update (`encoder`); TIM6 and DMA1 channels 1 and 2 are then

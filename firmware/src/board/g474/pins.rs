@@ -1,7 +1,9 @@
 //! The pin and clock facts the other modules share: the core clock, the driver enable's pin and
-//! the store that disables the driver.
+//! the store that disables the driver, and the production line's pins, which either operator
+//! takes.
 
-use embassy_stm32::{pac, rcc, Config};
+use embassy_stm32::peripherals::{PA12, PC0, PC2, PC3, PC4, PC5, PC6, PC8, USART1};
+use embassy_stm32::{pac, rcc, Config, Peri};
 
 use crate::ports::RegisterWrite;
 
@@ -41,4 +43,29 @@ pub fn clocks() -> Config {
     config.rcc.sys = rcc::Sysclk::PLL1_R;
     config.rcc.boost = true;
     config
+}
+
+/// The production line's peripherals: the Modbus port (USART1 to an RS-485 transceiver, its
+/// driver enable the UART's own) and the discrete lines. The console image serves them
+/// (`console.rs`); the button-only image leaves them as reset left them.
+#[cfg_attr(
+    not(feature = "console"),
+    expect(dead_code, reason = "the button-only image takes the pins and leaves them")
+)]
+pub struct LinePins {
+    pub usart: Peri<'static, USART1>,
+    /// USART1 TX (AF7), to the transceiver's DI.
+    pub tx: Peri<'static, PC4>,
+    /// USART1 RX (AF7), from the transceiver's RO.
+    pub rx: Peri<'static, PC5>,
+    /// USART1 DE (AF7), to the transceiver's DE and /RE.
+    pub de: Peri<'static, PA12>,
+    /// The release input, high runs the feeder.
+    pub release: Peri<'static, PC0>,
+    /// The recipe-select inputs, bit 0 and bit 1.
+    pub select: (Peri<'static, PC2>, Peri<'static, PC3>),
+    /// The ready output.
+    pub ready: Peri<'static, PC6>,
+    /// The fault output.
+    pub fault: Peri<'static, PC8>,
 }

@@ -10,7 +10,7 @@ use embassy_stm32::{bind_interrupts, pac};
 use feeder_shared::Fault;
 
 use super::light_barrier::LightBarrier;
-use super::pins::clocks;
+use super::pins::{clocks, LinePins};
 use super::watchdog::OutputWatchdog;
 use super::{operator, Hardware, Stage};
 use crate::output::SegmentOutput;
@@ -87,7 +87,17 @@ pub fn init(thread_spawner: SendSpawner) -> (SendSpawner, Board<Hardware>) {
     let button = ExtiInput::new(p.PC13, p.EXTI13, Pull::Down, Irqs);
     let part_sensor = LightBarrier(ExtiInput::new(p.PB10, p.EXTI10, Pull::Up, Irqs));
     let mut output = Stage::new(p.DAC1, p.PA4, p.TIM2, p.TIM1, p.PA8, p.PA9, p.TIM3);
-    let mut operator = operator::Operator::new(p.LPUART1, p.PA2, p.PA3, p.FLASH);
+    let line = LinePins {
+        usart: p.USART1,
+        tx: p.PC4,
+        rx: p.PC5,
+        de: p.PA12,
+        release: p.PC0,
+        select: (p.PC2, p.PC3),
+        ready: p.PC6,
+        fault: p.PC8,
+    };
+    let mut operator = operator::Operator::new(p.LPUART1, p.PA2, p.PA3, p.FLASH, line);
     let configuration = operator.load_configuration(output.clock());
     output.calibrate(&configuration);
     freeze_on_halt();
