@@ -5,7 +5,7 @@
 
 use defmt::{info, warn};
 use embassy_futures::select::{select, Either};
-use embassy_time::{Instant, Timer};
+use embassy_time::{Duration, Instant, Timer};
 use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_io_async::{Read, Write};
 use feeder_shared::configuration::LineSetup;
@@ -21,6 +21,9 @@ pub struct ModbusPort<M> {
     pub port: M,
     /// The frame gap, µs: 3.5 characters on a serial line ([`feeder_shared::modbus::frame_gap_us`]).
     pub gap_us: u64,
+    /// The silence before an answer, µs: a frame gap on a serial line, so that the answer is a
+    /// frame of its own on the bus and a master's transceiver has turned around.
+    pub turnaround_us: u64,
 }
 
 /// The Modbus link: frames in, answers out, its link watchdog.
@@ -32,6 +35,7 @@ pub struct ModbusPort<M> {
 pub struct ModbusLink<M> {
     port: M,
     gap_us: u64,
+    turnaround_us: u64,
     /// The line clock, µs: the silences seen so far, each one frame gap long.
     line_us: u64,
     assembler: FrameAssembler,
@@ -53,6 +57,7 @@ impl<M: Read + Write> ModbusLink<M> {
         Self {
             port: port.port,
             gap_us: port.gap_us,
+            turnaround_us: port.turnaround_us,
             line_us: 0,
             assembler: FrameAssembler::new(port.gap_us),
             server: Server::new(setup.modbus_address),
@@ -118,7 +123,11 @@ impl<M: Read + Write> ModbusLink<M> {
             if let Some(action) = exchange.configure {
                 dispatch(action).await;
             }
-            if !self.response.is_empty() && self.port.write_all(&self.response).await.is_err() {
+            if self.response.is_empty() {
+                continue;
+            }
+            Timer::at(now + Duration::from_micros(self.turnaround_us)).await;
+            if self.port.write_all(&self.response).await.is_err() {
                 warn!("modbus: transmit error, response lost");
             }
         }

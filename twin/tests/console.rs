@@ -101,6 +101,8 @@ fn frame_to(unit: u8, pdu: &[u8]) -> Vec<u8> {
 /// What the master sees of an exchange: the answer's bytes, each with the time its last stop bit
 /// ended, and the driver enable (PA12) sampled from the request on.
 struct Exchange {
+    /// When the request's last stop bit ended (its bytes go out back to back from the send).
+    request_end: Cycles,
     answer: Vec<(Cycles, u8)>,
     driver_enable: Vec<(Cycles, bool)>,
 }
@@ -110,6 +112,7 @@ struct Exchange {
 fn modbus(machine: &mut Machine, request: &[u8], answer_len: usize) -> Exchange {
     machine.rs485_send(request);
     let mut exchange = Exchange {
+        request_end: machine.now() + request.len() as Cycles * CHARACTER,
         answer: Vec::new(),
         driver_enable: Vec::new(),
     };
@@ -156,6 +159,12 @@ impl Exchange {
         assert!(
             self.driver_enable.iter().any(|&(_, up)| up),
             "DE never seen up"
+        );
+        // The serial line's frame gap, 3.5 characters, before the answer's first start bit.
+        let silence = first_start - self.request_end;
+        assert!(
+            2 * silence >= 7 * CHARACTER,
+            "the answer began {silence} cycles after the request, within 3.5 characters"
         );
     }
 }

@@ -167,6 +167,7 @@ async fn console_task(operator: Operator, clock: TickClock) {
         Ok(port) => Some(ModbusPort {
             port,
             gap_us: frame_gap_us(line.baud),
+            turnaround_us: frame_gap_us(line.baud),
         }),
         Err(err) => {
             error!(

@@ -67,6 +67,8 @@ async fn console_task(operator: Operator, clock: TickClock) {
     let modbus = ModbusPort {
         port: operator.modbus,
         gap_us: MODBUS_GAP_US,
+        // No bus to turn around: the socket carries the answer on its own.
+        turnaround_us: 0,
     };
     crate::console::serve(
         operator.port,
