@@ -35,13 +35,19 @@ pub enum Serial {
 }
 
 impl Serial {
-    /// The `-serial` backends, UART0's first.
+    /// The `-serial` backends, UART0's first. The Modbus port's sends each byte at once
+    /// (`nodelay`): QEMU writes an answer a byte at a time, and with Nagle's algorithm a client's
+    /// delayed acknowledgement of the first byte would hold the rest back by up to 40 ms, longer
+    /// than a Modbus master waits between a request's bytes and far longer than a real line
+    /// takes.
     fn backends(self) -> Vec<String> {
         let tcp = |port: u16| format!("tcp:127.0.0.1:{port},server=on,wait=off");
         match self {
             Serial::None => vec!["none".into()],
             Serial::Tcp { port } => vec![tcp(port)],
-            Serial::Lines { console, modbus } => vec![tcp(console), tcp(modbus)],
+            Serial::Lines { console, modbus } => {
+                vec![tcp(console), format!("{},nodelay=on", tcp(modbus))]
+            }
         }
     }
 }
@@ -149,7 +155,7 @@ mod tests {
             backends,
             [
                 "tcp:127.0.0.1:4444,server=on,wait=off",
-                "tcp:127.0.0.1:5020,server=on,wait=off"
+                "tcp:127.0.0.1:5020,server=on,wait=off,nodelay=on"
             ]
         );
     }

@@ -990,6 +990,38 @@ fn a_silence_longer_than_the_gap_drops_a_partial_frame() {
 }
 
 #[test]
+fn a_request_of_a_function_without_a_length_ends_at_a_silence() {
+    let gap_us = frame_gap_us(19_200);
+    let mut assembler = FrameAssembler::new(gap_us);
+    // Read device identification (7 bytes) and report server ID (4 bytes): no length rule.
+    for request in [
+        frame(&[ADDRESS, 0x2B, 0x0E, 0x01, 0x00]),
+        frame(&[ADDRESS, 0x11]),
+    ] {
+        assert!(push_all(&mut assembler, &request, 0, 500).is_empty());
+        let last_us = (request.len() as u64 - 1) * 500;
+        assert_eq!(
+            assembler.silence(last_us + gap_us / 2),
+            None,
+            "not quiet yet"
+        );
+        let framed = assembler.silence(last_us + gap_us + 1).map(<[u8]>::to_vec);
+        assert_eq!(framed, Some(request.clone()));
+        let mut slave = Slave::new();
+        let function = request[1];
+        let (response, _) = slave.ask(&request, &stopped());
+        assert_eq!(response, exception(function, 0x01));
+    }
+    // Its bytes with a broken CRC are dropped at the silence.
+    let mut broken = frame(&[ADDRESS, 0x2B, 0x0E, 0x01, 0x00]);
+    broken[6] ^= 1;
+    assert!(push_all(&mut assembler, &broken, 0, 500).is_empty());
+    let dropped = assembler.dropped();
+    assert_eq!(assembler.silence(3_000 + gap_us + 1), None);
+    assert_eq!(assembler.dropped(), dropped + 1);
+}
+
+#[test]
 fn after_a_discard_bytes_are_ignored_until_a_silence() {
     let gap_us = frame_gap_us(19_200);
     let mut assembler = FrameAssembler::new(gap_us);

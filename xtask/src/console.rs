@@ -199,14 +199,8 @@ impl Feeder {
         let dir = board_dir()?;
         let (board, plate) = match plant {
             None => (
-                Board::start(
-                    elf,
-                    &[] as &[&str],
-                    serial,
-                    Stdio::from(file),
-                    &dir,
-                )
-                .map_err(|error| error.to_string())?,
+                Board::start(elf, &[] as &[&str], serial, Stdio::from(file), &dir)
+                    .map_err(|error| error.to_string())?,
                 None,
             ),
             Some(plant) => {

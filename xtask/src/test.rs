@@ -45,6 +45,10 @@ pub fn test() -> Result {
     )?;
     let console = qemu::build_firmware(qemu::Image::Console)?;
     exec(&mut ignored_tests("feeder-ctl", "qemu_session", &console))?;
+    // The console image's Modbus port under a real master, then its seeded random soak
+    // (FEEDER_SOAK_SEED, else its own fixed seed), whose summary is shown.
+    exec(&mut ignored_tests("feeder-ctl", "qemu_modbus", &console))?;
+    exec(ignored_tests("feeder-ctl", "modbus_soak", &console).arg("--nocapture"))?;
     let console_with_plate = qemu::build_firmware(qemu::Image::ClosedLoopConsole)?;
     exec(
         ignored_tests("feeder-ctl", "qemu_plant", &console_with_plate)

@@ -1,13 +1,17 @@
 //! The QEMU console image under test, shared by the QEMU-backed tests: the firmware built with
 //! the `console` feature (`FEEDER_QEMU_ELF`) started by `feeder-emulator` with its serial port
 //! on a free loopback TCP port, its decoded log handed line by line to a [`LogSink`], and a
-//! client for the console that reads one reply line at a time.
+//! client for the console that reads one reply line at a time. A board launched with its Modbus
+//! port ([`Emulator::launch_with_modbus`]) has that port on a second loopback TCP port, where
+//! [`modbus::Master`] speaks RTU frames to it.
 
 // Each test uses its own part of this module.
 #![allow(dead_code)]
 
+pub mod modbus;
+
 use std::io::{self, BufRead, BufReader, ErrorKind, Read, Write};
-use std::net::{TcpListener, TcpStream};
+use std::net::{SocketAddr, TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::process::Stdio;
 use std::thread::{self, JoinHandle};
@@ -46,6 +50,8 @@ pub struct Emulator<S> {
     board: Board,
     log_thread: Option<JoinHandle<S>>,
     port: u16,
+    /// The Modbus port's loopback TCP port, where the board was launched with one.
+    modbus_port: Option<u16>,
     /// The board's own flash, erased at launch, where it was not given one.
     _flash: Option<tempfile::TempDir>,
 }
@@ -64,20 +70,40 @@ impl<S: LogSink> Emulator<S> {
     /// board saved there is still there.
     pub fn launch_in(elf: &Path, sink: S, dir: &Path) -> Self {
         let port = free_port();
-        let mut board = Board::start(
-            elf,
-            &[] as &[&str],
-            Serial::Tcp { port },
-            Stdio::piped(),
-            dir,
-        )
-        .unwrap_or_else(|error| panic!("the emulated board starts: {error}"));
+        Self::start(elf, sink, dir, Serial::Tcp { port })
+    }
+
+    /// Starts `elf` as [`Self::launch`] does, with its Modbus port (UART1) too on a free
+    /// loopback port: [`Self::connect_modbus`] connects a master to it.
+    pub fn launch_with_modbus(elf: &Path, sink: S) -> Self {
+        let flash = tempfile::tempdir().expect("a directory for the board's flash");
+        let console = free_port();
+        let modbus = loop {
+            let modbus = free_port();
+            if modbus != console {
+                break modbus;
+            }
+        };
+        let mut emulator = Self::start(elf, sink, flash.path(), Serial::Lines { console, modbus });
+        emulator._flash = Some(flash);
+        emulator
+    }
+
+    fn start(elf: &Path, sink: S, dir: &Path, serial: Serial) -> Self {
+        let (port, modbus_port) = match serial {
+            Serial::Tcp { port } => (port, None),
+            Serial::Lines { console, modbus } => (console, Some(modbus)),
+            Serial::None => panic!("the console image needs its serial port"),
+        };
+        let mut board = Board::start(elf, &[] as &[&str], serial, Stdio::piped(), dir)
+            .unwrap_or_else(|error| panic!("the emulated board starts: {error}"));
         let decoded = board.decoded_log().expect("the decoded log is piped");
         let log_thread = thread::spawn(move || forward_lines(decoded, sink));
         Emulator {
             board,
             log_thread: Some(log_thread),
             port,
+            modbus_port,
             _flash: None,
         }
     }
@@ -98,6 +124,31 @@ impl<S: LogSink> Emulator<S> {
                 Ok(stream) => return Console::new(stream),
                 Err(_) if Instant::now() < deadline => thread::sleep(Duration::from_millis(20)),
                 Err(error) => panic!("QEMU's serial port never opened: {error}"),
+            }
+        }
+    }
+
+    /// The Modbus port's address (RTU frames over TCP), on a board launched with it.
+    pub fn modbus_address(&self) -> SocketAddr {
+        let port = self
+            .modbus_port
+            .expect("the board was launched with its Modbus port (launch_with_modbus)");
+        SocketAddr::from(([127, 0, 0, 1], port))
+    }
+
+    /// Connects to the Modbus port as soon as QEMU has opened it (QEMU serves one client at a
+    /// time: the connection is the board's master until it is dropped).
+    pub fn connect_modbus(&mut self) -> TcpStream {
+        let address = self.modbus_address();
+        let deadline = Instant::now() + PORT_OPEN_TIMEOUT;
+        loop {
+            if let Ok(Some(status)) = self.board.try_exit_status() {
+                panic!("QEMU ended before its Modbus port opened: {status}");
+            }
+            match TcpStream::connect(address) {
+                Ok(stream) => return stream,
+                Err(_) if Instant::now() < deadline => thread::sleep(Duration::from_millis(20)),
+                Err(error) => panic!("QEMU's Modbus port never opened: {error}"),
             }
         }
     }
@@ -260,4 +311,94 @@ impl Console {
             thread::sleep(Duration::from_millis(50));
         }
     }
+}
+
+/// The firmware's virtual time as its log shows it: the start tick of the newest segment
+/// reported (µs on the QEMU image's 1 MHz output clock). The emulation runs on virtual time,
+/// which under QEMU's instruction counting keeps no pace with the wall clock (it runs several
+/// times faster while the board idles); a silence the firmware must see (a Modbus frame gap) is
+/// waited for on this clock.
+#[derive(Default)]
+pub struct LogClock {
+    tick: std::sync::atomic::AtomicU64,
+}
+
+impl LogClock {
+    /// The newest segment's start tick.
+    pub fn tick(&self) -> u64 {
+        self.tick.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Waits until the log has moved at least `ticks` past where it is now, and at least
+    /// `at_least` of wall time; `Err` after `limit` of wall time.
+    pub fn wait_for(&self, ticks: u64, at_least: Duration, limit: Duration) -> Result<(), String> {
+        let started = Instant::now();
+        let from = self.tick();
+        loop {
+            let waited = started.elapsed();
+            if self.tick() >= from + ticks && waited >= at_least {
+                return Ok(());
+            }
+            if waited > limit {
+                return Err(format!(
+                    "the firmware's log moved {} ticks in {waited:?}, not {ticks}",
+                    self.tick() - from
+                ));
+            }
+            thread::sleep(Duration::from_micros(500));
+        }
+    }
+
+    fn saw(&self, line: &str) {
+        // `EVT seg cycle=… kind=… planned=<tick> …`, read without the full parser.
+        let Some(event) = line.split("EVT seg ").nth(1) else {
+            return;
+        };
+        let planned = event
+            .split(' ')
+            .find_map(|word| word.strip_prefix("planned="))
+            .and_then(|tick| tick.parse().ok());
+        if let Some(tick) = planned {
+            self.tick
+                .fetch_max(tick, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+}
+
+/// A [`LogSink`] that keeps every line and keeps a [`LogClock`], then passes each line on.
+pub struct Clocked<S> {
+    inner: S,
+    lines: Vec<String>,
+    clock: std::sync::Arc<LogClock>,
+}
+
+impl<S: LogSink> Clocked<S> {
+    /// `inner` with a clock, which the test reads while the board runs.
+    pub fn new(inner: S) -> (Self, std::sync::Arc<LogClock>) {
+        let clock = std::sync::Arc::new(LogClock::default());
+        let sink = Clocked {
+            inner,
+            lines: Vec::new(),
+            clock: std::sync::Arc::clone(&clock),
+        };
+        (sink, clock)
+    }
+
+    /// The sink passed on to, and every line.
+    pub fn into_parts(self) -> (S, Vec<String>) {
+        (self.inner, self.lines)
+    }
+}
+
+impl<S: LogSink> LogSink for Clocked<S> {
+    fn line(&mut self, line: &str) {
+        self.clock.saw(line);
+        self.lines.push(line.to_string());
+        self.inner.line(line);
+    }
+}
+
+/// Passes nothing on: a [`Clocked`] sink's lines alone.
+impl LogSink for () {
+    fn line(&mut self, _: &str) {}
 }

@@ -1,9 +1,12 @@
-//! Bytes into RTU request frames. A frame is complete when it holds as many bytes as its
-//! function code says ([`rmodbus::guess_request_frame_len`]); a silence longer than the frame
-//! gap drops a partial frame, and after a byte that cannot begin a frame (a frame too long, a
-//! function code that gives no length) everything is ignored until such a silence, so that the
-//! next request is read from its first byte.
+//! Bytes into RTU request frames. A frame of a function the slave serves is complete when it
+//! holds as many bytes as its function code says ([`rmodbus::guess_request_frame_len`]); one of
+//! another function (whose length only its sender knows) ends at the next silence longer than
+//! the frame gap, and is a frame if its CRC holds, so that it can be answered with the
+//! exception "illegal function". A silence drops any other partial frame, and after bytes that
+//! cannot be a frame (too long, a broken CRC) everything is ignored until such a silence, so
+//! that the next request is read from its first byte.
 
+use rmodbus::consts::ModbusFunction;
 use rmodbus::{guess_request_frame_len, ErrorKind, ModbusProto};
 
 /// The longest RTU frame: address, PDU of at most 253 bytes, CRC.
@@ -60,6 +63,12 @@ impl FrameAssembler {
         }
         self.bytes[self.len] = byte;
         self.len += 1;
+        if self.len >= 2 && ModbusFunction::try_from(self.bytes[1]).is_err() {
+            if self.len == MAX_FRAME_BYTES {
+                self.discard();
+            }
+            return None;
+        }
         match guess_request_frame_len(&self.bytes[..self.len], ModbusProto::Rtu) {
             Ok(expected) if self.len >= usize::from(expected) => {
                 let len = self.len;
@@ -74,14 +83,28 @@ impl FrameAssembler {
         }
     }
 
-    /// A silence of at least the frame gap ended at `now_us` with nothing received: a partial
-    /// frame is dropped. Call it when a receive times out.
-    pub fn silence(&mut self, now_us: u64) {
-        if self
+    /// A silence of at least the frame gap ended at `now_us` with nothing received: the
+    /// request of a function that gives no length, if the bytes held are one with its CRC, and
+    /// otherwise a partial frame is dropped. Call it when a receive times out.
+    pub fn silence(&mut self, now_us: u64) -> Option<&[u8]> {
+        let quiet = self
             .last_us
-            .is_some_and(|last_us| now_us.saturating_sub(last_us) > self.gap_us)
-        {
-            self.end_silence();
+            .is_some_and(|last_us| now_us.saturating_sub(last_us) > self.gap_us);
+        if !quiet {
+            return None;
+        }
+        let len = self.len;
+        let framed = !self.discarding && crc_holds(&self.bytes[..len]);
+        self.len = 0;
+        self.discarding = false;
+        match framed {
+            true => Some(&self.bytes[..len]),
+            false => {
+                if len > 0 {
+                    self.dropped = self.dropped.saturating_add(1);
+                }
+                None
+            }
         }
     }
 
@@ -115,5 +138,17 @@ impl FrameAssembler {
         }
         self.len = 0;
         self.discarding = false;
+    }
+}
+
+/// The RTU frame's CRC, computed bitwise (no table in flash).
+const CRC: crc::Crc<u16, crc::NoTable> = crc::Crc::<u16, crc::NoTable>::new(&crc::CRC_16_MODBUS);
+
+/// `frame` is an address and a function code at least, and ends in the CRC of the bytes before
+/// it, low byte first.
+pub(super) fn crc_holds(frame: &[u8]) -> bool {
+    match frame.len().checked_sub(2) {
+        Some(body) if body >= 2 => CRC.checksum(&frame[..body]).to_le_bytes() == frame[body..],
+        _ => false,
     }
 }

@@ -13,7 +13,7 @@ use rmodbus::consts::ModbusFunction;
 use rmodbus::server::{ModbusFrame, Read, Write};
 use rmodbus::{ErrorKind, ModbusProto};
 
-use super::frames::MAX_FRAME_BYTES;
+use super::frames::{crc_holds, MAX_FRAME_BYTES};
 use super::map::{Holding, Input, LinkState};
 use crate::control::{Action, ConfigurationStore, Controller, RecipeStore, Snapshot};
 use crate::protocol::ReplyError;
@@ -214,17 +214,6 @@ impl Server {
         *controller = trial;
         self.link.refusal = None;
         Ok(written)
-    }
-}
-
-/// The RTU frame's CRC, computed bitwise (no table in flash).
-const CRC: crc::Crc<u16, crc::NoTable> = crc::Crc::<u16, crc::NoTable>::new(&crc::CRC_16_MODBUS);
-
-/// `frame` ends in the CRC of the bytes before it, low byte first.
-fn crc_holds(frame: &[u8]) -> bool {
-    match frame.len().checked_sub(2) {
-        Some(body) if body >= 2 => CRC.checksum(&frame[..body]).to_le_bytes() == frame[body..],
-        _ => false,
     }
 }
 
