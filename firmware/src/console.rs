@@ -135,7 +135,7 @@ pub async fn serve<P, S, M, I, O>(
             }
             Either3::Second(received) => {
                 if let Some(link) = modbus.as_mut() {
-                    link.serve(&frames[..received], &mut controller, &mut store)
+                    link.serve(received, &frames, &mut controller, &mut store)
                         .await;
                 }
             }

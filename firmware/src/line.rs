@@ -10,7 +10,7 @@ use embedded_hal::digital::{InputPin, OutputPin};
 use embedded_io_async::{Read, Write};
 use feeder_shared::configuration::LineSetup;
 use feeder_shared::line::{LineInputs, LineOutputs, LinkWatchdog, RecipeSelect};
-use feeder_shared::modbus::{FrameAssembler, Response, Server};
+use feeder_shared::modbus::{FrameAssembler, Response, Server, MAX_FRAME_BYTES};
 use feeder_shared::{ConfigurationStore, Controller, RecipeStore, RunState, SupervisorEvent};
 
 use crate::mailbox::dispatch;
@@ -24,6 +24,22 @@ pub struct ModbusPort<M> {
     /// The silence before an answer, µs: a frame gap on a serial line, so that the answer is a
     /// frame of its own on the bus and a master's transceiver has turned around.
     pub turnaround_us: u64,
+}
+
+/// What a wait on the Modbus port ended with.
+pub enum Received {
+    /// This many bytes.
+    Bytes(usize),
+    /// A frame gap of silence while part of a frame was held.
+    Silence,
+}
+
+/// A request, copied out of the frame assembler.
+type Frame = heapless::Vec<u8, MAX_FRAME_BYTES>;
+
+fn frame(bytes: &[u8]) -> Frame {
+    // Never longer than the assembler's buffer, which is as long.
+    Frame::from_slice(bytes).unwrap_or_default()
 }
 
 /// The Modbus link: frames in, answers out, its link watchdog.
@@ -66,70 +82,86 @@ impl<M: Read + Write> ModbusLink<M> {
         }
     }
 
-    /// Waits for bytes from the master; a frame gap of silence while part of a frame is held
-    /// ends it.
-    pub async fn receive(&mut self, chunk: &mut [u8]) -> usize {
-        loop {
-            let read = match self.assembler.pending() {
-                true => match select(self.port.read(chunk), Timer::after_micros(self.gap_us)).await
-                {
-                    Either::First(read) => read,
-                    Either::Second(()) => {
-                        self.line_us += self.gap_us + 1;
-                        self.assembler.silence(self.line_us);
-                        continue;
-                    }
-                },
-                false => self.port.read(chunk).await,
-            };
-            return match read {
-                Ok(received) => received,
-                Err(_) => {
-                    warn!("modbus: receive error, partial frame dropped");
-                    self.assembler.discard();
-                    0
-                }
-            };
+    /// Waits for bytes from the master, or, while part of a frame is held, for a frame gap of
+    /// silence, which ends it.
+    pub async fn receive(&mut self, chunk: &mut [u8]) -> Received {
+        let read = match self.assembler.pending() {
+            true => match select(self.port.read(chunk), Timer::after_micros(self.gap_us)).await {
+                Either::First(read) => read,
+                Either::Second(()) => return Received::Silence,
+            },
+            false => self.port.read(chunk).await,
+        };
+        match read {
+            Ok(received) => Received::Bytes(received),
+            Err(_) => {
+                warn!("modbus: receive error, partial frame dropped");
+                self.assembler.discard();
+                Received::Bytes(0)
+            }
         }
     }
 
-    /// Answers every request `bytes` complete, through `controller`.
+    /// Answers every request `received` completes (bytes from `chunk`, or a silence), through
+    /// `controller`.
     pub async fn serve<S: RecipeStore + ConfigurationStore>(
         &mut self,
-        bytes: &[u8],
+        received: Received,
+        chunk: &[u8],
         controller: &mut Controller,
         store: &mut S,
     ) {
-        for &byte in bytes {
-            let now = Instant::now();
-            let Some(request) = self.assembler.push(byte, self.line_us) else {
-                continue;
-            };
-            let exchange =
-                self.server
-                    .handle(request, controller, &snapshot(), store, &mut self.response);
-            if exchange.broken {
-                self.assembler.discard();
+        match received {
+            Received::Bytes(count) => {
+                for &byte in chunk.iter().take(count) {
+                    let request = self.assembler.push(byte, self.line_us).map(frame);
+                    if let Some(request) = request {
+                        self.answer(&request, controller, store).await;
+                    }
+                }
             }
-            if exchange.heard {
-                self.watchdog.heard(now.as_millis());
+            Received::Silence => {
+                self.line_us += self.gap_us + 1;
+                let request = self.assembler.silence(self.line_us).map(frame);
+                if let Some(request) = request {
+                    self.answer(&request, controller, store).await;
+                }
             }
-            if exchange.started() {
-                self.watchdog.started(now.as_millis());
-            }
-            for &request in &exchange.requests {
-                crate::mailbox::REQUESTS.send(request).await;
-            }
-            if let Some(action) = exchange.configure {
-                dispatch(action).await;
-            }
-            if self.response.is_empty() {
-                continue;
-            }
-            Timer::at(now + Duration::from_micros(self.turnaround_us)).await;
-            if self.port.write_all(&self.response).await.is_err() {
-                warn!("modbus: transmit error, response lost");
-            }
+        }
+    }
+
+    /// Answers one request through `controller` and hands what it asks to the control loop.
+    async fn answer<S: RecipeStore + ConfigurationStore>(
+        &mut self,
+        request: &[u8],
+        controller: &mut Controller,
+        store: &mut S,
+    ) {
+        let now = Instant::now();
+        let exchange =
+            self.server
+                .handle(request, controller, &snapshot(), store, &mut self.response);
+        if exchange.broken {
+            self.assembler.discard();
+        }
+        if exchange.heard {
+            self.watchdog.heard(now.as_millis());
+        }
+        if exchange.started() {
+            self.watchdog.started(now.as_millis());
+        }
+        for &request in &exchange.requests {
+            crate::mailbox::REQUESTS.send(request).await;
+        }
+        if let Some(action) = exchange.configure {
+            dispatch(action).await;
+        }
+        if self.response.is_empty() {
+            return;
+        }
+        Timer::at(now + Duration::from_micros(self.turnaround_us)).await;
+        if self.port.write_all(&self.response).await.is_err() {
+            warn!("modbus: transmit error, response lost");
         }
     }
 
