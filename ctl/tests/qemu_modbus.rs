@@ -250,6 +250,17 @@ fn uptime_s(registers: &[u16]) -> u32 {
         | u32::from(registers[usize::from(input(Input::UptimeLow))])
 }
 
+/// Ends the emulation and checks that the firmware logged no error and no fault.
+fn shut_down_without_faults<S: LogSink>(emulator: Emulator<Clocked<S>>) {
+    let (_, log) = emulator.shut_down().into_parts();
+    assert!(
+        !log.iter()
+            .any(|line| line.contains("ERROR") || line.contains("fault")),
+        "{}",
+        log.join("\n")
+    );
+}
+
 /// A board with its Modbus port, its log going to `sink` (with the log's clock), the console,
 /// and a master on the Modbus port.
 fn board<S: LogSink>(sink: S) -> (Emulator<Clocked<S>>, Console, Master) {
@@ -457,13 +468,7 @@ fn every_holding_register_reads_writes_and_refuses_as_its_console_command() {
     let link = master.read_input(input(Input::Refusal), 2).expect("reads");
     assert_eq!(link, [ERR_UNKNOWN_PARAMETER, Holding::ALL.len() as u16]);
     drop(console);
-    let (_, log) = emulator.shut_down().into_parts();
-    assert!(
-        !log.iter()
-            .any(|line| line.contains("ERROR") || line.contains("fault")),
-        "{}",
-        log.join("\n")
-    );
+    shut_down_without_faults(emulator);
 }
 
 /// Each input register reads what the feeder does; a start and a stop through `run` show in
@@ -560,13 +565,7 @@ fn every_input_register_reads_and_a_run_shows_in_state_and_phase() {
     assert_eq!(holdings(&mut master)[usize::from(holding(Holding::Run))], 0);
     console.expect("status", "OK state=stopped ");
     drop(console);
-    let (_, log) = emulator.shut_down().into_parts();
-    assert!(
-        !log.iter()
-            .any(|line| line.contains("ERROR") || line.contains("fault")),
-        "{}",
-        log.join("\n")
-    );
+    shut_down_without_faults(emulator);
 }
 
 /// Unknown addresses, refused values and functions the slave does not serve get their

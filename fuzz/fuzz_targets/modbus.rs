@@ -5,50 +5,14 @@
 //! exception, code 01 to 04) and carries a valid CRC; the controller's settings stay valid.
 #![no_main]
 
-use feeder_shared::configuration::record as config_record;
 use feeder_shared::modbus::{frame_gap_us, FrameAssembler, Response, Server, MAX_FRAME_BYTES};
-use feeder_shared::recipe::{RECIPE_SLOTS, RECORD_LEN};
-use feeder_shared::testing::machine;
-use feeder_shared::{
-    ConfigurationStore, Controller, Fault, Phase, RecipeSlot, RecipeStore, RunState, Settings,
-    Snapshot,
-};
+use feeder_shared::testing::{machine, MemoryStore};
+use feeder_shared::{Controller, Fault, Phase, RunState, Settings, Snapshot};
 use libfuzzer_sys::fuzz_target;
 
 /// The slave's address.
 const ADDRESS: u8 = 17;
 
-/// Recipe and configuration records in RAM.
-struct Memory {
-    records: [[u8; RECORD_LEN]; RECIPE_SLOTS],
-    configuration: [u8; config_record::RECORD_LEN],
-}
-
-impl RecipeStore for Memory {
-    type Error = ();
-
-    fn read(&mut self, slot: RecipeSlot) -> [u8; RECORD_LEN] {
-        self.records[slot.index()]
-    }
-
-    fn write(&mut self, slot: RecipeSlot, record: &[u8; RECORD_LEN]) -> Result<(), ()> {
-        self.records[slot.index()] = *record;
-        Ok(())
-    }
-}
-
-impl ConfigurationStore for Memory {
-    type WriteError = ();
-
-    fn read_configuration(&mut self) -> [u8; config_record::RECORD_LEN] {
-        self.configuration
-    }
-
-    fn write_configuration(&mut self, record: &[u8; config_record::RECORD_LEN]) -> Result<(), ()> {
-        self.configuration = *record;
-        Ok(())
-    }
-}
 
 /// CRC-16/MODBUS, bitwise: independent of the codec the slave uses.
 fn crc16(bytes: &[u8]) -> u16 {
@@ -94,10 +58,7 @@ fuzz_target!(|input: &[u8]| {
     let at = snapshot(state);
     let machine = machine();
     let mut controller = Controller::new(machine, Settings::DEFAULT).expect("defaults are valid");
-    let mut store = Memory {
-        records: [[0xff; RECORD_LEN]; RECIPE_SLOTS],
-        configuration: [0xff; config_record::RECORD_LEN],
-    };
+    let mut store = MemoryStore::erased();
     let mut server = Server::new(ADDRESS);
     let gap_us = frame_gap_us(9600);
     let mut assembler = FrameAssembler::new(gap_us);

@@ -1,7 +1,10 @@
 //! Fixtures shared by this crate's tests and its fuzz targets (feature `testing`).
 
+use crate::configuration::record as config_record;
+use crate::control::{ConfigurationStore, RecipeStore};
 use crate::model::{Friction, STANDARD_GRAVITY_MPS2};
 use crate::plan::TickClock;
+use crate::recipe::{RecipeSlot, RECIPE_SLOTS, RECORD_LEN};
 use crate::settings::Machine;
 use crate::waveform::Limits;
 
@@ -46,4 +49,47 @@ pub fn sprung_motion(
         v += h / 6.0 * (k1v + 2.0 * k2v + 2.0 * k3v + k4v);
     }
     (x, v)
+}
+
+/// Recipe and configuration records in RAM, a board's flash without the flash.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MemoryStore {
+    pub records: [[u8; RECORD_LEN]; RECIPE_SLOTS],
+    pub configuration: [u8; config_record::RECORD_LEN],
+}
+
+impl MemoryStore {
+    /// Nothing stored: every byte erased (`0xFF`).
+    pub const fn erased() -> Self {
+        MemoryStore {
+            records: [[0xff; RECORD_LEN]; RECIPE_SLOTS],
+            configuration: [0xff; config_record::RECORD_LEN],
+        }
+    }
+}
+
+impl RecipeStore for MemoryStore {
+    type Error = ();
+
+    fn read(&mut self, slot: RecipeSlot) -> [u8; RECORD_LEN] {
+        self.records[slot.index()]
+    }
+
+    fn write(&mut self, slot: RecipeSlot, record: &[u8; RECORD_LEN]) -> Result<(), ()> {
+        self.records[slot.index()] = *record;
+        Ok(())
+    }
+}
+
+impl ConfigurationStore for MemoryStore {
+    type WriteError = ();
+
+    fn read_configuration(&mut self) -> [u8; config_record::RECORD_LEN] {
+        self.configuration
+    }
+
+    fn write_configuration(&mut self, record: &[u8; config_record::RECORD_LEN]) -> Result<(), ()> {
+        self.configuration = *record;
+        Ok(())
+    }
 }

@@ -4,13 +4,11 @@
 //! must do exactly what the console's command with the same value does.
 
 use feeder_shared::closed_loop::{Identified, LoopReport, Stage, TrackReport, TrackState};
-use feeder_shared::configuration::record as config_record;
 use feeder_shared::modbus::map::{self, Holding, Input};
 use feeder_shared::modbus::{frame_gap_us, Exchange, FrameAssembler, Response, Server};
-use feeder_shared::recipe::{RECIPE_SLOTS, RECORD_LEN};
 use feeder_shared::{
-    protocol, ConfigurationStore, Controller, Fault, Friction, Limits, Machine, Outcome, Phase,
-    RecipeSlot, RecipeStore, RunState, Settings, Snapshot, SupervisorEvent, TickClock,
+    protocol, Controller, Fault, Friction, Limits, Machine, Outcome, Phase, RecipeSlot, RunState,
+    Settings, Snapshot, SupervisorEvent, TickClock,
 };
 use proptest::prelude::*;
 
@@ -32,47 +30,7 @@ fn machine() -> Machine {
     }
 }
 
-/// Recipe and configuration records in RAM.
-#[derive(Debug, Clone, PartialEq)]
-struct Memory {
-    records: [[u8; RECORD_LEN]; RECIPE_SLOTS],
-    configuration: [u8; config_record::RECORD_LEN],
-}
-
-impl Memory {
-    fn erased() -> Self {
-        Memory {
-            records: [[0xff; RECORD_LEN]; RECIPE_SLOTS],
-            configuration: [0xff; config_record::RECORD_LEN],
-        }
-    }
-}
-
-impl RecipeStore for Memory {
-    type Error = ();
-
-    fn read(&mut self, slot: RecipeSlot) -> [u8; RECORD_LEN] {
-        self.records[slot.index()]
-    }
-
-    fn write(&mut self, slot: RecipeSlot, record: &[u8; RECORD_LEN]) -> Result<(), ()> {
-        self.records[slot.index()] = *record;
-        Ok(())
-    }
-}
-
-impl ConfigurationStore for Memory {
-    type WriteError = ();
-
-    fn read_configuration(&mut self) -> [u8; config_record::RECORD_LEN] {
-        self.configuration
-    }
-
-    fn write_configuration(&mut self, record: &[u8; config_record::RECORD_LEN]) -> Result<(), ()> {
-        self.configuration = *record;
-        Ok(())
-    }
-}
+use feeder_shared::testing::MemoryStore as Memory;
 
 fn snapshot(state: RunState, phase: Phase, cycles: u64) -> Snapshot {
     Snapshot {
