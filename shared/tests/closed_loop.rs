@@ -577,7 +577,7 @@ fn an_excitation_rises_to_its_peak_and_back_and_the_plan_ahead_runs_at_its_scale
     let (_, segments) = paper_cycle(0.53);
     let mut cycle_loop = CycleLoop::new(&Identified::NOMINAL, LOOSE);
     let base = cycle_loop.plan(&segments).unwrap();
-    let mut update = |cycle_loop: &mut CycleLoop| {
+    let update = |cycle_loop: &mut CycleLoop| {
         let now = cycle_loop.plan(&segments).unwrap();
         let ahead = [1, 2].map(|n| cycle_loop.plan_ahead(&segments, n).unwrap());
         let trims = cycle_loop
