@@ -20,17 +20,18 @@ pub enum Image {
     ClosedLoopConsole,
 }
 
-/// Builds a QEMU firmware image (in its own target directory, beside the board image) and
-/// returns the ELF's path.
+/// Builds a QEMU firmware image and returns the path of its ELF. Every image is built in one
+/// target directory, so that the dependencies they share are built once, and copied out of it
+/// under its own name (`firmware/target/qemu/images/`), so that a later build leaves it be.
 pub fn build_firmware(image: Image) -> Result<PathBuf> {
-    let (directory, features) = match image {
+    let (name, features) = match image {
         Image::Scripted => ("qemu", "board-qemu"),
         Image::Console => ("qemu-console", "board-qemu,console"),
         Image::Cosim => ("qemu-cosim", "cosim"),
         Image::ClosedLoop => ("qemu-closed-loop", "cosim-encoder"),
         Image::ClosedLoopConsole => ("qemu-closed-loop-console", "cosim-encoder,console"),
     };
-    let target_dir = firmware_dir().join("target").join(directory);
+    let target_dir = firmware_dir().join("target").join("qemu");
     exec(
         firmware_cargo()
             .args([
@@ -44,8 +45,20 @@ pub fn build_firmware(image: Image) -> Result<PathBuf> {
             ])
             .arg(&target_dir),
     )?;
-    Ok(target_dir
+    let built = target_dir
         .join(THUMB_TARGET)
         .join("release")
-        .join("feeder-firmware"))
+        .join("feeder-firmware");
+    let images = target_dir.join("images");
+    std::fs::create_dir_all(&images)
+        .map_err(|error| format!("cannot make {}: {error}", images.display()))?;
+    let elf = images.join(name);
+    std::fs::copy(&built, &elf).map_err(|error| {
+        format!(
+            "cannot copy {} to {}: {error}",
+            built.display(),
+            elf.display()
+        )
+    })?;
+    Ok(elf)
 }

@@ -1,5 +1,6 @@
 //! `cargo xtask soak`: the random-operator soak (`ctl/tests/soak`) against the QEMU console image,
-//! at any length; `cargo xtask test` runs it too.
+//! at any length, and with `--modbus-requests` the random Modbus master's (`ctl/tests/modbus_soak`);
+//! `cargo xtask test` runs both at their default lengths.
 
 use std::path::Path;
 
@@ -18,6 +19,10 @@ pub struct SoakArgs {
     /// Seed of the operator's script (default: FEEDER_SOAK_SEED, else random).
     #[arg(long, value_name = "SEED")]
     pub seed: Option<u64>,
+    /// Runs the Modbus master's soak with this many random requests instead (default length in
+    /// `cargo xtask test`: 1500).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub modbus_requests: Option<u64>,
 }
 
 /// Builds the console image and runs the soak on it.
@@ -31,8 +36,14 @@ pub fn soak_alone(args: &SoakArgs) -> Result {
 /// The random-operator soak against the console image `elf`, its progress shown as it runs;
 /// unset arguments leave FEEDER_SOAK_CYCLES and FEEDER_SOAK_SEED to the environment.
 pub fn soak(elf: &Path, args: &SoakArgs) -> Result {
-    let mut command = ignored_tests("feeder-ctl", "soak", elf);
+    let mut command = match args.modbus_requests {
+        Some(_) => ignored_tests("feeder-ctl", "modbus_soak", elf),
+        None => ignored_tests("feeder-ctl", "soak", elf),
+    };
     command.arg("--nocapture");
+    if let Some(requests) = args.modbus_requests {
+        command.env("FEEDER_MODBUS_SOAK_REQUESTS", requests.to_string());
+    }
     if let Some(cycles) = args.cycles {
         command.env("FEEDER_SOAK_CYCLES", cycles.to_string());
     }

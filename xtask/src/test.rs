@@ -58,7 +58,14 @@ pub fn test() -> Result {
     let seed = std::env::var_os("FEEDER_SOAK_SEED")
         .is_none()
         .then_some(TEST_SOAK_SEED);
-    soak(&console, &SoakArgs { cycles: None, seed })
+    soak(
+        &console,
+        &SoakArgs {
+            cycles: None,
+            seed,
+            modbus_requests: None,
+        },
+    )
 }
 
 /// The G474's own image on the register-level twin: the twin's models, the register values

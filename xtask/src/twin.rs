@@ -23,10 +23,11 @@ const DEFAULT_CYCLES: u32 = 200;
 /// the stop.
 const PLANT_CYCLES: u32 = 700;
 
-/// The target directory every G474 image for the twin is built in: they differ in the
-/// firmware's own features only, so the dependencies are built once.
+/// The target directory every G474 image for the twin is built in, the board's own (where
+/// `cargo xtask size` builds the images as flashed): they differ in the firmware's own
+/// features only, so the dependencies are built once.
 fn image_target_dir() -> PathBuf {
-    firmware_dir().join("target").join("g474-twin")
+    firmware_dir().join("target")
 }
 
 /// Builds the G474 image with the event stream, `features` and the fault drill `drill`, and

@@ -55,7 +55,7 @@ use tokio_modbus::{Request, Response};
 const DEFAULT_SEED: u64 = 0x4d6f_6462_7573_2017;
 /// Requests of the random script when `FEEDER_MODBUS_SOAK_REQUESTS` is unset (each followed,
 /// where its answer calls for it, by reads that check it).
-const DEFAULT_REQUESTS: u64 = 4_000;
+const DEFAULT_REQUESTS: u64 = 1_500;
 /// The whole run must end within this much wall time per request, plus a base.
 const WALL_TIME_BASE: Duration = Duration::from_secs(60);
 const WALL_TIME_PER_REQUEST: Duration = Duration::from_millis(30);
