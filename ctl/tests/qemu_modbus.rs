@@ -310,18 +310,16 @@ fn every_holding_register_reads_writes_and_refuses_as_its_console_command() {
     }
 
     // Accepted writes, each read back.
-    let after = accepted(&mut master, &mut console, Holding::Frequency, 5500);
-    assert_eq!(after[usize::from(holding(Holding::Frequency))], 5500);
-    console.expect("get freq", "OK freq_hz=55");
-    let after = accepted(&mut master, &mut console, Holding::Duty, 6000);
-    assert_eq!(after[usize::from(holding(Holding::Duty))], 6000);
-    console.expect("get duty", "OK duty=0.6");
-    let after = accepted(&mut master, &mut console, Holding::Stroke, 2000);
-    assert_eq!(after[usize::from(holding(Holding::Stroke))], 2000);
-    console.expect("get stroke", "OK stroke_mm=2");
-    let after = accepted(&mut master, &mut console, Holding::Accel, 1200);
-    assert_eq!(after[usize::from(holding(Holding::Accel))], 1200);
-    console.expect("get accel", "OK accel_mps2=120");
+    for (register, value, line, reply) in [
+        (Holding::Frequency, 5500, "get freq", "OK freq_hz=55"),
+        (Holding::Duty, 6000, "get duty", "OK duty=0.6"),
+        (Holding::Stroke, 2000, "get stroke", "OK stroke_mm=2"),
+        (Holding::Accel, 1200, "get accel", "OK accel_mps2=120"),
+    ] {
+        let after = accepted(&mut master, &mut console, register, value);
+        assert_eq!(after[usize::from(holding(register))], value, "{register:?}");
+        console.expect(line, reply);
+    }
     let after = accepted(&mut master, &mut console, Holding::Feed, 1000);
     let feed = after[usize::from(holding(Holding::Feed))];
     // The inverse model picks the duty for the feed: its prediction within its tolerance.

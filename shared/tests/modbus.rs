@@ -3,32 +3,21 @@
 //! (not by the codec the server uses), and every response's CRC is checked the same way. A write
 //! must do exactly what the console's command with the same value does.
 
+#[path = "common/mod.rs"]
+mod common;
+
+use common::machine;
 use feeder_shared::closed_loop::{Identified, LoopReport, Stage, TrackReport, TrackState};
 use feeder_shared::modbus::map::{self, Holding, Input};
 use feeder_shared::modbus::{frame_gap_us, Exchange, FrameAssembler, Response, Server};
 use feeder_shared::{
-    protocol, Controller, Fault, Friction, Limits, Machine, Outcome, Phase, RecipeSlot, RunState,
-    Settings, Snapshot, SupervisorEvent, TickClock,
+    protocol, Controller, Fault, Outcome, Phase, RecipeSlot, RunState, Settings, Snapshot,
+    SupervisorEvent,
 };
 use proptest::prelude::*;
 
 // ---------------------------------------------------------------------------------------------
 // Fixtures: the control tests' machine, store and snapshots.
-
-/// The machine these tests validate on: 50–100 Hz, 200 m/s², 5 mm, μ = 0.3, a 1 MHz clock.
-fn machine() -> Machine {
-    Machine {
-        limits: Limits {
-            min_frequency_hz: 50.0,
-            max_frequency_hz: 100.0,
-            max_accel_mps2: 200.0,
-            max_stroke_m: 5.0e-3,
-        },
-        friction: Friction::new(0.3, 9.80665).unwrap(),
-        clock: TickClock::new(1_000_000),
-        loop_linear_mps2: None,
-    }
-}
 
 use feeder_shared::testing::MemoryStore as Memory;
 

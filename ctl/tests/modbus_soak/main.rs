@@ -48,7 +48,7 @@ use log::{Progress, SoakLog};
 use operator::Parameters;
 use requests::{Generator, Hints, Planned, HOLDINGS, INPUTS, SAVED_SLOTS};
 use support::modbus::{Failure, Master};
-use support::{console_image, Clocked, Console, Emulator, LogClock};
+use support::{console_image, env_number, Clocked, Console, Emulator, LogClock};
 use tokio_modbus::{Request, Response};
 
 /// The master's seed when `FEEDER_SOAK_SEED` is unset.
@@ -205,28 +205,12 @@ fn random_modbus_master_soak() {
 
 /// `FEEDER_SOAK_SEED`, or [`DEFAULT_SEED`].
 fn seed() -> u64 {
-    match std::env::var("FEEDER_SOAK_SEED") {
-        Ok(text) => text
-            .trim()
-            .parse()
-            .unwrap_or_else(|_| panic!("FEEDER_SOAK_SEED={text:?} is not a whole number")),
-        Err(_) => DEFAULT_SEED,
-    }
+    env_number("FEEDER_SOAK_SEED", false).unwrap_or(DEFAULT_SEED)
 }
 
 /// `FEEDER_MODBUS_SOAK_REQUESTS`, or [`DEFAULT_REQUESTS`].
 fn requests_wanted() -> u64 {
-    match std::env::var("FEEDER_MODBUS_SOAK_REQUESTS") {
-        Ok(text) => text
-            .trim()
-            .parse()
-            .ok()
-            .filter(|count| *count > 0)
-            .unwrap_or_else(|| {
-                panic!("FEEDER_MODBUS_SOAK_REQUESTS={text:?} is not a positive number")
-            }),
-        Err(_) => DEFAULT_REQUESTS,
-    }
+    env_number("FEEDER_MODBUS_SOAK_REQUESTS", true).unwrap_or(DEFAULT_REQUESTS)
 }
 
 /// What the requests got.

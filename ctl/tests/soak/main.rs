@@ -34,7 +34,7 @@ use std::time::{Duration, Instant};
 use feeder_shared::protocol::Param;
 use log::{FirmwareError, Progress, SoakLog, Summary};
 use operator::{Expect, Line, Operator, Parameters, Verdict, Write};
-use support::{console_image, Console, Emulator};
+use support::{console_image, env_number, Console, Emulator};
 
 /// Motion cycles when `FEEDER_SOAK_CYCLES` is unset.
 const DEFAULT_MOTION_CYCLES: u64 = 20_000;
@@ -145,26 +145,13 @@ fn run_checks(summary: &Summary, session: &Session, operator_failure: Option<Str
 
 /// `FEEDER_SOAK_SEED`, or a fresh random seed.
 fn seed() -> u64 {
-    match std::env::var("FEEDER_SOAK_SEED") {
-        Ok(text) => text
-            .trim()
-            .parse()
-            .unwrap_or_else(|_| panic!("FEEDER_SOAK_SEED={text:?} is not a whole number")),
-        Err(_) => RandomState::new().build_hasher().finish(),
-    }
+    env_number("FEEDER_SOAK_SEED", false)
+        .unwrap_or_else(|| RandomState::new().build_hasher().finish())
 }
 
 /// `FEEDER_SOAK_CYCLES`, or [`DEFAULT_MOTION_CYCLES`].
 fn motion_cycles_wanted() -> u64 {
-    match std::env::var("FEEDER_SOAK_CYCLES") {
-        Ok(text) => text
-            .trim()
-            .parse()
-            .ok()
-            .filter(|cycles| *cycles > 0)
-            .unwrap_or_else(|| panic!("FEEDER_SOAK_CYCLES={text:?} is not a positive number")),
-        Err(_) => DEFAULT_MOTION_CYCLES,
-    }
+    env_number("FEEDER_SOAK_CYCLES", true).unwrap_or(DEFAULT_MOTION_CYCLES)
 }
 
 /// The operator at the console, with what it has seen.

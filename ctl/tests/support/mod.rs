@@ -33,6 +33,22 @@ pub fn console_image() -> PathBuf {
         .expect("FEEDER_QEMU_ELF must name the QEMU firmware built with the console feature")
 }
 
+/// The whole number in the environment variable `name`, `None` when it is unset; a value that
+/// is not one (or is zero, where it must be `positive`) fails the test, naming the variable.
+pub fn env_number(name: &str, positive: bool) -> Option<u64> {
+    let text = std::env::var(name).ok()?;
+    let number = text
+        .trim()
+        .parse::<u64>()
+        .ok()
+        .filter(|n| *n > 0 || !positive);
+    match (number, positive) {
+        (Some(number), _) => Some(number),
+        (None, true) => panic!("{name}={text:?} is not a positive number"),
+        (None, false) => panic!("{name}={text:?} is not a whole number"),
+    }
+}
+
 /// Takes the decoded log, one line at a time, on the log thread.
 pub trait LogSink: Send + 'static {
     fn line(&mut self, line: &str);

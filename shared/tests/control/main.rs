@@ -4,6 +4,8 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+use common::machine;
+
 mod commands;
 mod configuration;
 mod recipes;
@@ -14,24 +16,9 @@ use feeder_shared::configuration::record as config_record;
 use feeder_shared::protocol;
 use feeder_shared::recipe::{RECIPE_SLOTS, RECORD_LEN};
 use feeder_shared::{
-    Action, ConfigurationStore, Controller, Fault, Friction, Limits, Machine, Outcome, Phase,
-    RecipeSlot, RecipeStore, RunState, Settings, Snapshot, TickClock, WaveformSpec,
+    Action, ConfigurationStore, Controller, Fault, Outcome, Phase, RecipeSlot, RecipeStore,
+    RunState, Settings, Snapshot, WaveformSpec,
 };
-
-/// The machine these tests validate on: 50–100 Hz, 200 m/s², 5 mm, μ = 0.3, a 1 MHz clock.
-fn machine() -> Machine {
-    Machine {
-        limits: Limits {
-            min_frequency_hz: 50.0,
-            max_frequency_hz: 100.0,
-            max_accel_mps2: 200.0,
-            max_stroke_m: 5.0e-3,
-        },
-        friction: Friction::new(0.3, 9.80665).unwrap(),
-        clock: TickClock::new(1_000_000),
-        loop_linear_mps2: None,
-    }
-}
 
 /// Recipe and configuration records in RAM; `fail` makes every write fail.
 #[derive(Debug, Clone, PartialEq)]
