@@ -47,13 +47,16 @@ fn frame(bytes: &[u8]) -> Frame {
 /// A byte's time is not when the task reads it: bytes wait in the port's buffer while the task
 /// does other work, and a frame read in two parts would look cut by a silence that never was.
 /// So the frame assembler runs on a line clock that advances only across a silence the task
-/// has seen itself, waiting on the port with nothing arriving for the frame gap.
+/// has seen itself: a frame gap from the last read that took bytes with none arriving since,
+/// however often the task's other work (telemetry, the discrete lines) ends its wait.
 pub struct ModbusLink<M> {
     port: M,
     gap_us: u64,
     turnaround_us: u64,
     /// The line clock, µs: the silences seen so far, each one frame gap long.
     line_us: u64,
+    /// When a read last took bytes.
+    last_read: Instant,
     assembler: FrameAssembler,
     server: Server,
     watchdog: LinkWatchdog,
@@ -75,6 +78,7 @@ impl<M: Read + Write> ModbusLink<M> {
             gap_us: port.gap_us,
             turnaround_us: port.turnaround_us,
             line_us: 0,
+            last_read: Instant::now(),
             assembler: FrameAssembler::new(port.gap_us),
             server: Server::new(setup.modbus_address),
             watchdog: LinkWatchdog::new(setup.link_timeout_ms),
@@ -86,14 +90,21 @@ impl<M: Read + Write> ModbusLink<M> {
     /// silence, which ends it.
     pub async fn receive(&mut self, chunk: &mut [u8]) -> Received {
         let read = match self.assembler.pending() {
-            true => match select(self.port.read(chunk), Timer::after_micros(self.gap_us)).await {
-                Either::First(read) => read,
-                Either::Second(()) => return Received::Silence,
-            },
+            true => {
+                let quiet_from = self.last_read + Duration::from_micros(self.gap_us);
+                // The port first: bytes already waiting are no silence, however late it is.
+                match select(self.port.read(chunk), Timer::at(quiet_from)).await {
+                    Either::First(read) => read,
+                    Either::Second(()) => return Received::Silence,
+                }
+            }
             false => self.port.read(chunk).await,
         };
         match read {
-            Ok(received) => Received::Bytes(received),
+            Ok(received) => {
+                self.last_read = Instant::now();
+                Received::Bytes(received)
+            }
             Err(_) => {
                 warn!("modbus: receive error, partial frame dropped");
                 self.assembler.discard();

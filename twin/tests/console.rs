@@ -257,6 +257,17 @@ fn the_modbus_port_answers_on_usart1_with_its_driver_enable() {
     let ignored = modbus(&mut machine, &frame_to(2, &[3, 0, 0, 0, 1]), 1);
     assert!(ignored.answer.is_empty(), "{:02x?}", ignored.bytes());
     assert!(ignored.driver_enable.iter().all(|&(_, up)| !up));
+    // The first three bytes of a request, then nothing: after a frame gap of silence they are
+    // dropped, and the next request is read from its first byte.
+    let cut = modbus(&mut machine, &frame(&[3, 0, 0, 0, 1])[..3], 1);
+    assert!(cut.answer.is_empty(), "{:02x?}", cut.bytes());
+    let next = modbus(&mut machine, &frame(&[3, 0, 2, 0, 1]), 7);
+    assert_eq!(next.bytes(), frame(&[3, 2, 0x17, 0x70]), "duty, 6000");
+    // A function the slave does not serve, of a length it cannot know (report server ID, 4
+    // bytes): ended by the silence after it, answered with exception 01.
+    let unknown = modbus(&mut machine, &frame(&[0x11]), 5);
+    assert_eq!(unknown.bytes(), frame(&[0x91, 1]));
+    unknown.assert_driver_enable_frames_the_answer();
 }
 
 /// Runs `machine` for `seconds` in 1 ms steps, checking at each the ready output (PC6) high and
