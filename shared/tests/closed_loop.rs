@@ -606,6 +606,52 @@ fn an_excitation_rises_to_its_peak_and_back_and_the_plan_ahead_runs_at_its_scale
     assert_eq!(cycle_loop.plan(&segments).unwrap().mean_m, base.mean_m);
 }
 
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// The drive multiplies the whole command by the gain of its sign and adds its offset: the
+    /// loop's levels bring every segment's plan and the slide's force over it to the plate, less
+    /// or more one correction common to the cycle, whatever the gains, offset and slide.
+    #[test]
+    fn every_segment_reaches_the_plate_as_planned_through_the_drives_gains(
+        gain_positive in 0.9..1.1f64,
+        gain_negative in 0.9..1.1f64,
+        offset_mps2 in -4.0..4.0f64,
+        coulomb_mps2 in 0.0..30.0f64,
+        viscous_per_s in 0.0..40.0f64,
+        duty in 0.52..0.62f64,
+        start_error_m in -50e-6..50e-6f64,
+    ) {
+        let (_, segments) = paper_cycle(duty);
+        let drive = Identified {
+            gain_positive,
+            gain_negative,
+            offset_mps2,
+            coulomb_mps2,
+            viscous_per_s,
+            ..Identified::NOMINAL
+        };
+        let mut cycle_loop = CycleLoop::new(&drive, LOOSE);
+        let shape = cycle_loop.plan(&segments).unwrap();
+        cycle_loop.update(-shape.mean_m, None, None, &shape, [&shape, &shape]).unwrap();
+        let trims = cycle_loop
+            .update(-shape.mean_m + start_error_m, None, None, &shape, [&shape, &shape])
+            .unwrap();
+        let delivered: Vec<f64> = (0..4)
+            .map(|place| {
+                let planned = shape.segment_accel_mps2[place];
+                let level = trims.level(place, planned);
+                let gain = if level >= 0.0 { gain_positive } else { gain_negative };
+                let slide = shape.segment_motion[place].slide_mps2(coulomb_mps2, viscous_per_s, 0.0);
+                gain * level + offset_mps2 - planned - slide
+            })
+            .collect();
+        for correction in &delivered[1..] {
+            prop_assert!((correction - delivered[0]).abs() < 1e-9, "{delivered:?}");
+        }
+    }
+}
+
 #[test]
 fn the_loop_centres_a_flexure_mount_it_knows_and_rejects_a_constant_disturbance() {
     // Natural frequencies of 8.7, 15.9 and 20.1 Hz under 50 Hz cycles, and told 30 % low or

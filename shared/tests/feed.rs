@@ -91,8 +91,9 @@ fn a_slower_current_loop_feeds_less() {
     assert!(previous < 0.9 * ideal);
 }
 
-/// The stroke a lagged plate shows between `τ` after the start and `τ` after the turn, against
-/// a fine integration of `τ·ȧ + a = u` run until its motion repeats.
+/// The stroke a lagged plate shows between `τ` after the start and `τ` after the turn, and its
+/// mean about the start, against a fine integration of `τ·ȧ + a = u` run until its motion
+/// repeats.
 #[test]
 fn the_stroke_behind_the_lag_is_the_integrated_ones() {
     let cases = [
@@ -121,7 +122,11 @@ fn the_stroke_behind_the_lag_is_the_integrated_ones() {
         };
         let (mut a, mut v, mut x) = (0.0, 0.0, 0.0);
         let (mut at_start, mut at_turn) = (0.0, 0.0);
+        let (mut start_x, mut area) = (0.0, 0.0);
         for cycle in 0..30 {
+            if cycle == 29 {
+                start_x = x;
+            }
             for k in 0..steps {
                 let t = (k as f64 + 0.5) * dt;
                 let u = command(t);
@@ -130,6 +135,7 @@ fn the_stroke_behind_the_lag_is_the_integrated_ones() {
                 x += v * dt;
                 a = a_next;
                 if cycle == 29 {
+                    area += x * dt;
                     let t_end = (k + 1) as f64 * dt;
                     if (t_end - lag_s).abs() < dt / 2.0 {
                         at_start = x;
@@ -140,6 +146,14 @@ fn the_stroke_behind_the_lag_is_the_integrated_ones() {
                 }
             }
         }
+        // About the start, the integration's drift (its velocity's mean) taken out, as the
+        // loop's centring takes it out.
+        let mean_about_start = area / shape.period_s - start_x - (x - start_x) / 2.0;
+        assert!(
+            (mean_about_start - shape.mean_m).abs() < 2e-8,
+            "{frequency_hz} Hz, d = {duty}: mean {mean_about_start} vs {}",
+            shape.mean_m
+        );
         let stroke = at_turn - at_start;
         assert!(
             (stroke - shape.latched_stroke_m).abs() < 2e-8,

@@ -224,6 +224,28 @@ impl CycleLoop {
         (trims, added)
     }
 
+    /// What each segment of a cycle of `shape` adds to `bias_mps2` so that the bias and the
+    /// slide's forces `slide_mps2` reach the plate as planned: the drive multiplies the whole
+    /// command by the gain of its sign, so both are divided by it as the `±a` levels are (a
+    /// zero level's by the sign of what it carries).
+    fn through_gains(&self, shape: &CycleShape, bias_mps2: f64, slide_mps2: [f64; 4]) -> [f64; 4] {
+        core::array::from_fn(|place| {
+            let carried_mps2 = bias_mps2 + slide_mps2[place];
+            let planned_mps2 = shape.segment_accel_mps2[place];
+            let positive = if planned_mps2 == 0.0 {
+                carried_mps2 >= 0.0
+            } else {
+                planned_mps2 > 0.0
+            };
+            let undo = if positive {
+                self.feedforward.positive
+            } else {
+                self.feedforward.negative
+            };
+            carried_mps2 * undo - bias_mps2
+        })
+    }
+
     /// The cycle map and its gains for cycles of `period_s`, made afresh where the period or the
     /// drive changed.
     fn refresh_map(&mut self, period_s: f64) -> Result<(), LoopError> {
@@ -495,12 +517,13 @@ impl CycleLoop {
         let slide_mps2 = next[0]
             .segment_motion
             .map(|motion| motion.slide_mps2(coulomb_mps2, viscous_per_s, spring_per_s2));
+        let bias_mps2 = self.feedforward.bias_mps2 + correction_mps2;
         let (trims, rounding) = self.rounded_trims(
             next[0],
             self.feedforward.positive * amplitude,
             self.feedforward.negative * amplitude,
-            self.feedforward.bias_mps2 + correction_mps2,
-            slide_mps2,
+            bias_mps2,
+            self.through_gains(next[0], bias_mps2, slide_mps2),
         );
         self.amplitude = amplitude;
         self.scale = scale;

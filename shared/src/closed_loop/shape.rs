@@ -256,7 +256,10 @@ impl CycleShape {
     /// with `x_u`, `v_u` the plan's own motion: the plate follows the plan `τ` late, and each
     /// step `Δu` of the command leaves `Δu·τ²/2` on its position. The stroke read `τ` after the
     /// start and after the turn is then the plan's less the steps between: `a·τ²` for the
-    /// paper's cycle where the lag settles within each segment, less where it does not.
+    /// paper's cycle where the lag settles within each segment, less where it does not. The
+    /// mean about the start moves by what those terms add: `−τ·x_u(T)/T + τ²·v_u(T)/T − τ²·a(0)`
+    /// (on the paper's cycle, which ends where it starts, `−τ²·a(0)`: the start is in its
+    /// return's `+a`, and the plate there stands `τ²·a` above the plan).
     pub fn behind_lag(self, segments: &[CommandSegment], lag_s: f64) -> Self {
         if lag_s.is_nan() || lag_s <= 0.0 || segments.is_empty() {
             return self;
@@ -278,9 +281,18 @@ impl CycleShape {
             }
             x - lag_s * v + lag_s * lag_s * lagged
         };
+        let (mut end_x, mut end_v) = (0.0, 0.0);
+        for segment in segments {
+            let (u, d) = (segment.accel_mps2, segment.duration_s);
+            end_x += end_v * d + u * d * d / 2.0;
+            end_v += u * d;
+        }
+        let moved_m = (-lag_s * end_x + lag_s * lag_s * end_v) / self.period_s
+            - lag_s * lag_s * start_accel_mps2;
         CycleShape {
             latched_stroke_m: at(self.turn_s + lag_s) - at(lag_s),
             lag_s,
+            mean_m: self.mean_m + moved_m,
             ..self
         }
     }

@@ -70,18 +70,32 @@ impl<'a> PlateCycle<'a> {
         let lag_s = if model.lag_s > 0.0 { model.lag_s } else { 0.0 };
         let shape = CycleShape::new(segments);
         let motion = shape.map_or([SegmentMotion::default(); 4], |shape| shape.segment_motion);
+        let feedforward_mps2 = motion
+            .map(|m| m.slide_mps2(model.coulomb_mps2, model.viscous_per_s, model.spring_per_s2));
+        // The feedforward is part of the command: it goes through the lag with the plan's level.
+        let mut commanded = [CommandSegment {
+            duration_s: 0.0,
+            accel_mps2: 0.0,
+        }; 4];
+        let count = segments.len().min(4);
+        for ((commanded, segment), fed_mps2) in
+            commanded.iter_mut().zip(segments).zip(feedforward_mps2)
+        {
+            *commanded = CommandSegment {
+                accel_mps2: segment.accel_mps2 + fed_mps2,
+                ..*segment
+            };
+        }
         let mut cycle = PlateCycle {
             segments,
             model: PlateModel { lag_s, ..model },
             start_accel_mps2: if lag_s > 0.0 {
-                lagged_start_mps2(segments, lag_s)
+                lagged_start_mps2(&commanded[..count], lag_s)
             } else {
-                segments.first().map_or(0.0, |s| s.accel_mps2)
+                commanded[..count].first().map_or(0.0, |s| s.accel_mps2)
             },
             start_m: shape.map_or(0.0, |shape| -shape.mean_m),
-            feedforward_mps2: motion.map(|m| {
-                m.slide_mps2(model.coulomb_mps2, model.viscous_per_s, model.spring_per_s2)
-            }),
+            feedforward_mps2,
             bias_mps2: 0.0,
             start_shift_mps: 0.0,
             turn_s: shape.map_or(0.0, |shape| shape.turn_s),
@@ -126,9 +140,7 @@ impl<'a> PlateCycle<'a> {
             self.start_m,
         );
         for (place, segment) in self.segments.iter().enumerate() {
-            let u = segment.accel_mps2;
-            let fed_mps2 =
-                self.feedforward_mps2.get(place).copied().unwrap_or(0.0) + self.bias_mps2;
+            let u = segment.accel_mps2 + self.feedforward_mps2.get(place).copied().unwrap_or(0.0);
             let count = libm::ceil(segment.duration_s / period_s * STEPS_PER_CYCLE as f64).max(1.0);
             let h = segment.duration_s / count;
             let decay = if lag_s > 0.0 { exp(-h / lag_s) } else { 0.0 };
@@ -141,7 +153,7 @@ impl<'a> PlateCycle<'a> {
             for _ in 0..count as usize {
                 let drive = u + (lagged - u) * mean_share;
                 lagged = u + (lagged - u) * decay;
-                let smooth = drive + fed_mps2 - viscous_per_s * v - spring_per_s2 * x;
+                let smooth = drive + self.bias_mps2 - viscous_per_s * v - spring_per_s2 * x;
                 let mut next_v = v + (smooth - coulomb_mps2 * sign(v)) * h;
                 if v * next_v < 0.0 {
                     // The slide's friction turns with the velocity inside the step.
