@@ -20,8 +20,9 @@
 //! difference, `x_k − 2x_{k−1} + x_{k−2} = ũ_{k−1} + ũ_{k−2} + d_{k−1} + d_{k−2}`;
 //! [`CycleMap::second_difference_weights`] in general), taken by [`Disturbance`], which tells an
 //! offset from a gain error that grows with the levels; it reconstructs `w_k`, predicts the
-//! state at `k + 1`, cancels `d̂` and places both poles of the prediction at 0.3
-//! ([`CycleMap::gains`]; for a free plate `ũ = −0.245·x − 0.5775·w − d̂`). The target is each
+//! state at `k + 1`, cancels `d̂` and places both poles of the prediction at 0.3 for a free
+//! plate (`ũ = −0.245·x − 0.5775·w − d̂`), a mount's at its own angle and a radius up to 0.7
+//! ([`CycleMap::gains`]). The target is each
 //! cycle's mean position at the centre: a start at `−mean − w/2`, known two cycles ahead, so a
 //! soft start or a new plan moves the target and the loop follows it at its speed. The plan's
 //! mean is not quite the plate's (the current loop and friction round every segment): the mean
@@ -47,7 +48,7 @@ use super::feed::FeedCompensation;
 use super::identify::Identified;
 use super::shape::{CommandSegment, CycleShape, SegmentMotion};
 
-/// Both poles of the centring loop ([`CycleMap::gains`]).
+/// Both poles of the centring loop on a free plate ([`CycleMap::gains`]).
 const POLE: f64 = 0.3;
 /// The mean's offset moves by this fraction of each measured mean.
 const MEAN_GAIN: f64 = 0.05;

@@ -22,6 +22,10 @@ pub struct CycleMap {
 /// remainder is below `2⁻¹⁸/18! < 10⁻²¹`.
 const TAYLOR_TERMS: usize = 18;
 
+/// The radius [`CycleMap::gains`] gives the poles of a mount that turns the plate a quarter
+/// around or more in a cycle.
+pub const SPRUNG_POLE: f64 = 0.7;
+
 impl CycleMap {
     /// A free mass.
     pub const FREE: CycleMap = CycleMap {
@@ -63,10 +67,34 @@ impl CycleMap {
         ]
     }
 
-    /// The gains `K` that place both poles of `Φ − Γ·K` at `pole`; `None` where one cycle's
-    /// constant acceleration cannot steer both position and velocity (`[Γ ΦΓ]` singular: a
-    /// spring that turns the plate half around in a cycle).
+    /// The gains `K` that place both poles of `Φ − Γ·K`: at `pole` for a free plate; where a
+    /// mount turns the plate by `θ` a cycle (`Φ`'s poles `r·e^{±iθ}`), at the same angle and a
+    /// radius from `pole` (`θ = 0`) to [`SPRUNG_POLE`] (`θ` from 90°), so that the loop damps
+    /// the mount's swing instead of stopping it within a cycle, which takes gains several times
+    /// the free plate's and makes them the more sensitive to the mount's stiffness as it is
+    /// identified. `None` where one cycle's constant acceleration cannot steer both position
+    /// and velocity (`[Γ ΦΓ]` singular: a spring that turns the plate half around in a cycle).
     pub fn gains(&self, pole: f64) -> Option<[f64; 2]> {
+        let (radius, cos_angle) = self.target_poles(pole);
+        self.placing(-2.0 * radius * cos_angle, radius * radius)
+    }
+
+    /// The radius and the cosine of the angle of the poles [`CycleMap::gains`] places.
+    fn target_poles(&self, pole: f64) -> (f64, f64) {
+        let trace = self.phi[0][0] + self.phi[1][1];
+        let det = self.determinant();
+        if det <= 0.0 || trace * trace >= 4.0 * det {
+            return (pole, 1.0);
+        }
+        let r = libm::sqrt(det);
+        let cos_angle = (trace / (2.0 * r)).clamp(-1.0, 1.0);
+        let turned = libm::acos(cos_angle) / core::f64::consts::FRAC_PI_2;
+        (pole + (SPRUNG_POLE - pole) * turned.min(1.0), cos_angle)
+    }
+
+    /// The gains `K` that give `Φ − Γ·K` the characteristic polynomial `z² + c₁·z + c₀`
+    /// (Ackermann's formula).
+    fn placing(&self, c1: f64, c0: f64) -> Option<[f64; 2]> {
         let g = self.gamma;
         let pg = self.apply(g);
         let det = g[0] * pg[1] - pg[0] * g[1];
@@ -74,7 +102,7 @@ impl CycleMap {
         if fabs(det).is_nan() || fabs(det) <= 1e-3 * scale {
             return None;
         }
-        // p(Φ) = Φ² − 2p·Φ + p²·I.
+        // p(Φ) = Φ² + c₁·Φ + c₀·I.
         let p = self.phi;
         let square = [
             [
@@ -88,7 +116,7 @@ impl CycleMap {
         ];
         let poly: [[f64; 2]; 2] = core::array::from_fn(|i| {
             core::array::from_fn(|j| {
-                square[i][j] - 2.0 * pole * p[i][j] + if i == j { pole * pole } else { 0.0 }
+                square[i][j] + c1 * p[i][j] + if i == j { c0 } else { 0.0 }
             })
         });
         let row = [-g[1] / det, g[0] / det];
@@ -195,12 +223,16 @@ mod tests {
         }
     }
 
-    /// The gains place both eigenvalues of `Φ − ΓK` at the pole: trace `2p`, determinant `p²`.
+    /// The gains place both eigenvalues of `Φ − ΓK`: at the pole for a free plate (trace `2p`,
+    /// determinant `p²`); for a mount at the angle the damped oscillator turns in a cycle
+    /// (`β·T` from its closed form, folded into `[0, π]`), at a radius from the pole to
+    /// [`SPRUNG_POLE`] as that angle grows to 90°.
     #[test]
     fn the_gains_place_both_poles() {
+        let viscous = 3.0;
         for spring in [0.0, 100.0, 2e3, 1e4, 4e4] {
             for period in [0.01, 0.02] {
-                let map = CycleMap::new(spring, 3.0, period);
+                let map = CycleMap::new(spring, viscous, period);
                 let Some(k) = map.gains(0.3) else {
                     continue;
                 };
@@ -209,9 +241,19 @@ mod tests {
                 });
                 let trace = closed[0][0] + closed[1][1];
                 let det = closed[0][0] * closed[1][1] - closed[0][1] * closed[1][0];
+                let (radius, cos_angle) = if spring == 0.0 {
+                    (0.3, 1.0)
+                } else {
+                    let beta = sqrt(spring - viscous * viscous / 4.0);
+                    let turn = (beta * period) % (2.0 * core::f64::consts::PI);
+                    let angle = turn.min(2.0 * core::f64::consts::PI - turn);
+                    let share = (angle / core::f64::consts::FRAC_PI_2).min(1.0);
+                    (0.3 + (SPRUNG_POLE - 0.3) * share, cos(angle))
+                };
                 assert!(
-                    fabs(trace - 0.6) < 1e-9 && fabs(det - 0.09) < 1e-9,
-                    "{spring} {period}"
+                    fabs(trace - 2.0 * radius * cos_angle) < 1e-9
+                        && fabs(det - radius * radius) < 1e-9,
+                    "{spring} {period}: trace {trace}, det {det}, radius {radius}"
                 );
             }
         }
