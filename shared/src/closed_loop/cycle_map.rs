@@ -115,9 +115,7 @@ impl CycleMap {
             ],
         ];
         let poly: [[f64; 2]; 2] = core::array::from_fn(|i| {
-            core::array::from_fn(|j| {
-                square[i][j] + c1 * p[i][j] + if i == j { c0 } else { 0.0 }
-            })
+            core::array::from_fn(|j| square[i][j] + c1 * p[i][j] + if i == j { c0 } else { 0.0 })
         });
         let row = [-g[1] / det, g[0] / det];
         Some([
