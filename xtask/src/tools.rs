@@ -205,17 +205,81 @@ fn package_installed(package: &str) -> bool {
         .is_ok_and(|output| output.status.success() && output.stdout == b"install ok installed")
 }
 
+/// Where apt-get looks for its sources: the system's, or the system's and its release's
+/// backports suite for one install.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Sources<'a> {
+    System,
+    /// The directory of the system's sources and the backports suite, and the suite's name.
+    Backports { parts: &'a Path, suite: &'a str },
+}
+
+/// `apt-get` with `sources`: the backports suite preferred for what it installs.
+fn apt_get(sources: Sources<'_>) -> Command {
+    let mut command = Command::new("apt-get");
+    if let Sources::Backports { parts, suite } = sources {
+        command
+            .arg("-o")
+            .arg(format!("Dir::Etc::sourceparts={}", parts.display()))
+            .args(["--target-release", suite]);
+    }
+    command.env("DEBIAN_FRONTEND", "noninteractive");
+    command
+}
+
 /// `apt-get install` of `packages` and what they depend on, and nothing else: no recommended
 /// packages, and no removal (apt-get refuses the whole install instead); with `simulate`, only
 /// what it would do.
-fn apt_install(packages: &[&str], simulate: bool) -> Command {
-    let mut command = Command::new("apt-get");
+fn apt_install(packages: &[&str], simulate: bool, sources: Sources<'_>) -> Command {
+    let mut command = apt_get(sources);
     command
         .args(["install", "--yes", "--no-install-recommends", "--no-remove"])
         .args(simulate.then_some("--simulate"))
-        .args(packages)
-        .env("DEBIAN_FRONTEND", "noninteractive");
+        .args(packages);
     command
+}
+
+/// The release's codename (`VERSION_CODENAME` of `/etc/os-release`).
+fn codename(os_release: &str) -> Option<&str> {
+    os_release
+        .lines()
+        .find_map(|line| line.strip_prefix("VERSION_CODENAME="))
+        .map(|name| name.trim().trim_matches('"'))
+        .filter(|name| !name.is_empty())
+}
+
+/// The Debian archive's entry for `suite`, in deb822 form.
+fn backports_source(suite: &str) -> String {
+    format!(
+        "Types: deb\nURIs: http://deb.debian.org/debian\nSuites: {suite}\nComponents: main\n\
+         Signed-By: /usr/share/keyrings/debian-archive-keyring.gpg\n"
+    )
+}
+
+/// A sources directory for one install: the system's enabled sources and `suite`'s, under
+/// `target/tools/apt` (the system's own sources are left as they are).
+fn backports_parts(suite: &str) -> Result<PathBuf> {
+    let parts = tools_root().join("apt").join("sources.list.d");
+    if parts.exists() {
+        std::fs::remove_dir_all(&parts)
+            .map_err(|error| format!("cannot clear {}: {error}", parts.display()))?;
+    }
+    std::fs::create_dir_all(&parts)
+        .map_err(|error| format!("cannot create {}: {error}", parts.display()))?;
+    let system = Path::new("/etc/apt/sources.list.d");
+    for entry in std::fs::read_dir(system).into_iter().flatten().flatten() {
+        let path = entry.path();
+        let enabled = path
+            .extension()
+            .is_some_and(|extension| extension == "list" || extension == "sources");
+        if enabled {
+            std::fs::copy(&path, parts.join(entry.file_name()))
+                .map_err(|error| format!("cannot copy {}: {error}", path.display()))?;
+        }
+    }
+    std::fs::write(parts.join(format!("{suite}.sources")), backports_source(suite))
+        .map_err(|error| format!("cannot write {suite}'s source: {error}"))?;
+    Ok(parts)
 }
 
 /// The packages an `apt-get --simulate` run would install (its `Inst` lines).
@@ -255,10 +319,33 @@ fn ensure_apt_tool(tool: &AptTool) -> Result {
 }
 
 /// Installs `packages` with apt-get after saying on standard error what that installs; a plan
-/// that would remove any package is refused by apt-get, and nothing is installed.
+/// that would remove any package is refused by apt-get, and nothing is installed. Where the
+/// release's own packages would remove some (a newer build of a related package came from the
+/// release's backports, as `qemu-utils` does on some machines), the same install is tried with
+/// the backports suite preferred.
 fn install_packages(packages: &[&str]) -> Result {
     exec(Command::new("apt-get").arg("update"))?;
-    let simulation = apt_install(packages, true)
+    let Err(error) = install_from(packages, Sources::System) else {
+        return Ok(());
+    };
+    let os_release = std::fs::read_to_string("/etc/os-release").unwrap_or_default();
+    let Some(release) = codename(&os_release) else {
+        return Err(error);
+    };
+    let suite = format!("{release}-backports");
+    eprintln!("xtask: {error}; trying {suite}");
+    let parts = backports_parts(&suite)?;
+    let sources = Sources::Backports {
+        parts: &parts,
+        suite: &suite,
+    };
+    exec(apt_get(sources).arg("update"))?;
+    install_from(packages, sources).map_err(|again| format!("{error}; from {suite}: {again}").into())
+}
+
+/// [`install_packages`] from `sources`, after the package lists are up to date.
+fn install_from(packages: &[&str], sources: Sources<'_>) -> Result {
+    let simulation = apt_install(packages, true, sources)
         .stderr(Stdio::inherit())
         .output()
         .map_err(|error| format!("cannot run apt-get: {error}"))?;
@@ -275,7 +362,7 @@ fn install_packages(packages: &[&str]) -> Result {
         "xtask: installing with apt-get, removing nothing: {}",
         simulated_installs(&simulation).join(" ")
     );
-    exec(&mut apt_install(packages, false))
+    exec(&mut apt_install(packages, false, sources))
 }
 
 /// The thumb target and the linker every firmware build needs.
@@ -315,7 +402,7 @@ mod tests {
 
     #[test]
     fn apt_get_installs_only_the_packages_asked_for_and_removes_nothing() {
-        let install = apt_install(&["qemu-system-arm"], false);
+        let install = apt_install(&["qemu-system-arm"], false, Sources::System);
         assert_eq!(install.get_program(), "apt-get");
         assert_eq!(
             install.get_args().collect::<Vec<_>>(),
@@ -327,7 +414,7 @@ mod tests {
                 "qemu-system-arm"
             ]
         );
-        let simulate = apt_install(&["qemu-system-arm"], true);
+        let simulate = apt_install(&["qemu-system-arm"], true, Sources::System);
         let simulate: Vec<_> = simulate.get_args().collect();
         assert!(simulate.contains(&OsStr::new("--no-remove")));
         assert!(simulate.contains(&OsStr::new("--simulate")));
@@ -335,6 +422,36 @@ mod tests {
             .get_envs()
             .any(|(key, value)| key == "DEBIAN_FRONTEND"
                 && value.is_some_and(|value| value == "noninteractive")));
+    }
+
+    #[test]
+    fn a_backports_install_reads_the_suite_beside_the_systems_sources_and_prefers_it() {
+        let parts = Path::new("/tmp/parts");
+        let install = apt_install(
+            &["qemu-system-arm"],
+            false,
+            Sources::Backports {
+                parts,
+                suite: "bookworm-backports",
+            },
+        );
+        let args: Vec<_> = install.get_args().collect();
+        assert_eq!(
+            args[..4],
+            [
+                "-o",
+                "Dir::Etc::sourceparts=/tmp/parts",
+                "--target-release",
+                "bookworm-backports"
+            ]
+        );
+        assert!(args.contains(&OsStr::new("--no-remove")));
+        assert_eq!(
+            codename("NAME=\"Debian GNU/Linux\"\nVERSION_CODENAME=bookworm\n"),
+            Some("bookworm")
+        );
+        assert_eq!(codename("NAME=Other\n"), None);
+        assert!(backports_source("bookworm-backports").contains("Suites: bookworm-backports\n"));
     }
 
     #[test]
