@@ -211,7 +211,10 @@ fn package_installed(package: &str) -> bool {
 enum Sources<'a> {
     System,
     /// The directory of the system's sources and the backports suite, and the suite's name.
-    Backports { parts: &'a Path, suite: &'a str },
+    Backports {
+        parts: &'a Path,
+        suite: &'a str,
+    },
 }
 
 /// `apt-get` with `sources`: the backports suite preferred for what it installs.
@@ -277,8 +280,11 @@ fn backports_parts(suite: &str) -> Result<PathBuf> {
                 .map_err(|error| format!("cannot copy {}: {error}", path.display()))?;
         }
     }
-    std::fs::write(parts.join(format!("{suite}.sources")), backports_source(suite))
-        .map_err(|error| format!("cannot write {suite}'s source: {error}"))?;
+    std::fs::write(
+        parts.join(format!("{suite}.sources")),
+        backports_source(suite),
+    )
+    .map_err(|error| format!("cannot write {suite}'s source: {error}"))?;
     Ok(parts)
 }
 
@@ -340,7 +346,8 @@ fn install_packages(packages: &[&str]) -> Result {
         suite: &suite,
     };
     exec(apt_get(sources).arg("update"))?;
-    install_from(packages, sources).map_err(|again| format!("{error}; from {suite}: {again}").into())
+    install_from(packages, sources)
+        .map_err(|again| format!("{error}; from {suite}: {again}").into())
 }
 
 /// [`install_packages`] from `sources`, after the package lists are up to date.
