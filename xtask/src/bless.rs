@@ -62,7 +62,7 @@ pub fn bless() -> Result {
                 .env("TRYCMD", "overwrite"),
         )?;
     }
-    exec(cargo_test("host-sim", "docs").env("TRYCMD", "overwrite"))?;
+    exec(cargo_test("docs").env("TRYCMD", "overwrite"))?;
     exec(
         cargo()
             .args([
@@ -137,7 +137,7 @@ fn closed_loop_log() -> Result {
     tools::ensure_emulation()?;
     let elf = qemu::build_firmware(Image::ClosedLoop)?;
     exec(
-        cargo_test("feeder-tests", "cosim")
+        cargo_test("cosim")
             .args([
                 "--",
                 "--ignored",
@@ -151,9 +151,8 @@ fn closed_loop_log() -> Result {
 /// The plant family's fixed sample, written by its own test.
 fn family_sample() -> Result {
     exec(
-        cargo()
-            .args(["test", "--locked", "--release", "--package", "host-sim"])
-            .args(["--test", "family", "--", "a_fixed_sample"])
+        cargo_test("family")
+            .args(["--", "a_fixed_sample"])
             .env("FEEDER_BLESS", "overwrite"),
     )
 }

@@ -58,8 +58,10 @@ fn brief(command: &Command) -> String {
         let at = arguments.iter().position(|a| a == flag)?;
         arguments.get(at + 1).cloned()
     };
-    if let Some(package) = after("--package") {
-        words.extend(["--package".into(), package]);
+    for flag in ["--package", "--test"] {
+        if let Some(value) = after(flag) {
+            words.extend([flag.into(), value]);
+        }
     }
     if let Some(program) = after("--").filter(|_| arguments.first().is_some_and(|a| a == "run")) {
         words.extend(["--".into(), program]);
@@ -115,16 +117,27 @@ pub fn firmware_cargo() -> Command {
     command
 }
 
-/// `cargo test` of `package`'s `test` target.
-pub fn cargo_test(package: &str, test: &str) -> Command {
+/// `cargo test` of the host workspace as the test command builds it: the release profile (with
+/// overflow checks, as the tests' own profile has them), every member's features resolved
+/// together, so that a step that runs one test target reuses the first step's build instead
+/// of building its package again with its own features.
+pub fn workspace_test() -> Command {
     let mut command = cargo();
-    command.args(["test", "--locked", "--package", package, "--test", test]);
+    command.args(["test", "--release", "--locked", "--workspace"]);
     command
 }
 
-/// `cargo test` of the tests of `package`'s `test` target that need the QEMU firmware `elf`.
-pub fn ignored_tests(package: &str, test: &str, elf: &Path) -> Command {
-    let mut command = cargo_test(package, test);
+/// [`workspace_test`] of the integration test target `test` (its name is the workspace's only
+/// one of that name).
+pub fn cargo_test(test: &str) -> Command {
+    let mut command = workspace_test();
+    command.args(["--test", test]);
+    command
+}
+
+/// [`cargo_test`] of the tests of `test` that need the QEMU firmware `elf`.
+pub fn ignored_tests(test: &str, elf: &Path) -> Command {
+    let mut command = cargo_test(test);
     command
         .args(["--", "--ignored"])
         .env("FEEDER_QEMU_ELF", elf);
@@ -185,6 +198,10 @@ mod tests {
         assert_eq!(
             brief(firmware_cargo().args(["build", "--release", "--locked"])),
             "cargo build"
+        );
+        assert_eq!(
+            brief(cargo_test("qemu_plant").args(["--", "--ignored"])),
+            "cargo test --test qemu_plant"
         );
     }
 }

@@ -37,8 +37,8 @@ pub fn soak_alone(args: &SoakArgs) -> Result {
 /// unset arguments leave FEEDER_SOAK_CYCLES and FEEDER_SOAK_SEED to the environment.
 pub fn soak(elf: &Path, args: &SoakArgs) -> Result {
     let mut command = match args.modbus_requests {
-        Some(_) => ignored_tests("feeder-ctl", "modbus_soak", elf),
-        None => ignored_tests("feeder-ctl", "soak", elf),
+        Some(_) => ignored_tests("modbus_soak", elf),
+        None => ignored_tests("soak", elf),
     };
     command.arg("--nocapture");
     if let Some(requests) = args.modbus_requests {

@@ -5,7 +5,7 @@
 use std::io;
 use std::process::Command;
 
-use crate::command::{cargo, cargo_test, exec, ignored_tests, root, THUMB_TARGET};
+use crate::command::{cargo, cargo_test, exec, ignored_tests, root, workspace_test, THUMB_TARGET};
 use crate::failure::Result;
 use crate::soak::{soak, SoakArgs};
 use crate::{qemu, size, tools, twin};
@@ -16,9 +16,9 @@ const TEST_SOAK_SEED: u64 = 3_709_873_859_707_123_073;
 
 /// Runs every test, step by step; the first step that fails ends it.
 pub fn test() -> Result {
-    exec(cargo().args(["test", "--workspace", "--locked"]))?;
+    exec(&mut workspace_test())?;
     exec(&mut fuzz_check())?;
-    exec(cargo_test("xtask", "run_output").args(["--", "--ignored"]))?;
+    exec(cargo_test("run_output").args(["--", "--ignored"]))?;
     tools::ensure_linker()?;
     for features in ["", "defmt"] {
         exec(cargo().args([
@@ -35,23 +35,23 @@ pub fn test() -> Result {
     size::firmware_size(&mut io::stderr())?;
     tools::ensure_emulation()?;
     let scripted = qemu::build_firmware(qemu::Image::Scripted)?;
-    exec(&mut ignored_tests("feeder-tests", "qemu", &scripted))?;
+    exec(&mut ignored_tests("qemu", &scripted))?;
     let cosim = qemu::build_firmware(qemu::Image::Cosim)?;
     let closed_loop = qemu::build_firmware(qemu::Image::ClosedLoop)?;
     exec(
-        ignored_tests("feeder-tests", "cosim", &cosim)
+        ignored_tests("cosim", &cosim)
             .env("FEEDER_COSIM_ELF", &cosim)
             .env("FEEDER_CLOSED_LOOP_ELF", &closed_loop),
     )?;
     let console = qemu::build_firmware(qemu::Image::Console)?;
-    exec(&mut ignored_tests("feeder-ctl", "qemu_session", &console))?;
+    exec(&mut ignored_tests("qemu_session", &console))?;
     // The console image's Modbus port under a real master, then its seeded random soak
     // (FEEDER_SOAK_SEED, else its own fixed seed), whose summary is shown.
-    exec(&mut ignored_tests("feeder-ctl", "qemu_modbus", &console))?;
-    exec(ignored_tests("feeder-ctl", "modbus_soak", &console).arg("--nocapture"))?;
+    exec(&mut ignored_tests("qemu_modbus", &console))?;
+    exec(ignored_tests("modbus_soak", &console).arg("--nocapture"))?;
     let console_with_plate = qemu::build_firmware(qemu::Image::ClosedLoopConsole)?;
     exec(
-        ignored_tests("feeder-ctl", "qemu_plant", &console_with_plate)
+        ignored_tests("qemu_plant", &console_with_plate)
             .env("FEEDER_CLOSED_LOOP_CONSOLE_ELF", &console_with_plate),
     )?;
     g474_twin()?;
