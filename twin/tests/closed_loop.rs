@@ -16,7 +16,7 @@ use feeder_twin::scenario::button_run;
 use feeder_twin::Machine;
 
 /// Motion cycles from the start to the stop: the course releases the soft start after about
-/// 530 (settle, probe, identification, centring), and the verdict's feed rate takes the last 50
+/// 380 (settle, probe, identification, centring), and the verdict's feed rate takes the last 50
 /// before the stop.
 const CYCLES: u64 = 700;
 

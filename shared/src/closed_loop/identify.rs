@@ -10,7 +10,8 @@
 //! sign of the plate's velocity (slide friction `F_c`) and `X` the integral of its displacement
 //! (viscous friction `b`), both taken from the latched positions. For a given `τ` the seven
 //! unknowns enter linearly and are fitted by least squares; `τ` is the one that leaves the least
-//! residual (golden-section search), the fit at it the result.
+//! residual (Brent's search), the fit at it the result. The sums over the latches that the lag
+//! does not change are made once per search.
 
 mod fit;
 mod lag;
@@ -130,12 +131,7 @@ pub fn identify_given(
     );
     // The lag of a bare slide first; a spring found at that lag is searched for again with it.
     let (lag_s, mut fitted, model) = {
-        let problem = Problem {
-            probe,
-            latches,
-            motion: &motion,
-            gains,
-        };
+        let problem = Problem::new(probe, latches, &motion, gains);
         let (lag_s, fitted) = best_lag(&problem, Model::Slide)?;
         let (sprung, sprung_squares) =
             fit(&problem, lag_s, Model::Sprung).ok_or(IdentifyError::Singular)?;
@@ -153,12 +149,7 @@ pub fn identify_given(
     // that fit is kept where it explains the latches better.
     let velocity = fitted_velocity(probe, latches, &fitted.0, lag_s);
     motion_rows(latches, |i| velocity[i], |i, r, _| motion[i] = r);
-    let problem = Problem {
-        probe,
-        latches,
-        motion: &motion,
-        gains,
-    };
+    let problem = Problem::new(probe, latches, &motion, gains);
     if let Some(refit) = fit(&problem, lag_s, model) {
         if refit.1 < fitted.1 {
             fitted = refit;

@@ -45,8 +45,10 @@ pub struct CourseConfig {
 
 impl CourseConfig {
     /// The settle's pairs (60 segments, 150 ms at 50 Hz and at 100 Hz); 4 probe cycles at 30 %
-    /// of the levels; the identification taken 8 s after the probe (the firmware needs 3.9 s
-    /// under QEMU at 50 Hz, twice that where a spring is searched for at its own lag); centred within 25 µm for 20 cycles (the loop's disturbance estimate
+    /// of the levels; the identification taken 5 s after the probe (the firmware needs 1.3 s
+    /// under QEMU at 50 Hz, 2.4 s where a spring is searched for at its own lag, and at most
+    /// 3.8 s: 45 fits of a 50 Hz probe's 320 latches, 84 ms each); centred within 25 µm for 20
+    /// cycles (the loop's disturbance estimate
     /// settles on the identified drive meanwhile), in at most 250 cycles; the loop may add up to
     /// 50 m/s² (a quarter of the envelope's full scale: a spring or slide friction at its limit
     /// needs that much), trim the stroke by ±20 % and gives up 4 mm from centre; levels in steps
@@ -62,7 +64,7 @@ impl CourseConfig {
             centred_m: 25e-6,
             centred_cycles: 20,
             centring_cycles_max: 250,
-            identify_hold_s: 8.0,
+            identify_hold_s: 5.0,
             loop_limits: LoopLimits {
                 correction_max_mps2: 50.0,
                 amplitude_max: 0.2,

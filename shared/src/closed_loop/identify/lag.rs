@@ -1,8 +1,14 @@
 //! The drive's current loop as a first-order lag: the lagged command's regressors at each
 //! latch, carried exactly across each segment.
 
+use libm::fabs;
+
 use super::latched::Latch;
 use crate::closed_loop::shape::CommandSegment;
+
+/// Intervals between latches (quotients of ticks) that differ by less than this share are one:
+/// the step taken for the one stands for the other, a time error far below a tick.
+const SAME_INTERVAL: f64 = 1e-12;
 
 /// A first-order lag of `τ` on a piecewise-constant signal, its output `y` and the first and
 /// second integrals of `y`, carried exactly across each piece.
@@ -55,7 +61,9 @@ impl Lagged {
 }
 
 /// The lagged regressors `P, N, E` at each latch, for one `τ`, and their first integrals
-/// (their rates), passed to `each` in order.
+/// (their rates), passed to `each` in order. The lag is carried from latch to latch, across
+/// every segment's end between them: latches a fixed interval apart inside a segment share one
+/// step, so the exponential is taken at segment ends and where the interval changes only.
 pub(super) fn lagged_rows(
     probe: &[CommandSegment],
     latches: &[Latch],
@@ -63,29 +71,39 @@ pub(super) fn lagged_rows(
     mut each: impl FnMut(usize, [f64; 3], [f64; 3]),
 ) {
     let mut index = 0;
-    let mut start_s = 0.0;
+    let mut end_s = probe.first().map_or(0.0, |s| s.duration_s);
+    let mut at_s = 0.0;
     // The drive is on, at zero command, before the probe: the current loop has long settled on
     // the offset, while the command's parts start from zero.
     let risen = Lagged {
         y: 1.0,
         ..Lagged::default()
     };
-    let mut at_start = [Lagged::default(), Lagged::default(), risen];
+    let mut lagged = [Lagged::default(), Lagged::default(), risen];
     let inputs = |u: f64| [u.max(0.0), u.min(0.0), 1.0];
-    for (i, latch) in latches.iter().enumerate() {
-        while index + 1 < probe.len() && latch.t_s > start_s + probe[index].duration_s {
-            let segment = probe[index];
-            let u = inputs(segment.accel_mps2);
-            let step = LagStep::new(segment.duration_s, lag_s);
-            for (l, c) in at_start.iter_mut().zip(u) {
-                *l = l.advance(c, &step);
-            }
-            start_s += segment.duration_s;
-            index += 1;
-        }
+    let advance = |lagged: &mut [Lagged; 3], index: usize, step: &LagStep| {
         let u = inputs(probe[index].accel_mps2);
-        let step = LagStep::new(latch.t_s - start_s, lag_s);
-        let [p, n, e] = [0, 1, 2].map(|k| at_start[k].advance(u[k], &step));
+        for (l, c) in lagged.iter_mut().zip(u) {
+            *l = l.advance(c, step);
+        }
+    };
+    let mut interval: Option<LagStep> = None;
+    for (i, latch) in latches.iter().enumerate() {
+        while index + 1 < probe.len() && latch.t_s > end_s {
+            advance(&mut lagged, index, &LagStep::new(end_s - at_s, lag_s));
+            at_s = end_s;
+            index += 1;
+            end_s += probe[index].duration_s;
+        }
+        let s = latch.t_s - at_s;
+        let step = match interval {
+            Some(step) if fabs(step.s - s) <= SAME_INTERVAL * s => step,
+            _ => LagStep::new(s, lag_s),
+        };
+        interval = Some(step);
+        advance(&mut lagged, index, &step);
+        at_s = latch.t_s;
+        let [p, n, e] = lagged;
         each(i, [p.twice, n.twice, e.twice], [p.once, n.once, e.once]);
     }
 }
