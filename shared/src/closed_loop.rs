@@ -22,7 +22,8 @@ pub use cycle_map::CycleMap;
 pub use envelope::{Cause, Envelope, ENVELOPE};
 pub use feed::{compensate, feed_rate_mps, FeedCompensation, FeedRequest, PlateModel};
 pub use identify::{
-    identify, identify_given, GainPrior, Identified, IdentifyError, IdentifyLimits, Latch,
+    identify, identify_counted, identify_given, GainPrior, Identification, Identified,
+    IdentifyError, IdentifyLimits, Latch,
 };
 pub use settle::Settle;
 pub use shape::{CommandSegment, CycleShape, SegmentMotion};

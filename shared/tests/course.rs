@@ -3,9 +3,10 @@
 //! start. Decisions are applied as the firmware applies them: at the segment after the boundary
 //! that made them, a cycle's trims fixed when its first segment is made.
 
+use feeder_shared::closed_loop::identify::FITS_MAX;
 use feeder_shared::closed_loop::{
     CommandSegment, Course, CourseConfig, CourseError, CycleShape, CycleTrims, Decision,
-    IdentifyError, LateTrims, LoopError, PositionSample, Stage, Trims,
+    Identification, Identified, IdentifyError, LateTrims, LoopError, PositionSample, Stage, Trims,
 };
 use feeder_shared::{
     Drive, Limits, Scheduler, Segment, SegmentKind, TickClock, TickPlan, Waveform, WaveformSpec,
@@ -106,6 +107,8 @@ struct Rig {
     start: PositionSample,
     /// The decision of the last boundary, applied at the next segment.
     pending: Option<Decision>,
+    /// The identification handed over last.
+    handed: Option<Identification>,
 }
 
 impl Rig {
@@ -136,6 +139,7 @@ impl Rig {
             trims: Trims::NONE,
             start,
             pending: None,
+            handed: None,
         }
     }
 
@@ -214,8 +218,13 @@ impl Rig {
     /// Identifies the drive from a complete probe and hands it over; `None` without one.
     fn identify(&mut self) -> Option<()> {
         let found = self.course.probe()?.identify();
-        self.course.set_identified(found);
+        self.hand_over(found);
         Some(())
+    }
+
+    fn hand_over(&mut self, identification: Identification) {
+        self.handed = Some(identification);
+        self.course.set_identified(identification);
     }
 
     /// The planned (untrimmed) mean displacement from rest of the cycle begun.
@@ -299,10 +308,14 @@ fn an_ideal_drive_is_settled_probed_identified_centred_and_released() {
     assert_eq!(steps[..settle], vec![0; settle]);
     assert_eq!(steps[settle..], rise);
     assert_eq!(indices(&records, |r| r.decision.identify), [probe + 4]);
-    // Handed over at once, the drive is taken at the first boundary the hold (5 s, 250 cycles)
-    // after the probe's; the probe is there until then.
-    let hold = hold_cycles(&rig);
-    assert_eq!(hold, 250);
+    // Handed over at once, the drive is taken at the first boundary the hold its work is given
+    // after the probe's (0.25 s and 0.35 ms for each of the 321 latches of each fit): the
+    // probe is there until then.
+    let handed = rig.handed.unwrap();
+    assert!((10..=30).contains(&handed.fits), "{handed:?}");
+    assert_eq!(handed.latches, 321);
+    let hold = hold_cycles(0.25 + f64::from(handed.fits) * 321.0 * 0.35e-3);
+    assert_eq!(hold, hold_cycles(hold_s(&rig, handed.fits)));
     assert_eq!(
         indices(&records, |r| r.probe),
         (probe + 4..probe + 4 + hold).collect::<Vec<_>>()
@@ -401,7 +414,7 @@ fn a_stop_during_the_probe_begins_the_probe_again_at_the_next_start() {
     assert!((positions[0].t_s - 0.02).abs() < 1e-12);
     assert!((positions[320].t_s - 0.1).abs() < 1e-12);
     assert_eq!(rig.start.tick, start_tick + 80_000);
-    let found = probe.identify().unwrap();
+    let found = probe.identify().result.unwrap();
     let gains = [found.gain_positive, found.gain_negative];
     assert!(gains.iter().all(|g| (g - 1.0).abs() < 1e-6), "{found:?}");
 }
@@ -450,19 +463,34 @@ fn a_position_that_is_not_a_number_or_far_away_fails_the_course() {
     assert_trims_nothing(&mut rig);
 }
 
-/// The cycles of 50 Hz in the identification's hold.
-fn hold_cycles(rig: &Rig) -> usize {
-    (rig.course.config().identify_hold_s * 50.0).round() as usize
+/// The cycles of 50 Hz from the probe's end to the first start at or after a hold of
+/// `hold_s`.
+fn hold_cycles(hold_s: f64) -> usize {
+    (hold_s * 50.0).ceil() as usize
 }
 
-/// The boundaries of the identification's hold (from the probe's end), each still
+/// The hold the rig's course gives an identification of `fits` over the probe's 321 latches.
+fn hold_s(rig: &Rig, fits: u32) -> f64 {
+    rig.course.config().identify_hold_s(fits, 321)
+}
+
+/// The boundaries of an identification's hold of `hold_s` (from the probe's end), each still
 /// identifying, up to the error at its end.
-fn hold_until_stopped(rig: &mut Rig) -> CourseError {
-    for _ in 1..hold_cycles(rig) {
+fn hold_until_stopped(rig: &mut Rig, hold_s: f64) -> CourseError {
+    for _ in 1..hold_cycles(hold_s) {
         rig.boundary().unwrap();
         assert_eq!(rig.course.stage(), Stage::Identifying);
     }
     rig.boundary().unwrap_err()
+}
+
+/// An identification of `result` that took `fits` fits of the probe's latches.
+fn identification(result: Result<Identified, IdentifyError>, fits: u32) -> Identification {
+    Identification {
+        result,
+        fits,
+        latches: 321,
+    }
 }
 
 /// An identification handed over before the probe is complete is ignored; a refused one
@@ -470,28 +498,54 @@ fn hold_until_stopped(rig: &mut Rig) -> CourseError {
 #[test]
 fn a_refused_identification_fails_the_course() {
     let mut rig = Rig::started(IDEAL);
-    rig.course.set_identified(Err(IdentifyError::Singular));
+    rig.hand_over(identification(Err(IdentifyError::Singular), 30));
     assert_eq!(rig.course.stage(), Stage::Waiting);
     rig.to_probe();
     while !rig.boundary().unwrap().identify {
         assert_eq!(rig.course.stage(), Stage::Probing);
     }
     let refusal = IdentifyError::NoMotion { excursion_m: 0.0 };
-    rig.course.set_identified(Err(refusal));
-    assert_eq!(hold_until_stopped(&mut rig), CourseError::Identify(refusal));
+    rig.hand_over(identification(Err(refusal), 0));
+    let hold_s = hold_s(&rig, 0);
+    assert_eq!(hold_s, 0.25);
+    assert_eq!(
+        hold_until_stopped(&mut rig, hold_s),
+        CourseError::Identify(refusal)
+    );
     assert!(rig.course.identified().is_none());
     assert_trims_nothing(&mut rig);
 }
 
-/// An identification not handed over by the end of the hold stops the course, naming the hold.
+/// An identification not handed over by the end of the hold of the most work stops the
+/// course, naming the hold (5.42 s for 46 fits of 321 latches).
 #[test]
 fn an_identification_later_than_the_hold_fails_the_course() {
     let mut rig = Rig::started(IDEAL);
     while !rig.boundary().unwrap().identify {}
+    let hold_s = hold_s(&rig, FITS_MAX);
+    assert!((hold_s - 5.418).abs() < 1e-3, "{hold_s}");
     assert_eq!(
-        hold_until_stopped(&mut rig),
-        CourseError::IdentifyLate { hold_s: 5.0 }
+        hold_until_stopped(&mut rig, hold_s),
+        CourseError::IdentifyLate { hold_s }
     );
+    assert_trims_nothing(&mut rig);
+}
+
+/// An identification handed over after the hold its own work is given has ended stops the
+/// course as late, at the boundary it comes at: a runner that identifies at once would have
+/// taken it earlier, and the two would no longer run one course.
+#[test]
+fn an_identification_handed_over_after_its_own_hold_fails_the_course() {
+    let mut rig = Rig::started(IDEAL);
+    while !rig.boundary().unwrap().identify {}
+    let found = rig.course.probe().unwrap().identify();
+    let hold_s = hold_s(&rig, found.fits);
+    for _ in 0..hold_cycles(hold_s) {
+        rig.boundary().unwrap();
+        assert_eq!(rig.course.stage(), Stage::Identifying);
+    }
+    rig.hand_over(found);
+    assert_eq!(rig.boundary(), Err(CourseError::IdentifyLate { hold_s }));
     assert_trims_nothing(&mut rig);
 }
 

@@ -15,8 +15,8 @@ use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::mutex::Mutex as AsyncMutex;
 use embassy_sync::signal::Signal;
 use feeder_shared::closed_loop::{
-    Course, CourseConfig, CourseError, Decision, FeedCompensation, FeedRequest, Identified,
-    IdentifyError, PositionSample, Probe, Stage, Trims,
+    Course, CourseConfig, CourseError, Decision, FeedCompensation, FeedRequest, Identification,
+    Identified, IdentifyError, PositionSample, Probe, Stage, Trims,
 };
 use feeder_shared::{Scheduler, Segment};
 
@@ -61,8 +61,7 @@ pub static RULING: Mutex<CriticalSectionRawMutex, Cell<Option<Ruling>>> =
 /// kilobytes, too many for an interrupt's stack), and its result back.
 static PROBE: AsyncMutex<CriticalSectionRawMutex, Probe> = AsyncMutex::new(Probe::new());
 static PROBE_READY: Signal<CriticalSectionRawMutex, ()> = Signal::new();
-static IDENTIFIED: Signal<CriticalSectionRawMutex, Result<Identified, IdentifyError>> =
-    Signal::new();
+static IDENTIFIED: Signal<CriticalSectionRawMutex, Identification> = Signal::new();
 
 /// The feed compensation the course asks for, handed to the background task, and its answer.
 static FEED_ASKED: Signal<CriticalSectionRawMutex, FeedRequest> = Signal::new();
@@ -110,9 +109,9 @@ pub async fn regulate_task(mut sensor: Sensor, level_step_mps2: f64) {
     loop {
         let boundary = BOUNDARY.wait().await;
         let stage = course.stage();
-        if let Some(result) = IDENTIFIED.try_take() {
-            report(&result);
-            course.set_identified(result);
+        if let Some(identification) = IDENTIFIED.try_take() {
+            report(&identification.result);
+            course.set_identified(identification);
         }
         if let Some((request, found)) = FEED_FOUND.try_take() {
             course.set_feed(request, found);

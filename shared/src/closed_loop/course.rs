@@ -53,7 +53,7 @@ pub use stage::{LoopReport, Stage};
 use super::cycle_loop::{CycleLoop, Stroke, Trims};
 use super::envelope::ENVELOPE;
 use super::feed::{FeedCompensation, FeedRequest};
-use super::identify::{Identified, IdentifyError};
+use super::identify::{Identification, Identified, IdentifyError, FITS_MAX};
 use super::settle::Settle;
 use super::shape::{CommandSegment, CycleShape};
 use crate::scheduler::{Scheduler, Segment};
@@ -68,6 +68,22 @@ struct At<'a> {
     ahead: &'a Scheduler,
     start: PositionSample,
     samples: &'a [PositionSample],
+}
+
+/// Where the identification's hold is counted from: the probe's end, its clock and its latches.
+#[derive(Debug, Clone, Copy, Default)]
+struct ProbeEnd {
+    tick: u64,
+    clock_hz: u32,
+    latches: u32,
+}
+
+impl ProbeEnd {
+    /// The tick `hold_s` after the probe's end.
+    fn after(&self, hold_s: f64) -> u64 {
+        let ticks = libm::round(hold_s * f64::from(self.clock_hz));
+        self.tick.saturating_add(ticks as u64)
+    }
 }
 
 /// A settle in progress.
@@ -92,10 +108,13 @@ pub struct Course {
     probe: Probe,
     probe_cycles: u32,
     identified: Option<Identified>,
-    /// The identification handed over, until the course takes it …
-    handed: Option<Result<Identified, IdentifyError>>,
-    /// … at the first boundary from this tick on.
-    identify_tick: u64,
+    /// The identification handed over, with the start tick of the boundary before it came,
+    /// until the course takes it at the end of its hold …
+    handed: Option<(Identification, u64)>,
+    /// … counted from the probe's end, in ticks of this clock, for the probe's latches.
+    probe_end: ProbeEnd,
+    /// The start tick of the last boundary.
+    last_tick: u64,
     cycle_loop: CycleLoop,
     /// The settle of the start in progress, where it holds the plate and where the probe's
     /// first cycle starts, and the settle segments begun.
@@ -137,7 +156,8 @@ impl Course {
             probe_cycles: 0,
             identified: None,
             handed: None,
-            identify_tick: 0,
+            probe_end: ProbeEnd::default(),
+            last_tick: 0,
             cycle_loop: CycleLoop::new(&Identified::NOMINAL, config.loop_limits)
                 .with_level_step(config.level_step_mps2),
             settle: None,
@@ -244,26 +264,42 @@ impl Course {
     /// Hands over the identification of [`Course::probe`], which the course takes at the end
     /// of its hold ([`CourseConfig::identify_hold_s`]): then the loop goes on with the drive
     /// found and the centring begins, or a refusal stops the course. Ignored at any other stage.
-    pub fn set_identified(&mut self, result: Result<Identified, IdentifyError>) {
+    pub fn set_identified(&mut self, identification: Identification) {
         if self.stage == Stage::Identifying {
-            self.handed = Some(result);
+            self.handed = Some((identification, self.last_tick));
         }
     }
 
-    /// At the end of the identification's hold, the drive handed over.
-    fn take_identified(&mut self) -> Result<(), CourseError> {
-        match self.handed.take() {
-            Some(Ok(identified)) => {
+    /// At a boundary at `tick` while identifying: the identification handed over, at the end
+    /// of the hold its work is given; none by the hold of the most work, or one handed over
+    /// only after its own hold ended, stops the course.
+    fn check_identified(&mut self, tick: u64) -> Result<(), CourseError> {
+        let hold_s = |fits: u32| self.config.identify_hold_s(fits, self.probe_end.latches);
+        let due = |hold_s: f64| self.probe_end.after(hold_s);
+        match self.handed {
+            Some((identification, before)) => {
+                let hold_s = hold_s(identification.fits);
+                if before >= due(hold_s) {
+                    return Err(CourseError::IdentifyLate { hold_s });
+                }
+                if tick < due(hold_s) {
+                    return Ok(());
+                }
+                self.handed = None;
+                let identified = identification.result.map_err(CourseError::Identify)?;
                 self.identified = Some(identified);
                 self.cycle_loop.set_drive(&identified);
                 self.cycle_loop.excite(self.config.excitation_peak);
                 self.stage = Stage::Centring;
                 Ok(())
             }
-            Some(Err(error)) => Err(CourseError::Identify(error)),
-            None => Err(CourseError::IdentifyLate {
-                hold_s: self.config.identify_hold_s,
-            }),
+            None => {
+                let hold_s = hold_s(FITS_MAX);
+                match tick >= due(hold_s) {
+                    true => Err(CourseError::IdentifyLate { hold_s }),
+                    false => Ok(()),
+                }
+            }
         }
     }
 
@@ -286,6 +322,7 @@ impl Course {
             start,
             samples,
         });
+        self.last_tick = start.tick;
         if let Err(error) = result {
             self.stage = Stage::Failed;
             self.failure = Some(error);
@@ -301,8 +338,8 @@ impl Course {
             start,
             samples,
         } = at;
-        if self.stage == Stage::Identifying && start.tick >= self.identify_tick {
-            self.take_identified()?;
+        if self.stage == Stage::Identifying {
+            self.check_identified(start.tick)?;
         }
         if begun.kind == SegmentKind::Settle {
             return self.settle(begun, ahead, start, samples);
@@ -388,9 +425,11 @@ impl Course {
             probe.keep_position(start);
             if self.probe_cycles == self.config.probe_cycles.clamp(1, PROBE_CYCLES_MAX) {
                 self.stage = Stage::Identifying;
-                let hold_ticks =
-                    libm::round(self.config.identify_hold_s * f64::from(plan.clock_hz));
-                self.identify_tick = start.tick.saturating_add(hold_ticks as u64);
+                self.probe_end = ProbeEnd {
+                    tick: start.tick,
+                    clock_hz: plan.clock_hz,
+                    latches: probe.positions().len() as u32,
+                };
                 decision.identify = true;
             } else {
                 for segment in &commanded[..segments.len()] {

@@ -23,10 +23,12 @@ pub use fit::{GainPrior, MAX_LATCHES};
 pub use latched::Latch;
 pub use refusal::{IdentifyError, IdentifyLimits};
 
+use core::cell::Cell;
+
 use libm::{fabs, sqrt};
 
 use super::shape::CommandSegment;
-use fit::{best_lag, fit, Model, Problem, LAG_MAX_S, UNKNOWNS};
+use fit::{best_lag, fit, Model, Problem, LAG_FITS_MAX, LAG_MAX_S, UNKNOWNS};
 use latched::{latched_velocity, motion_rows};
 use refit::fitted_velocity;
 
@@ -86,6 +88,22 @@ pub fn identify(
     identify_given(probe, latches, limits, None)
 }
 
+/// The most fits an identification makes: the lag's two searches (a bare slide's, then a
+/// sprung plate's), each with its fit at no lag, the spring's test between them, the refit on
+/// the fitted motion's friction signs and the bare slide's fit after it, and the fitted
+/// motion's velocity, which costs one.
+pub const FITS_MAX: u32 = 2 * (LAG_FITS_MAX as u32 + 1) + 4;
+
+/// An identification's outcome and its work: the fits it made, each a pass over its latches.
+/// The course holds the plate for it as long as that work takes on the slowest board
+/// ([`CourseConfig::identify_hold_s`](super::CourseConfig::identify_hold_s)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Identification {
+    pub result: Result<Identified, IdentifyError>,
+    pub fits: u32,
+    pub latches: u32,
+}
+
 /// [`identify`] with what the settle's dither read of the gains' difference
 /// ([`Settle::gain_half_difference`](super::Settle::gain_half_difference)), where it did: the
 /// fit weighs it with the positions, which give the gains' mean.
@@ -94,6 +112,33 @@ pub fn identify_given(
     latches: &[Latch],
     limits: &IdentifyLimits,
     gains: Option<GainPrior>,
+) -> Result<Identified, IdentifyError> {
+    identify_counted(probe, latches, limits, gains).result
+}
+
+/// [`identify_given`] with the work it took.
+pub fn identify_counted(
+    probe: &[CommandSegment],
+    latches: &[Latch],
+    limits: &IdentifyLimits,
+    gains: Option<GainPrior>,
+) -> Identification {
+    let fits = Cell::new(0);
+    let result = identify_with_count(probe, latches, limits, gains, &fits);
+    Identification {
+        result,
+        fits: fits.get(),
+        latches: latches.len() as u32,
+    }
+}
+
+/// [`identify_given`], each fit counted in `fits`.
+fn identify_with_count(
+    probe: &[CommandSegment],
+    latches: &[Latch],
+    limits: &IdentifyLimits,
+    gains: Option<GainPrior>,
+    fits: &Cell<u32>,
 ) -> Result<Identified, IdentifyError> {
     let valid_probe = probe
         .iter()
@@ -131,7 +176,7 @@ pub fn identify_given(
     );
     // The lag of a bare slide first; a spring found at that lag is searched for again with it.
     let (lag_s, mut fitted, model) = {
-        let problem = Problem::new(probe, latches, &motion, gains);
+        let problem = Problem::new(probe, latches, &motion, gains, fits);
         let (lag_s, fitted) = best_lag(&problem, Model::Slide)?;
         let (sprung, sprung_squares) =
             fit(&problem, lag_s, Model::Sprung).ok_or(IdentifyError::Singular)?;
@@ -148,8 +193,9 @@ pub fn identify_given(
     // does not: the friction's signs are taken again from the fitted motion's velocity, and
     // that fit is kept where it explains the latches better.
     let velocity = fitted_velocity(probe, latches, &fitted.0, lag_s);
+    fits.set(fits.get() + 1);
     motion_rows(latches, |i| velocity[i], |i, r, _| motion[i] = r);
-    let problem = Problem::new(probe, latches, &motion, gains);
+    let problem = Problem::new(probe, latches, &motion, gains, fits);
     if let Some(refit) = fit(&problem, lag_s, model) {
         if refit.1 < fitted.1 {
             fitted = refit;

@@ -21,10 +21,11 @@ pub struct CourseConfig {
     pub centred_cycles: u32,
     /// Centring that takes more held cycles than this fails.
     pub centring_cycles_max: u32,
-    /// How long the held cycles after the probe give the identification: it is taken at the
-    /// first boundary this long after the probe's end, and one not there by then stops the
-    /// course.
-    pub identify_hold_s: f64,
+    /// The held cycles after the probe give the identification this long for each latch of
+    /// each fit it makes (the slowest board's time, with room to spare) …
+    pub identify_latch_fit_s: f64,
+    /// … and this long besides ([`CourseConfig::identify_hold_s`]).
+    pub identify_base_s: f64,
     pub loop_limits: LoopLimits,
     /// The output's smallest step of a level (a DAC count), 0 for a continuous one
     /// ([`CycleLoop::with_level_step`](crate::closed_loop::CycleLoop::with_level_step)).
@@ -45,10 +46,10 @@ pub struct CourseConfig {
 
 impl CourseConfig {
     /// The settle's pairs (60 segments, 150 ms at 50 Hz and at 100 Hz); 4 probe cycles at 30 %
-    /// of the levels; the identification taken 5 s after the probe (the firmware needs 1.3 s
-    /// under QEMU at 50 Hz, 2.4 s where a spring is searched for at its own lag, and at most
-    /// 3.8 s: 45 fits of a 50 Hz probe's 320 latches, 84 ms each); centred within 25 µm for 20
-    /// cycles (the loop's disturbance estimate
+    /// of the levels; the identification given 0.35 ms a latch and fit and 0.25 s besides (the
+    /// firmware needs 0.25 ms under QEMU at 50 Hz, interrupts included: 1.26 s for the 16 fits
+    /// of `realistic.toml`'s 320 latches, 2.4 s where a spring is searched for at its own
+    /// lag); centred within 25 µm for 20 cycles (the loop's disturbance estimate
     /// settles on the identified drive meanwhile), in at most 250 cycles; the loop may add up to
     /// 50 m/s² (a quarter of the envelope's full scale: a spring or slide friction at its limit
     /// needs that much), trim the stroke by ±20 % and gives up 4 mm from centre; levels in steps
@@ -64,7 +65,8 @@ impl CourseConfig {
             centred_m: 25e-6,
             centred_cycles: 20,
             centring_cycles_max: 250,
-            identify_hold_s: 5.0,
+            identify_latch_fit_s: 0.35e-3,
+            identify_base_s: 0.25,
             loop_limits: LoopLimits {
                 correction_max_mps2: 50.0,
                 amplitude_max: 0.2,
@@ -76,6 +78,15 @@ impl CourseConfig {
             feed_hold_s: 1.0,
             excitation_peak: 1.5,
         }
+    }
+
+    /// How long the held cycles after the probe give an identification of `fits` fits of
+    /// `latches` latches: it is taken at the first boundary that long after the probe's end,
+    /// however early it came, so that every runner holds the plate as long; one handed over
+    /// later stops the course, and so does none by the hold of the most fits
+    /// ([`FITS_MAX`](crate::closed_loop::identify::FITS_MAX)).
+    pub fn identify_hold_s(&self, fits: u32, latches: u32) -> f64 {
+        self.identify_base_s + f64::from(fits) * f64::from(latches) * self.identify_latch_fit_s
     }
 
     /// The course for a part of `part_mps2 = μg` on an output whose levels reach `linear_mps2`

@@ -2,7 +2,7 @@
 //! sampled through them, from which the drive is identified.
 
 use crate::closed_loop::identify::{
-    identify_given, GainPrior, Identified, IdentifyError, IdentifyLimits, Latch,
+    identify_counted, GainPrior, Identification, IdentifyLimits, Latch,
 };
 
 /// The spread the probe's fit gives the settle's reading of the gains' half difference: the
@@ -141,8 +141,9 @@ impl Probe {
     }
 
     /// The drive identified from the probe, within [`IdentifyLimits::for_probe`], its gains'
-    /// difference held to the settle's ([`identify_given`]).
-    pub fn identify(&self) -> Result<Identified, IdentifyError> {
+    /// difference held to the settle's
+    /// ([`identify_given`](crate::closed_loop::identify_given)), with the work it took.
+    pub fn identify(&self) -> Identification {
         let limits = IdentifyLimits::for_probe(self.resolution_m);
         // A latch is off the fit by the sensor's quantisation at least.
         let gains = self.gain_half_difference.map(|half_difference| GainPrior {
@@ -150,6 +151,6 @@ impl Probe {
             spread: SETTLED_GAIN_SPREAD,
             latch_spread_m: self.resolution_m / libm::sqrt(12.0),
         });
-        identify_given(self.segments(), self.positions(), &limits, gains)
+        identify_counted(self.segments(), self.positions(), &limits, gains)
     }
 }

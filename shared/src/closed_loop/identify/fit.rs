@@ -1,6 +1,8 @@
 //! The least-squares fit of the probe's model at one lag, and the search for the lag whose fit
 //! leaves the least residual, solved from its normal equations.
 
+use core::cell::Cell;
+
 use libm::{fabs, sqrt};
 
 use super::lag::lagged_rows;
@@ -20,9 +22,9 @@ const LAG_TOLERANCE_S: f64 = 5e-8;
 
 /// … in at most this many fits: Brent's search needs about a dozen on a probe's residual (a
 /// golden-section search alone 27); near the interval's top, where a lag found is refused
-/// anyway, it ends here short of the tolerance. This bounds the identification's work, and
-/// so the hold it is given ([`CourseConfig::identify_hold_s`](crate::closed_loop::CourseConfig)).
-const LAG_FITS_MAX: usize = 20;
+/// anyway, it ends here short of the tolerance. This bounds the identification's work
+/// ([`FITS_MAX`](super::FITS_MAX)).
+pub(super) const LAG_FITS_MAX: usize = 20;
 
 /// Latches a fit takes at most.
 pub const MAX_LATCHES: usize = 512;
@@ -59,6 +61,8 @@ pub(super) struct Problem<'a> {
     motion: &'a [[f64; 3]; MAX_LATCHES],
     gains: Option<GainPrior>,
     fixed: Sums,
+    /// The fits made so far, counted for the identification's work.
+    fits: &'a Cell<u32>,
 }
 
 /// Sums over the latches of the unscaled regressors: their products (upper triangle), their
@@ -71,12 +75,14 @@ struct Sums {
 }
 
 impl<'a> Problem<'a> {
-    /// The problem of `latches` under `probe`, with the regressors of their motion.
+    /// The problem of `latches` under `probe`, with the regressors of their motion; each fit
+    /// made of it counts one in `fits`.
     pub(super) fn new(
         probe: &'a [CommandSegment],
         latches: &'a [Latch],
         motion: &'a [[f64; 3]; MAX_LATCHES],
         gains: Option<GainPrior>,
+        fits: &'a Cell<u32>,
     ) -> Self {
         let mut fixed = Sums {
             normal: [[0.0; UNKNOWNS]; UNKNOWNS],
@@ -99,6 +105,7 @@ impl<'a> Problem<'a> {
             motion,
             gains,
             fixed,
+            fits,
         }
     }
 }
@@ -132,7 +139,9 @@ pub(super) fn fit(
         motion,
         gains,
         fixed,
+        fits,
     } = problem;
+    fits.set(fits.get() + 1);
     let columns = model.columns();
     let mut lagged = [[0.0; 3]; MAX_LATCHES];
     // The lagged regressors' sums added to the fixed ones: their products with every
