@@ -16,9 +16,9 @@ use feeder_twin::scenario::button_run;
 use feeder_twin::Machine;
 
 /// Motion cycles from the start to the stop: the course releases the soft start after about
-/// 380 (settle, probe, identification, centring), and the verdict's feed rate takes the last 50
+/// 230 (settle, probe, identification, centring), and the verdict's feed rate takes the last 50
 /// before the stop.
-const CYCLES: u64 = 700;
+const CYCLES: u64 = 450;
 
 /// The stack left at its deepest, bytes at least: room for what this run does not reach at the
 /// same moment (a fault's entry on top of the deepest nesting, a longer identification).

@@ -14,6 +14,11 @@ use crate::{qemu, size, tools, twin};
 /// timing against them still varies); `FEEDER_SOAK_SEED` or `cargo xtask soak` choose others.
 const TEST_SOAK_SEED: u64 = 3_709_873_859_707_123_073;
 
+/// The soak's motion cycles in `test` (about 40 s under QEMU on 2 cores), to keep the test
+/// command within its time; `FEEDER_SOAK_CYCLES` or `cargo xtask soak` (20,000 by default)
+/// run longer ones.
+const TEST_SOAK_CYCLES: u64 = 8_000;
+
 /// Runs every test, step by step; the first step that fails ends it.
 pub fn test() -> Result {
     exec(&mut workspace_test())?;
@@ -55,14 +60,12 @@ pub fn test() -> Result {
             .env("FEEDER_CLOSED_LOOP_CONSOLE_ELF", &console_with_plate),
     )?;
     g474_twin()?;
-    let seed = std::env::var_os("FEEDER_SOAK_SEED")
-        .is_none()
-        .then_some(TEST_SOAK_SEED);
+    let unset = |name: &str| std::env::var_os(name).is_none();
     soak(
         &console,
         &SoakArgs {
-            cycles: None,
-            seed,
+            cycles: unset("FEEDER_SOAK_CYCLES").then_some(TEST_SOAK_CYCLES),
+            seed: unset("FEEDER_SOAK_SEED").then_some(TEST_SOAK_SEED),
             modbus_requests: None,
         },
     )
