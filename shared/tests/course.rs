@@ -309,12 +309,10 @@ fn an_ideal_drive_is_settled_probed_identified_centred_and_released() {
     assert_eq!(steps[settle..], rise);
     assert_eq!(indices(&records, |r| r.decision.identify), [probe + 4]);
     // Handed over at once, the drive is taken at the first boundary the hold its work is given
-    // after the probe's (0.25 s and 0.35 ms for each of the 321 latches of each fit): the
-    // probe is there until then.
+    // after the probe's (0.25 s and 0.1125 s a fit): the probe is there until then.
     let handed = rig.handed.unwrap();
     assert!((10..=30).contains(&handed.fits), "{handed:?}");
-    assert_eq!(handed.latches, 321);
-    let hold = hold_cycles(0.25 + f64::from(handed.fits) * 321.0 * 0.35e-3);
+    let hold = hold_cycles(0.25 + f64::from(handed.fits) * 0.1125);
     assert_eq!(hold, hold_cycles(hold_s(&rig, handed.fits)));
     assert_eq!(
         indices(&records, |r| r.probe),
@@ -469,9 +467,9 @@ fn hold_cycles(hold_s: f64) -> usize {
     (hold_s * 50.0).ceil() as usize
 }
 
-/// The hold the rig's course gives an identification of `fits` over the probe's 321 latches.
+/// The hold the rig's course gives an identification of `fits` fits.
 fn hold_s(rig: &Rig, fits: u32) -> f64 {
-    rig.course.config().identify_hold_s(fits, 321)
+    rig.course.config().identify_hold_s(fits)
 }
 
 /// The boundaries of an identification's hold of `hold_s` (from the probe's end), each still
@@ -484,13 +482,9 @@ fn hold_until_stopped(rig: &mut Rig, hold_s: f64) -> CourseError {
     rig.boundary().unwrap_err()
 }
 
-/// An identification of `result` that took `fits` fits of the probe's latches.
+/// An identification of `result` that took `fits` fits.
 fn identification(result: Result<Identified, IdentifyError>, fits: u32) -> Identification {
-    Identification {
-        result,
-        fits,
-        latches: 321,
-    }
+    Identification { result, fits }
 }
 
 /// An identification handed over before the probe is complete is ignored; a refused one
@@ -517,13 +511,13 @@ fn a_refused_identification_fails_the_course() {
 }
 
 /// An identification not handed over by the end of the hold of the most work stops the
-/// course, naming the hold (5.42 s for 46 fits of 321 latches).
+/// course, naming the hold (5.425 s for 46 fits).
 #[test]
 fn an_identification_later_than_the_hold_fails_the_course() {
     let mut rig = Rig::started(IDEAL);
     while !rig.boundary().unwrap().identify {}
     let hold_s = hold_s(&rig, FITS_MAX);
-    assert!((hold_s - 5.418).abs() < 1e-3, "{hold_s}");
+    assert!((hold_s - 5.425).abs() < 1e-9, "{hold_s}");
     assert_eq!(
         hold_until_stopped(&mut rig, hold_s),
         CourseError::IdentifyLate { hold_s }

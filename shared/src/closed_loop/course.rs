@@ -70,12 +70,11 @@ struct At<'a> {
     samples: &'a [PositionSample],
 }
 
-/// Where the identification's hold is counted from: the probe's end, its clock and its latches.
+/// Where the identification's hold is counted from: the probe's end and its clock.
 #[derive(Debug, Clone, Copy, Default)]
 struct ProbeEnd {
     tick: u64,
     clock_hz: u32,
-    latches: u32,
 }
 
 impl ProbeEnd {
@@ -111,7 +110,7 @@ pub struct Course {
     /// The identification handed over, with the start tick of the boundary before it came,
     /// until the course takes it at the end of its hold …
     handed: Option<(Identification, u64)>,
-    /// … counted from the probe's end, in ticks of this clock, for the probe's latches.
+    /// … counted from the probe's end, in ticks of its clock.
     probe_end: ProbeEnd,
     /// The start tick of the last boundary.
     last_tick: u64,
@@ -274,7 +273,7 @@ impl Course {
     /// of the hold its work is given; none by the hold of the most work, or one handed over
     /// only after its own hold ended, stops the course.
     fn check_identified(&mut self, tick: u64) -> Result<(), CourseError> {
-        let hold_s = |fits: u32| self.config.identify_hold_s(fits, self.probe_end.latches);
+        let hold_s = |fits: u32| self.config.identify_hold_s(fits);
         let due = |hold_s: f64| self.probe_end.after(hold_s);
         match self.handed {
             Some((identification, before)) => {
@@ -428,7 +427,6 @@ impl Course {
                 self.probe_end = ProbeEnd {
                     tick: start.tick,
                     clock_hz: plan.clock_hz,
-                    latches: probe.positions().len() as u32,
                 };
                 decision.identify = true;
             } else {

@@ -94,14 +94,13 @@ pub fn identify(
 /// motion's velocity, which costs one.
 pub const FITS_MAX: u32 = 2 * (LAG_FITS_MAX as u32 + 1) + 4;
 
-/// An identification's outcome and its work: the fits it made, each a pass over its latches.
-/// The course holds the plate for it as long as that work takes on the slowest board
+/// An identification's outcome and its work: the fits it made, each a pass over the probe's
+/// latches. The course holds the plate for it as long as that work takes on the slowest board
 /// ([`CourseConfig::identify_hold_s`](super::CourseConfig::identify_hold_s)).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Identification {
     pub result: Result<Identified, IdentifyError>,
     pub fits: u32,
-    pub latches: u32,
 }
 
 /// [`identify`] with what the settle's dither read of the gains' difference
@@ -128,7 +127,6 @@ pub fn identify_counted(
     Identification {
         result,
         fits: fits.get(),
-        latches: latches.len() as u32,
     }
 }
 

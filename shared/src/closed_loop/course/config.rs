@@ -21,9 +21,9 @@ pub struct CourseConfig {
     pub centred_cycles: u32,
     /// Centring that takes more held cycles than this fails.
     pub centring_cycles_max: u32,
-    /// The held cycles after the probe give the identification this long for each latch of
-    /// each fit it makes (the slowest board's time, with room to spare) …
-    pub identify_latch_fit_s: f64,
+    /// The held cycles after the probe give the identification this long for each fit it
+    /// makes (the slowest board's time, with room to spare) …
+    pub identify_fit_s: f64,
     /// … and this long besides ([`CourseConfig::identify_hold_s`]).
     pub identify_base_s: f64,
     pub loop_limits: LoopLimits,
@@ -46,10 +46,10 @@ pub struct CourseConfig {
 
 impl CourseConfig {
     /// The settle's pairs (60 segments, 150 ms at 50 Hz and at 100 Hz); 4 probe cycles at 30 %
-    /// of the levels; the identification given 0.35 ms a latch and fit and 0.25 s besides (the
-    /// firmware needs 0.25 ms under QEMU at 50 Hz, interrupts included: 1.26 s for the 16 fits
-    /// of `realistic.toml`'s 320 latches, 2.4 s where a spring is searched for at its own
-    /// lag); centred within 25 µm for 20 cycles (the loop's disturbance estimate
+    /// of the levels; the identification given 0.1125 s a fit and 0.25 s besides (a fit takes
+    /// the firmware 79 ms under QEMU at 50 Hz, 60 ms at 100 Hz, where the probe has half the
+    /// latches and the interrupts take twice the time: 1.26 s for `realistic.toml`'s 16 fits at
+    /// 50 Hz); centred within 25 µm for 20 cycles (the loop's disturbance estimate
     /// settles on the identified drive meanwhile), in at most 250 cycles; the loop may add up to
     /// 50 m/s² (a quarter of the envelope's full scale: a spring or slide friction at its limit
     /// needs that much), trim the stroke by ±20 % and gives up 4 mm from centre; levels in steps
@@ -65,7 +65,7 @@ impl CourseConfig {
             centred_m: 25e-6,
             centred_cycles: 20,
             centring_cycles_max: 250,
-            identify_latch_fit_s: 0.35e-3,
+            identify_fit_s: 0.1125,
             identify_base_s: 0.25,
             loop_limits: LoopLimits {
                 correction_max_mps2: 50.0,
@@ -80,13 +80,13 @@ impl CourseConfig {
         }
     }
 
-    /// How long the held cycles after the probe give an identification of `fits` fits of
-    /// `latches` latches: it is taken at the first boundary that long after the probe's end,
+    /// How long the held cycles after the probe give an identification of `fits` fits: it is
+    /// taken at the first boundary that long after the probe's end,
     /// however early it came, so that every runner holds the plate as long; one handed over
     /// later stops the course, and so does none by the hold of the most fits
     /// ([`FITS_MAX`](crate::closed_loop::identify::FITS_MAX)).
-    pub fn identify_hold_s(&self, fits: u32, latches: u32) -> f64 {
-        self.identify_base_s + f64::from(fits) * f64::from(latches) * self.identify_latch_fit_s
+    pub fn identify_hold_s(&self, fits: u32) -> f64 {
+        self.identify_base_s + f64::from(fits) * self.identify_fit_s
     }
 
     /// The course for a part of `part_mps2 = μg` on an output whose levels reach `linear_mps2`
